@@ -1,0 +1,55 @@
+# Builds the three backends of the particle-collision simulator and runs the test suite.
+# make            seq and omp (and cuda where nvcc exists)
+# make test       the whole suite (tests/run.sh); ends with "N passed, N failed"
+# make golden     regenerate outputs/ from seq (on purpose only)
+
+CC ?= cc
+NVCC ?= nvcc
+CFLAGS ?= -std=c99 -O2 -ffp-contract=off -Wall -Wextra
+OMPFLAGS ?= -fopenmp
+CUDA_ARCH ?= -gencode arch=compute_90,code=sm_90 -gencode arch=compute_80,code=sm_80
+NVCCFLAGS ?= -O2 --fmad=false -std=c++17 $(CUDA_ARCH)
+LDLIBS = -lm
+SANFLAGS = -std=c99 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=all
+
+HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
+PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
+TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
+
+.PHONY: all test golden bench clean tools
+all: $(PROGRAMS) $(TOOLS)
+ifneq ($(HAVE_NVCC),yes)
+	@echo "cuda skipped: $(NVCC) not found"
+endif
+
+io.o: io.c common.h Makefile
+	$(CC) $(CFLAGS) -c io.c -o $@
+
+seq: seq.c io.o common.h Makefile
+	$(CC) $(CFLAGS) seq.c io.o -o $@ $(LDLIBS)
+
+omp: omp.c io.o common.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c io.o -o $@ $(LDLIBS)
+
+cuda: cuda.cu io.o common.h Makefile
+	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu io.o -o $@ $(LDLIBS)
+
+# seq with address and undefined-behaviour checks, for the hard cases
+seq_san: seq.c io.c common.h Makefile
+	$(CC) $(SANFLAGS) seq.c io.c -o $@ $(LDLIBS)
+
+tools/%: tools/%.c common.h Makefile
+	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
+
+test: all seq_san
+	@bash tests/run.sh
+
+golden: seq
+	@for f in inputs/*.in; do ./seq "$$f" --quiet > outputs/$$(basename "$$f" .in).out || exit 1; done
+	@echo "outputs/ regenerated from seq"
+
+bench: all
+	./bench.sh --quick
+
+clean:
+	rm -f seq omp cuda seq_san io.o $(TOOLS)

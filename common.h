@@ -1,0 +1,223 @@
+/* common.h: the state, the parameters and the physics shared by every backend.
+ *
+ * The physics is written once, here, as static inline helpers that both C99 and CUDA compile, so that
+ * seq, omp and cuda run the very same arithmetic in the very same order (SPEC.md section 3). Build with
+ * -ffp-contract=off (gcc) and --fmad=false (nvcc): a fused multiply-add would change the last bit and,
+ * the dynamics being chaotic, every later digit.
+ *
+ * Units: lengths in the input's length unit, time in steps (one step = one time unit), velocities in
+ * length units per step, unit masses.
+ */
+#ifndef COMMON_H
+#define COMMON_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __CUDACC__
+#define SIM_HD __host__ __device__
+#else
+#define SIM_HD
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- limits of valid input (SPEC.md section 1) -------------------------------------------------- */
+
+#define SIM_MAX_N 2147483647LL     /* particles */
+#define SIM_MAX_STEPS 2147483647LL /* steps */
+#define SIM_MAX_L 1e50             /* side of the box */
+#define SIM_MIN_R 1e-50            /* radius */
+#define SIM_MAX_V 1e50             /* |vx|, |vy| */
+
+/* ---- parameters (read-only during a run) ------------------------------------------------------- */
+
+typedef struct {
+    int64_t n;     /* number of disks, 1..SIM_MAX_N */
+    double L;      /* side of the square box, length */
+    double r;      /* radius of every disk, length */
+    int64_t steps; /* S, number of steps (time units) to simulate */
+    int print;     /* 1: print the state after every step; 0: perf, first and last state only */
+    double lo;     /* smallest allowed centre coordinate: r */
+    double hi;     /* largest allowed centre coordinate: L - r */
+    double sigma2; /* squared contact distance: (r + r) * (r + r) */
+} Params;
+
+/* ---- state: structure of arrays, n entries each -------------------------------------------------- */
+
+typedef struct {
+    double *x, *y;   /* centres, length */
+    double *vx, *vy; /* velocities, length per step */
+    int32_t *pc;     /* collisions with other disks so far (at most one per step, so <= S fits) */
+    int32_t *wc;     /* collisions with walls so far */
+} Sim;
+
+/* ---- command-line options ------------------------------------------------------------------------ */
+
+typedef struct {
+    const char *path;  /* input file; "-" reads stdin */
+    const char *label; /* how messages name the input: the path, or "<stdin>" */
+    uint64_t seed;     /* seed of the random placement (SPEC.md 1) */
+    int seed_given;    /* 1 when --seed was on the command line */
+    int dump17;        /* 1: print reals with %.17g, enough to round-trip a double */
+    int threads;       /* omp: threads to use; 0 leaves it to OpenMP (OMP_NUM_THREADS) */
+    int quiet;         /* 1: no timing line on stderr */
+    int stats;         /* 1: print event and pair-test counts on stderr */
+    int check;         /* omp: check the broad phase against all pairs every step */
+} Options;
+
+/* What a backend reports about its run, printed on stderr by the driver. */
+typedef struct {
+    double seconds;      /* wall time of the step loop */
+    uint64_t pair_tests; /* narrow-phase pair tests done (0 if not counted) */
+    uint64_t events;     /* accepted events, wall and pair */
+} RunStats;
+
+typedef struct Output Output;
+
+/* ---- the backend interface: each of seq.c, omp.c and cuda.cu defines these ----------------------- */
+
+extern const char backend_name[];    /* program name used in messages: "seq", "omp", "cuda" */
+extern const char backend_options[]; /* backend-specific lines for --help ("" if none) */
+/* Runs par->steps steps on sim. In print mode it hands the state after steps 1..S-1 to io_write_state.
+ * On return sim holds the state after the last step, counts included. Returns 0, or non-zero after
+ * printing its own error message. */
+int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+
+/* ---- io.c: everything untimed ---------------------------------------------------------------------- */
+
+/* Upper bound on the bytes of one output line (a %.8f real can take 300+ digits). */
+#define IO_LINE_MAX 1600
+
+double io_now(void);                            /* monotonic clock, seconds */
+void io_fail(const char *fmt, ...);             /* "prog: message" on stderr, exit 1 */
+void *io_alloc(size_t count, size_t size);      /* calloc or io_fail */
+int sim_alloc(Sim *sim, int64_t n);             /* 0 on success */
+void sim_free(Sim *sim);
+/* Formats output line i of a state (counts included when with_counts) at dst; returns its length. */
+size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts,
+                      int dump17);
+/* Appends the lines of particles [from, to) of one state to the output. */
+void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int64_t to,
+                    int with_counts);
+void io_write_bytes(Output *out, const char *bytes, size_t len);
+int io_dump17(const Output *out);
+/* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
+void io_progress(Output *out, int64_t step);
+
+/* ---- the physics of SPEC.md section 3 ------------------------------------------------------------ */
+
+/* Time until a centre at coordinate c with velocity v reaches lo or hi (3.1): +inf if v == 0, never
+ * negative. "<= 0" rather than "< 0" also turns -0.0 into +0.0, so event times are never -0.0. */
+static inline SIM_HD double wall_time(double c, double v, double lo, double hi)
+{
+    double t = INFINITY;
+    if (v > 0) t = (hi - c) / v;
+    if (v < 0) t = (lo - c) / v;
+    if (t <= 0) t = 0;
+    return t;
+}
+
+static inline SIM_HD double min_time(double a, double b)
+{
+    return b < a ? b : a;
+}
+
+/* Time of the pair event of disks i and j (3.2), or -1 when the pair has no event this step. The
+ * root form c / (-b + sqrt(D)) never subtracts nearly equal numbers. */
+static inline SIM_HD double pair_time(double xi, double yi, double vxi, double vyi, double xj,
+                                      double yj, double vxj, double vyj, double sigma2)
+{
+    double dx = xj - xi, dy = yj - yi;
+    double dvx = vxj - vxi, dvy = vyj - vyi;
+    double b = dx * dvx + dy * dvy;
+    if (!(b < 0)) return -1;
+    double dd = dx * dx + dy * dy;
+    if (!(dd > 0)) return -1;
+    double a = dvx * dvx + dvy * dvy;
+    double c = dd - sigma2;
+    double D = b * b - a * c;
+    if (!(D > 0)) return -1;
+    double t = c / (-b + sqrt(D));
+    if (t <= 0) t = 0;
+    if (!(t <= 1)) return -1;
+    return t;
+}
+
+/* The event order of 3.3: (t, kind, i, j) ascending; kind 0 is a wall event (j == i), 1 a pair. */
+static inline SIM_HD int event_before(double ta, int ka, int64_t ia, int64_t ja, double tb, int kb,
+                                      int64_t ib, int64_t jb)
+{
+    if (ta != tb) return ta < tb;
+    if (ka != kb) return ka < kb;
+    if (ia != ib) return ia < ib;
+    return ja < jb;
+}
+
+/* Moves disk i to its wall event at t1 and reflects the axes that hit (3.4). */
+static inline SIM_HD void wall_bounce(double *x, double *y, double *vx, double *vy, double t1,
+                                      double lo, double hi)
+{
+    double tx = wall_time(*x, *vx, lo, hi), ty = wall_time(*y, *vy, lo, hi);
+    if (tx == t1) {
+        *x = *vx > 0 ? hi : lo;
+        *vx = -*vx;
+    } else {
+        *x = *x + *vx * t1;
+    }
+    if (ty == t1) {
+        *y = *vy > 0 ? hi : lo;
+        *vy = -*vy;
+    } else {
+        *y = *y + *vy * t1;
+    }
+}
+
+/* Elastic response of two equal disks in contact (3.4): the normal components swap, the tangential
+ * ones stay. Coincident centres have no normal; their velocities are left alone. */
+static inline SIM_HD void pair_bounce(double xi, double yi, double *vxi, double *vyi, double xj,
+                                      double yj, double *vxj, double *vyj)
+{
+    double nx = xj - xi, ny = yj - yi;
+    double len = sqrt(nx * nx + ny * ny);
+    if (len == 0) return;
+    double ux = nx / len, uy = ny / len;
+    double vni = ux * *vxi + uy * *vyi, vti = ux * *vyi - uy * *vxi;
+    double vnj = ux * *vxj + uy * *vyj, vtj = ux * *vyj - uy * *vxj;
+    *vxi = vnj * ux - vti * uy;
+    *vyi = vnj * uy + vti * ux;
+    *vxj = vni * ux - vtj * uy;
+    *vyj = vni * uy + vtj * ux;
+}
+
+/* The rest of the step after an event at t1 (3.4): fly on for 1 - t1, or stop touching the first wall
+ * on the way, velocity unreflected (that collision happens, and counts, next step). */
+static inline SIM_HD void finish_step(double *x, double *y, double vx, double vy, double t1,
+                                      double lo, double hi)
+{
+    double rem = 1 - t1;
+    double tx = wall_time(*x, vx, lo, hi), ty = wall_time(*y, vy, lo, hi);
+    double t2 = min_time(tx, ty);
+    if (t2 <= rem) {
+        *x = tx == t2 ? (vx > 0 ? hi : lo) : *x + vx * t2;
+        *y = ty == t2 ? (vy > 0 ? hi : lo) : *y + vy * t2;
+    } else {
+        *x = *x + vx * rem;
+        *y = *y + vy * rem;
+    }
+}
+
+/* Keeps a coordinate in [lo, hi]: only one-ulp rounding ever needs it. */
+static inline SIM_HD double clamp_coord(double c, double lo, double hi)
+{
+    return c < lo ? lo : (c > hi ? hi : c);
+}
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COMMON_H */

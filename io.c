@@ -1,0 +1,721 @@
+/* io.c: everything outside the timed step loop, shared by every backend.
+ *
+ * The driver (main), the command line, reading and validating the input (SPEC.md 1 and 6), the seeded
+ * random placement, the exact %.8f formatter and buffered output (SPEC.md 2), clocks and progress.
+ * Every input error is found before the first byte goes to stdout.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include "common.h"
+
+#include <errno.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#define DEFAULT_SEED 1u
+#define OUT_BUFFER (8u << 20) /* bytes gathered before one write(2) */
+#define PLACE_TRIES 10000     /* random positions tried for one disk before giving up */
+
+/* ==== messages, memory and clocks ==================================================================== */
+
+void io_fail(const char *fmt, ...)
+{
+    va_list ap;
+    fprintf(stderr, "%s: ", backend_name);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    exit(1);
+}
+
+void *io_alloc(size_t count, size_t size)
+{
+    if (count == 0) count = 1;
+    if (count > SIZE_MAX / size) io_fail("out of memory (%zu x %zu bytes)", count, size);
+    void *p = calloc(count, size);
+    if (!p) io_fail("out of memory (%zu x %zu bytes)", count, size);
+    return p;
+}
+
+double io_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int sim_alloc(Sim *sim, int64_t n)
+{
+    size_t m = (size_t)n;
+    memset(sim, 0, sizeof *sim);
+    sim->x = malloc(m * sizeof(double));
+    sim->y = malloc(m * sizeof(double));
+    sim->vx = malloc(m * sizeof(double));
+    sim->vy = malloc(m * sizeof(double));
+    sim->pc = calloc(m, sizeof(int32_t));
+    sim->wc = calloc(m, sizeof(int32_t));
+    if (sim->x && sim->y && sim->vx && sim->vy && sim->pc && sim->wc) return 0;
+    sim_free(sim);
+    return -1;
+}
+
+void sim_free(Sim *sim)
+{
+    free(sim->x);
+    free(sim->y);
+    free(sim->vx);
+    free(sim->vy);
+    free(sim->pc);
+    free(sim->wc);
+    memset(sim, 0, sizeof *sim);
+}
+
+/* ==== output ============================================================================================ */
+
+struct Output {
+    char *buf;         /* pending bytes */
+    size_t len;        /* bytes pending in buf */
+    int dump17;        /* reals as %.17g instead of %.8f */
+    int progress;      /* stderr is a terminal */
+    int64_t steps;     /* for the progress line */
+    double start;      /* io_now() when the step loop began */
+    double next_show;  /* io_now() of the next progress update */
+    int shown;         /* a progress line is on the terminal */
+};
+
+static void write_all(const char *bytes, size_t len)
+{
+    size_t done = 0;
+    while (done < len) {
+        ssize_t w = write(STDOUT_FILENO, bytes + done, len - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) io_fail("cannot write output: %s", w < 0 ? strerror(errno) : "short write");
+        done += (size_t)w;
+    }
+}
+
+static void out_flush(Output *out)
+{
+    write_all(out->buf, out->len);
+    out->len = 0;
+}
+
+void io_write_bytes(Output *out, const char *bytes, size_t len)
+{
+    if (out->len + len > OUT_BUFFER) out_flush(out);
+    if (len >= OUT_BUFFER) {
+        write_all(bytes, len); /* nothing pending: write straight through */
+        return;
+    }
+    memcpy(out->buf + out->len, bytes, len);
+    out->len += len;
+}
+
+int io_dump17(const Output *out)
+{
+    return out->dump17;
+}
+
+/* Writes the decimal digits of u; returns the end. */
+static char *put_uint(char *p, uint64_t u)
+{
+    char tmp[24];
+    int k = 0;
+    do {
+        tmp[k++] = (char)('0' + u % 10);
+        u /= 10;
+    } while (u);
+    while (k) *p++ = tmp[--k];
+    return p;
+}
+
+static char *put_int(char *p, int64_t v)
+{
+    if (v < 0) {
+        *p++ = '-';
+        return put_uint(p, (uint64_t)0 - (uint64_t)v);
+    }
+    return put_uint(p, (uint64_t)v);
+}
+
+/* v formatted exactly as printf("%.8f", v) does: the exact binary value rounded half to even at the
+ * 8th decimal, "-" on every negative value (so -0.0 and -1e-9 give "-0.00000000"). The exact value
+ * m * 2^e times 10^8 fits in 128 bits whenever |v| < 2^64; larger values, inf and nan go to printf. */
+static char *put_fixed8(char *p, double v)
+{
+#ifdef __SIZEOF_INT128__
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    int biased = (int)((bits >> 52) & 0x7ff);
+    uint64_t m = bits & ((UINT64_C(1) << 52) - 1);
+    int e = biased ? biased - 1075 : -1074;
+    if (biased) m |= UINT64_C(1) << 52;
+    if (biased != 0x7ff && e <= 11) {
+        unsigned __int128 q = (unsigned __int128)m * 100000000u;
+        if (e >= 0) {
+            q <<= e;
+        } else if (-e >= 100) {
+            q = 0; /* m * 10^8 < 2^80 is below half a unit: rounds to zero */
+        } else {
+            int s = -e;
+            unsigned __int128 rem = q & (((unsigned __int128)1 << s) - 1);
+            unsigned __int128 half = (unsigned __int128)1 << (s - 1);
+            q >>= s;
+            if (rem > half || (rem == half && (q & 1))) q++;
+        }
+        if (bits >> 63) *p++ = '-';
+        p = put_uint(p, (uint64_t)(q / 100000000u));
+        uint32_t frac = (uint32_t)(q % 100000000u);
+        *p++ = '.';
+        for (int k = 7; k >= 0; k--) {
+            p[k] = (char)('0' + frac % 10);
+            frac /= 10;
+        }
+        return p + 8;
+    }
+#endif
+    return p + sprintf(p, "%.8f", v);
+}
+
+static char *put_real(char *p, double v, int dump17)
+{
+    if (dump17) return p + sprintf(p, "%.17g", v);
+    return put_fixed8(p, v);
+}
+
+size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts, int dump17)
+{
+    char *p = put_int(dst, step);
+    *p++ = ' ';
+    p = put_int(p, i);
+    *p++ = ' ';
+    p = put_real(p, sim->x[i], dump17);
+    *p++ = ' ';
+    p = put_real(p, sim->y[i], dump17);
+    *p++ = ' ';
+    p = put_real(p, sim->vx[i], dump17);
+    *p++ = ' ';
+    p = put_real(p, sim->vy[i], dump17);
+    if (with_counts) {
+        *p++ = ' ';
+        p = put_int(p, sim->pc[i]);
+        *p++ = ' ';
+        p = put_int(p, sim->wc[i]);
+    }
+    *p++ = '\n';
+    return (size_t)(p - dst);
+}
+
+void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int64_t to,
+                    int with_counts)
+{
+    for (int64_t i = from; i < to; i++) {
+        if (out->len + IO_LINE_MAX > OUT_BUFFER) out_flush(out);
+        out->len += io_format_line(out->buf + out->len, step, i, sim, with_counts, out->dump17);
+    }
+}
+
+void io_progress(Output *out, int64_t step)
+{
+    if (!out->progress) return;
+    double now = io_now();
+    if (now < out->next_show) return;
+    out->next_show = now + 0.5;
+    double spent = now - out->start;
+    if (spent < 2.0 || step <= 0) return;
+    double left = spent * (double)(out->steps - step) / (double)step;
+    fprintf(stderr, "\r%s: step %lld of %lld (%.0f%%), %.0f s left   ", backend_name, (long long)step,
+            (long long)out->steps, 100.0 * (double)step / (double)out->steps, left);
+    out->shown = 1;
+}
+
+/* ==== reading the input ==================================================================================== */
+
+typedef struct {
+    const char *label; /* file name for messages */
+    char *text;        /* whole input, NUL-terminated */
+    size_t size;
+    size_t pos;  /* start of the next line */
+    long line;   /* number of the line last returned, 1-based */
+    char *tok[8]; /* tokens of that line (NUL-terminated in place) */
+    int ntok;     /* tokens found; more than 8 counts on */
+} Reader;
+
+static void input_error(const Reader *rd, long line, const char *fmt, ...)
+{
+    va_list ap;
+    fprintf(stderr, "%s: %s:%ld: ", backend_name, rd->label, line);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    exit(1);
+}
+
+static char *slurp(const Options *opt, size_t *size)
+{
+    FILE *f = stdin;
+    if (strcmp(opt->path, "-") != 0) {
+        f = fopen(opt->path, "rb");
+        if (!f) io_fail("cannot open %s: %s", opt->path, strerror(errno));
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *buf = io_alloc(cap, 1);
+    for (;;) {
+        if (cap - len < 2) {
+            if (cap > SIZE_MAX / 2) io_fail("%s: input too large", opt->label);
+            char *grown = realloc(buf, cap * 2);
+            if (!grown) io_fail("%s: out of memory reading the input", opt->label);
+            buf = grown;
+            cap *= 2;
+        }
+        size_t got = fread(buf + len, 1, cap - len - 1, f);
+        len += got;
+        if (got == 0) break;
+    }
+    if (ferror(f)) io_fail("cannot read %s: %s", opt->label, strerror(errno));
+    if (f != stdin) fclose(f);
+    buf[len] = '\0';
+    *size = len;
+    return buf;
+}
+
+static int is_space(char c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+/* Splits the next non-blank line into tokens; returns 0 at the end of the input. */
+static int next_record(Reader *rd)
+{
+    while (rd->pos < rd->size) {
+        char *s = rd->text + rd->pos;
+        char *nl = memchr(s, '\n', rd->size - rd->pos);
+        char *end = nl ? nl : rd->text + rd->size;
+        rd->pos = (size_t)(end - rd->text) + (nl ? 1 : 0);
+        rd->line++;
+        *end = '\0';
+        rd->ntok = 0;
+        for (char *p = s; p < end;) {
+            while (p < end && is_space(*p)) p++;
+            if (p == end) break;
+            char *t = p;
+            while (p < end && !is_space(*p)) p++;
+            *p = '\0';
+            if (rd->ntok < 8) rd->tok[rd->ntok] = t;
+            rd->ntok++;
+            p++;
+        }
+        if (rd->ntok > 0) return 1;
+    }
+    return 0;
+}
+
+/* Accepts [+-]digits, nothing else (an embedded NUL byte ends the token early and is caught by the
+ * length check). */
+static int parse_int(const char *s, long long *out)
+{
+    const char *p = s;
+    if (*p == '+' || *p == '-') p++;
+    if (!*p) return -1;
+    for (const char *q = p; *q; q++)
+        if (*q < '0' || *q > '9') return -1;
+    errno = 0;
+    char *end;
+    *out = strtoll(s, &end, 10);
+    if (errno == ERANGE) return -2;
+    return *end ? -1 : 0;
+}
+
+static int ieq(const char *a, const char *b)
+{
+    for (; *a && *b; a++, b++) {
+        char ca = *a >= 'A' && *a <= 'Z' ? (char)(*a + 32) : *a;
+        if (ca != *b) return 0;
+    }
+    return *a == *b;
+}
+
+/* Accepts decimal reals: [+-] digits [. digits] [e [+-] digits] (at least one digit in the mantissa).
+ * Returns 0, -1 (not a number), -2 (overflow) or -3 (nan or inf). */
+static int parse_real(const char *s, double *out)
+{
+    const char *p = s;
+    if (*p == '+' || *p == '-') p++;
+    if (ieq(p, "nan") || ieq(p, "inf") || ieq(p, "infinity")) return -3;
+    int digits = 0;
+    while (*p >= '0' && *p <= '9') p++, digits++;
+    if (*p == '.') {
+        p++;
+        while (*p >= '0' && *p <= '9') p++, digits++;
+    }
+    if (!digits) return -1;
+    if (*p == 'e' || *p == 'E') {
+        p++;
+        if (*p == '+' || *p == '-') p++;
+        if (!(*p >= '0' && *p <= '9')) return -1;
+        while (*p >= '0' && *p <= '9') p++;
+    }
+    if (*p) return -1;
+    errno = 0;
+    *out = strtod(s, NULL);
+    if (errno == ERANGE && (*out == HUGE_VAL || *out == -HUGE_VAL)) return -2;
+    return 0; /* underflow rounds to a tiny or zero value, which is still a finite real */
+}
+
+static const char *real_problem(int rc)
+{
+    return rc == -3 ? "must be a finite number" : rc == -2 ? "is out of range" : "is not a number";
+}
+
+/* Reads the one-token record named what; returns its token. */
+static const char *header_token(Reader *rd, const char *what)
+{
+    if (!next_record(rd)) input_error(rd, rd->line + 1, "missing %s (end of input)", what);
+    if (rd->ntok != 1)
+        input_error(rd, rd->line, "expected only %s on this line (found %d fields)", what, rd->ntok);
+    return rd->tok[0];
+}
+
+static double header_real(Reader *rd, const char *what)
+{
+    const char *t = header_token(rd, what);
+    double v;
+    int rc = parse_real(t, &v);
+    if (rc) input_error(rd, rd->line, "%s %s (found '%s')", what, real_problem(rc), t);
+    return v;
+}
+
+static long long header_int(Reader *rd, const char *what, long long lo, long long hi)
+{
+    const char *t = header_token(rd, what);
+    long long v;
+    int rc = parse_int(t, &v);
+    if (rc == -1) input_error(rd, rd->line, "%s is not an integer (found '%s')", what, t);
+    if (rc == -2 || v < lo || v > hi)
+        input_error(rd, rd->line, "%s must be between %lld and %lld (found '%s')", what, lo, hi, t);
+    return v;
+}
+
+static void read_header(Reader *rd, Params *par)
+{
+    par->n = header_int(rd, "the number of particles N", 1, SIM_MAX_N);
+    par->L = header_real(rd, "the box size L");
+    if (!(par->L > 0 && par->L <= SIM_MAX_L))
+        input_error(rd, rd->line, "the box size L must be > 0 and <= 1e50 (found '%s')", rd->tok[0]);
+    par->r = header_real(rd, "the radius r");
+    if (!(par->r >= SIM_MIN_R))
+        input_error(rd, rd->line, "the radius r must be >= 1e-50 (found '%s')", rd->tok[0]);
+    if (!(2 * par->r < par->L))
+        input_error(rd, rd->line, "the radius r must satisfy 2r < L = %.17g (found '%s')", par->L,
+                    rd->tok[0]);
+    par->steps = header_int(rd, "the number of steps S", 0, SIM_MAX_STEPS);
+    const char *mode = header_token(rd, "the mode 'print' or 'perf'");
+    if (strcmp(mode, "print") == 0) {
+        par->print = 1;
+    } else if (strcmp(mode, "perf") == 0) {
+        par->print = 0;
+    } else {
+        input_error(rd, rd->line, "the mode must be 'print' or 'perf' (found '%s')", mode);
+    }
+    par->lo = par->r;
+    par->hi = par->L - par->r;
+    par->sigma2 = (par->r + par->r) * (par->r + par->r);
+}
+
+static const char *const field_name[5] = {"index i", "x", "y", "vx", "vy"};
+
+/* Reads the particle lines, if any; returns how many there were (0 or n). */
+static int64_t read_particles(Reader *rd, const Params *par, Sim *sim)
+{
+    int64_t n = par->n, seen = 0;
+    long *first_line = NULL; /* line of each index, to name both lines of a duplicate */
+    while (next_record(rd)) {
+        if (!first_line) first_line = io_alloc((size_t)n, sizeof *first_line);
+        if (seen == n)
+            input_error(rd, rd->line, "more particle lines than N = %lld (found another one)",
+                        (long long)n);
+        if (rd->ntok != 5)
+            input_error(rd, rd->line, "expected 5 fields 'i x y vx vy' (found %d)", rd->ntok);
+        long long idx;
+        int rc = parse_int(rd->tok[0], &idx);
+        if (rc == -1) input_error(rd, rd->line, "index i is not an integer (found '%s')", rd->tok[0]);
+        if (rc == -2 || idx < 0 || idx >= n)
+            input_error(rd, rd->line, "index i must be between 0 and %lld (found '%s')",
+                        (long long)n - 1, rd->tok[0]);
+        if (first_line[idx])
+            input_error(rd, rd->line, "index %lld given twice (first on line %ld)", idx,
+                        first_line[idx]);
+        first_line[idx] = rd->line;
+        double v[4];
+        for (int k = 0; k < 4; k++) {
+            rc = parse_real(rd->tok[k + 1], &v[k]);
+            if (rc)
+                input_error(rd, rd->line, "%s %s (found '%s')", field_name[k + 1], real_problem(rc),
+                            rd->tok[k + 1]);
+        }
+        for (int k = 0; k < 2; k++)
+            if (!(v[k] >= par->lo && v[k] <= par->hi))
+                input_error(rd, rd->line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
+                            field_name[k + 1], par->lo, par->hi, rd->tok[k + 1]);
+        for (int k = 2; k < 4; k++)
+            if (!(fabs(v[k]) <= SIM_MAX_V))
+                input_error(rd, rd->line, "|%s| must be <= 1e50 (found '%s')", field_name[k + 1],
+                            rd->tok[k + 1]);
+        sim->x[idx] = v[0];
+        sim->y[idx] = v[1];
+        sim->vx[idx] = v[2];
+        sim->vy[idx] = v[3];
+        seen++;
+    }
+    if (seen > 0 && seen < n) {
+        int64_t missing = 0;
+        while (first_line[missing]) missing++;
+        input_error(rd, rd->line + 1,
+                    "expected %lld particle lines, found %lld (index %lld is missing; end of input)",
+                    (long long)n, (long long)seen, (long long)missing);
+    }
+    free(first_line);
+    return seen;
+}
+
+/* ==== random placement (SPEC.md 1) ========================================================================== */
+
+/* xoshiro256** seeded through splitmix64: fast, and the same numbers on every platform. */
+typedef struct {
+    uint64_t s[4];
+} Rng;
+
+static uint64_t splitmix64(uint64_t *state)
+{
+    uint64_t z = (*state += UINT64_C(0x9e3779b97f4a7c15));
+    z = (z ^ (z >> 30)) * UINT64_C(0xbf58476d1ce4e5b9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94d049bb133111eb);
+    return z ^ (z >> 31);
+}
+
+static uint64_t rotl(uint64_t x, int k)
+{
+    return (x << k) | (x >> (64 - k));
+}
+
+static uint64_t rng_next(Rng *g)
+{
+    uint64_t *s = g->s;
+    uint64_t result = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
+    s[2] ^= s[0];
+    s[3] ^= s[1];
+    s[1] ^= s[2];
+    s[0] ^= s[3];
+    s[2] ^= t;
+    s[3] = rotl(s[3], 45);
+    return result;
+}
+
+/* Uniform in [0, 1) with 53 random bits. */
+static double rng_unit(Rng *g)
+{
+    return (double)(rng_next(g) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* Places n non-overlapping disks uniformly, each tried up to PLACE_TRIES times. A grid of cells at least
+ * 2r wide, about one disk per cell, makes each overlap test look at 9 cells: expected O(n) in all. */
+static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *sim)
+{
+    Rng g;
+    uint64_t sm = seed;
+    for (int k = 0; k < 4; k++) g.s[k] = splitmix64(&sm);
+    double lo = par->lo, hi = par->hi, span = hi - lo;
+    double side = sqrt((double)par->n) + 1;
+    double fit = par->L / (2 * par->r); /* most cells per side that stay >= 2r wide */
+    int64_t cells = (int64_t)(side < fit ? side : fit);
+    if (cells < 1) cells = 1;
+    double cell = par->L / (double)cells;
+    int32_t *head = io_alloc((size_t)(cells * cells), sizeof *head);
+    int32_t *next = io_alloc((size_t)par->n, sizeof *next);
+    memset(head, 0xff, (size_t)(cells * cells) * sizeof *head);
+    double smin = par->L / 4, smax = par->L / (8 * par->r);
+    if (smax < smin) {
+        double t = smin;
+        smin = smax;
+        smax = t;
+    }
+    const double two_pi = 6.283185307179586;
+    for (int64_t i = 0; i < par->n; i++) {
+        int tries = 0, placed = 0;
+        double x = lo, y = lo;
+        int64_t cx = 0, cy = 0;
+        while (!placed) {
+            if (++tries > PLACE_TRIES)
+                input_error(rd, 1,
+                            "cannot place %lld disks of radius %g without overlap in a box of side "
+                            "%g (disk %lld failed %d tries; area fraction %.3f)",
+                            (long long)par->n, par->r, par->L, (long long)i, PLACE_TRIES,
+                            (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
+            x = clamp_coord(lo + span * rng_unit(&g), lo, hi);
+            y = clamp_coord(lo + span * rng_unit(&g), lo, hi);
+            cx = (int64_t)(x / cell);
+            cy = (int64_t)(y / cell);
+            if (cx >= cells) cx = cells - 1;
+            if (cy >= cells) cy = cells - 1;
+            placed = 1;
+            for (int64_t ny = cy - 1; ny <= cy + 1 && placed; ny++) {
+                for (int64_t nx = cx - 1; nx <= cx + 1 && placed; nx++) {
+                    if (nx < 0 || ny < 0 || nx >= cells || ny >= cells) continue;
+                    for (int32_t j = head[ny * cells + nx]; j >= 0; j = next[j]) {
+                        double dx = sim->x[j] - x, dy = sim->y[j] - y;
+                        if (dx * dx + dy * dy < par->sigma2) {
+                            placed = 0;
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        sim->x[i] = x;
+        sim->y[i] = y;
+        next[i] = head[cy * cells + cx];
+        head[cy * cells + cx] = (int32_t)i;
+        double speed = smin + (smax - smin) * rng_unit(&g);
+        double angle = two_pi * rng_unit(&g);
+        sim->vx[i] = speed * cos(angle);
+        sim->vy[i] = speed * sin(angle);
+    }
+    free(head);
+    free(next);
+}
+
+/* Reads and validates the whole input; generates the disks when the input lists none. */
+static void io_read_input(const Options *opt, Params *par, Sim *sim)
+{
+    Reader rd;
+    memset(&rd, 0, sizeof rd);
+    rd.label = opt->label;
+    rd.text = slurp(opt, &rd.size);
+    read_header(&rd, par);
+    if (sim_alloc(sim, par->n))
+        input_error(&rd, 1, "not enough memory for N = %lld particles", (long long)par->n);
+    if (read_particles(&rd, par, sim) == 0) {
+        generate(&rd, par, opt->seed, sim);
+        if (!opt->quiet)
+            fprintf(stderr, "%s: generated %lld disks with seed %llu\n", backend_name,
+                    (long long)par->n, (unsigned long long)opt->seed);
+    }
+    free(rd.text);
+}
+
+/* ==== command line and driver ====================================================================== */
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: %s [INPUT|-] [options]\n"
+            "Simulates N elastic disks in an L x L box, one collision per disk per step (SPEC.md).\n"
+            "INPUT is the input file; '-' or none reads standard input.\n"
+            "Output (stdout): step 0, every step in print mode, and the final step with collision counts.\n"
+            "Timing and messages go to stderr.\n"
+            "\n"
+            "options:\n"
+            "  --seed N     seed of the random placement when the input lists no disks (default %u)\n"
+            "  --dump17     print reals with %%.17g (round-trip precision) instead of %%.8f\n"
+            "  --stats      print event and pair-test counts on stderr\n"
+            "  --quiet      no timing line on stderr\n"
+            "  --help       this text\n"
+            "%s",
+            backend_name, DEFAULT_SEED, backend_options);
+}
+
+static long long option_value(int argc, char **argv, int *k, long long lo, long long hi)
+{
+    const char *name = argv[*k];
+    if (*k + 1 >= argc) io_fail("%s needs a value (see --help)", name);
+    const char *val = argv[++*k];
+    long long v;
+    if (parse_int(val, &v) || v < lo || v > hi)
+        io_fail("%s must be an integer between %lld and %lld (found '%s')", name, lo, hi, val);
+    return v;
+}
+
+static void parse_args(int argc, char **argv, Options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    opt->seed = DEFAULT_SEED;
+    opt->path = NULL;
+    int own_threads = strcmp(backend_name, "omp") == 0;
+    for (int k = 1; k < argc; k++) {
+        const char *a = argv[k];
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            exit(0);
+        } else if (strcmp(a, "--seed") == 0) {
+            opt->seed = (uint64_t)option_value(argc, argv, &k, 0, 9223372036854775807LL);
+            opt->seed_given = 1;
+        } else if (strcmp(a, "--dump17") == 0) {
+            opt->dump17 = 1;
+        } else if (strcmp(a, "--stats") == 0) {
+            opt->stats = 1;
+        } else if (strcmp(a, "--quiet") == 0) {
+            opt->quiet = 1;
+        } else if (own_threads && strcmp(a, "--threads") == 0) {
+            opt->threads = (int)option_value(argc, argv, &k, 1, 4096);
+        } else if (own_threads && strcmp(a, "--check") == 0) {
+            opt->check = 1;
+        } else if (a[0] == '-' && a[1] != '\0') {
+            io_fail("unknown option '%s' (see --help)", a);
+        } else if (opt->path) {
+            io_fail("more than one input given ('%s' and '%s')", opt->path, a);
+        } else {
+            opt->path = a;
+        }
+    }
+    if (!opt->path) opt->path = "-";
+    opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
+}
+
+int main(int argc, char **argv)
+{
+    Options opt;
+    Params par;
+    Sim sim;
+    parse_args(argc, argv, &opt);
+    signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
+    io_read_input(&opt, &par, &sim);
+
+    Output out;
+    memset(&out, 0, sizeof out);
+    out.buf = io_alloc(OUT_BUFFER, 1);
+    out.dump17 = opt.dump17;
+    out.progress = isatty(STDERR_FILENO);
+    out.steps = par.steps;
+    io_write_state(&out, 0, &sim, 0, par.n, 0);
+
+    RunStats st;
+    memset(&st, 0, sizeof st);
+    out.start = io_now();
+    out.next_show = out.start + 2.0;
+    if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
+    if (out.shown) fputc('\n', stderr);
+
+    io_write_state(&out, par.steps, &sim, 0, par.n, 1);
+    out_flush(&out);
+    if (!opt.quiet) {
+        double ps = (double)par.n * (double)par.steps;
+        fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",
+                backend_name, (long long)par.n, (long long)par.steps, par.print ? "print" : "perf",
+                st.seconds, st.seconds > 0 ? ps / st.seconds : 0.0);
+    }
+    if (opt.stats)
+        fprintf(stderr, "%s: %llu pair tests (%.4g per particle-step), %llu events\n", backend_name,
+                (unsigned long long)st.pair_tests,
+                par.steps ? (double)st.pair_tests / ((double)par.n * (double)par.steps) : 0.0,
+                (unsigned long long)st.events);
+    free(out.buf);
+    sim_free(&sim);
+    return 0;
+}

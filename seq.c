@@ -1,0 +1,138 @@
+/* seq.c: the sequential reference.
+ *
+ * The simplest code that is obviously SPEC.md section 3: every wall and every pair tested each step,
+ * all events sorted by (t, kind, i, j), the greedy one-event-per-disk choice, the moves. O(N^2) per
+ * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly.
+ */
+#include "common.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+const char backend_name[] = "seq";
+const char backend_options[] = "";
+
+typedef struct {
+    double t;  /* time of the event within the step, 0..1 */
+    int kind;  /* 0: wall, 1: pair */
+    int64_t i; /* the disk (wall) or the lower index (pair) */
+    int64_t j; /* the higher index (pair); i for a wall */
+} Event;
+
+typedef struct {
+    Event *ev;
+    size_t len, cap;
+} EventList;
+
+static void events_push(EventList *l, double t, int kind, int64_t i, int64_t j)
+{
+    if (l->len == l->cap) {
+        l->cap = l->cap ? 2 * l->cap : 1024;
+        Event *grown = realloc(l->ev, l->cap * sizeof *grown);
+        if (!grown) io_fail("out of memory for %zu events", l->cap);
+        l->ev = grown;
+    }
+    Event e = {t, kind, i, j};
+    l->ev[l->len++] = e;
+}
+
+static int event_cmp(const void *pa, const void *pb)
+{
+    const Event *a = pa, *b = pb;
+    if (event_before(a->t, a->kind, a->i, a->j, b->t, b->kind, b->i, b->j)) return -1;
+    if (event_before(b->t, b->kind, b->i, b->j, a->t, a->kind, a->i, a->j)) return 1;
+    return 0;
+}
+
+/* 3.1: every disk's wall event, if it comes within the step. */
+static void detect_walls(const Sim *s, const Params *p, EventList *l)
+{
+    for (int64_t i = 0; i < p->n; i++) {
+        double tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
+                             wall_time(s->y[i], s->vy[i], p->lo, p->hi));
+        if (tw <= 1) events_push(l, tw, 0, i, i);
+    }
+}
+
+/* 3.2: every pair's event, if it comes within the step. */
+static uint64_t detect_pairs(const Sim *s, const Params *p, EventList *l)
+{
+    for (int64_t i = 0; i < p->n; i++)
+        for (int64_t j = i + 1; j < p->n; j++) {
+            double t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
+                                 s->vy[j], p->sigma2);
+            if (t >= 0) events_push(l, t, 1, i, j);
+        }
+    return (uint64_t)p->n * (uint64_t)(p->n - 1) / 2;
+}
+
+/* 3.3: walk the events in key order, accepting each whose disks are still free. event_of[i] gets the
+ * index of disk i's accepted event, or -1. */
+static uint64_t choose_events(EventList *l, int64_t n, int64_t *event_of)
+{
+    uint64_t accepted = 0;
+    qsort(l->ev, l->len, sizeof *l->ev, event_cmp);
+    for (int64_t i = 0; i < n; i++) event_of[i] = -1;
+    for (size_t k = 0; k < l->len; k++) {
+        const Event *e = &l->ev[k];
+        if (event_of[e->i] >= 0 || event_of[e->j] >= 0) continue;
+        event_of[e->i] = event_of[e->j] = (int64_t)k;
+        accepted++;
+    }
+    return accepted;
+}
+
+/* 3.4 and 3.5: move every disk through the step, its accepted event included. */
+static void move(Sim *s, const Params *p, const EventList *l, const int64_t *event_of)
+{
+    double lo = p->lo, hi = p->hi;
+    for (int64_t i = 0; i < p->n; i++) {
+        if (event_of[i] < 0) {
+            s->x[i] = s->x[i] + s->vx[i];
+            s->y[i] = s->y[i] + s->vy[i];
+            continue;
+        }
+        const Event *e = &l->ev[event_of[i]];
+        if (e->kind == 0) {
+            wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], e->t, lo, hi);
+            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
+            s->wc[i]++;
+        } else if (i == e->i) { /* the pair is handled once, from its lower index */
+            int64_t j = e->j;
+            s->x[i] = s->x[i] + s->vx[i] * e->t;
+            s->y[i] = s->y[i] + s->vy[i] * e->t;
+            s->x[j] = s->x[j] + s->vx[j] * e->t;
+            s->y[j] = s->y[j] + s->vy[j] * e->t;
+            pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
+            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
+            finish_step(&s->x[j], &s->y[j], s->vx[j], s->vy[j], e->t, lo, hi);
+            s->pc[i]++;
+            s->pc[j]++;
+        }
+    }
+    for (int64_t i = 0; i < p->n; i++) {
+        s->x[i] = clamp_coord(s->x[i], lo, hi);
+        s->y[i] = clamp_coord(s->y[i], lo, hi);
+    }
+}
+
+int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
+{
+    (void)opt;
+    EventList events = {NULL, 0, 0};
+    int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
+    double t0 = io_now();
+    for (int64_t step = 1; step <= par->steps; step++) {
+        events.len = 0;
+        detect_walls(sim, par, &events);
+        st->pair_tests += detect_pairs(sim, par, &events);
+        st->events += choose_events(&events, par->n, event_of);
+        move(sim, par, &events, event_of);
+        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, par->n, 0);
+        io_progress(out, step);
+    }
+    st->seconds = io_now() - t0;
+    free(events.ev);
+    free(event_of);
+    return 0;
+}

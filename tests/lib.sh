@@ -1,0 +1,27 @@
+# tests/lib.sh: the helpers every test file uses. Sourced by tests/run.sh, never run alone.
+# Each check prints one PASS/FAIL/SKIP line; run.sh prints the totals.
+
+TMP=${TMP:-tests/tmp}
+mkdir -p "$TMP"
+
+pass() { PASSED=$((PASSED + 1)); echo "PASS $1"; }
+fail() { FAILED=$((FAILED + 1)); echo "FAIL $1${2:+: $2}"; }
+skip() { SKIPPED=$((SKIPPED + 1)); echo "SKIP $1${2:+: $2}"; }
+
+# The backends this machine can run: seq and omp always, cuda where it was built and a GPU answers.
+have_gpu() { [ -x ./cuda ] && command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L >/dev/null 2>&1; }
+
+# same_bytes NAME EXPECTED_FILE COMMAND...: runs COMMAND, compares its stdout with EXPECTED_FILE.
+same_bytes() {
+    local name=$1 expected=$2
+    shift 2
+    if "$@" > "$TMP/out" 2> "$TMP/err"; then
+        if cmp -s "$TMP/out" "$expected"; then
+            pass "$name"
+        else
+            fail "$name" "output differs from $expected ($(cmp "$TMP/out" "$expected" 2>&1 | head -1))"
+        fi
+    else
+        fail "$name" "exit $?: $(head -c 300 "$TMP/err")"
+    fi
+}
