@@ -89,10 +89,14 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 
 /* ---- io.c: everything untimed ---------------------------------------------------------------------- */
 
+/* The whole program: options, input, step 0, backend_run, final state, timing. Each backend's main
+ * is just `return io_main(argc, argv);`. */
+int io_main(int argc, char **argv);
+
 /* Upper bound on the bytes of one output line (a %.8f real can take 300+ digits). */
 #define IO_LINE_MAX 1600
 
-double io_now(void);                            /* monotonic clock, seconds */
+double io_now(void); /* monotonic clock, seconds */
 void io_fail(const char *fmt, ...);             /* "prog: message" on stderr, exit 1 */
 void *io_alloc(size_t count, size_t size);      /* calloc or io_fail */
 int sim_alloc(Sim *sim, int64_t n);             /* 0 on success */

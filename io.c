@@ -1,6 +1,6 @@
 /* io.c: everything outside the timed step loop, shared by every backend.
  *
- * The driver (main), the command line, reading and validating the input (SPEC.md 1 and 6), the seeded
+ * The driver (io_main, which each backend's main calls), the command line, reading and validating the input (SPEC.md 1 and 6), the seeded
  * random placement, the exact %.8f formatter and buffered output (SPEC.md 2), clocks and progress.
  * Every input error is found before the first byte goes to stdout.
  */
@@ -678,7 +678,7 @@ static void parse_args(int argc, char **argv, Options *opt)
     opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
 }
 
-int main(int argc, char **argv)
+int io_main(int argc, char **argv)
 {
     Options opt;
     Params par;

@@ -133,3 +133,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(event_of);
     return 0;
 }
+
+int main(int argc, char **argv)
+{
+    return io_main(argc, argv);
+}
