@@ -1,7 +1,8 @@
 /* io.c: everything outside the timed step loop, shared by every backend.
  *
- * The driver (io_main, which each backend's main calls), the command line, reading and validating the input (SPEC.md 1 and 6), the seeded
- * random placement, the exact %.8f formatter and buffered output (SPEC.md 2), clocks and progress.
+ * The driver (io_main, which each backend's main calls), the command line, reading and validating the
+ * input (SPEC.md 1 and 6), the seeded random placement, the exact %.8f formatter and buffered output
+ * (SPEC.md 2), clocks and progress.
  * Every input error is found before the first byte goes to stdout.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -243,6 +244,7 @@ typedef struct {
     size_t size;
     size_t pos;  /* start of the next line */
     long line;   /* number of the line last returned, 1-based */
+    long n_line; /* line of N, named by errors about N as a whole (memory, placement) */
     char *tok[8]; /* tokens of that line (NUL-terminated in place) */
     int ntok;     /* tokens found; more than 8 counts on */
 } Reader;
@@ -263,7 +265,7 @@ static char *slurp(const Options *opt, size_t *size)
     FILE *f = stdin;
     if (strcmp(opt->path, "-") != 0) {
         f = fopen(opt->path, "rb");
-        if (!f) io_fail("cannot open %s: %s", opt->path, strerror(errno));
+        if (!f) io_fail("%s: cannot open the input (%s)", opt->path, strerror(errno));
     }
     size_t cap = 1 << 16, len = 0;
     char *buf = io_alloc(cap, 1);
@@ -279,7 +281,7 @@ static char *slurp(const Options *opt, size_t *size)
         len += got;
         if (got == 0) break;
     }
-    if (ferror(f)) io_fail("cannot read %s: %s", opt->label, strerror(errno));
+    if (ferror(f)) io_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
     if (f != stdin) fclose(f);
     buf[len] = '\0';
     *size = len;
@@ -300,6 +302,10 @@ static int next_record(Reader *rd)
         char *end = nl ? nl : rd->text + rd->size;
         rd->pos = (size_t)(end - rd->text) + (nl ? 1 : 0);
         rd->line++;
+        char *nul = memchr(s, '\0', (size_t)(end - s));
+        if (nul)
+            input_error(rd, rd->line, "unexpected byte 0 in the text (found one at column %ld)",
+                        (long)(nul - s) + 1);
         *end = '\0';
         rd->ntok = 0;
         for (char *p = s; p < end;) {
@@ -317,8 +323,7 @@ static int next_record(Reader *rd)
     return 0;
 }
 
-/* Accepts [+-]digits, nothing else (an embedded NUL byte ends the token early and is caught by the
- * length check). */
+/* Accepts [+-]digits, nothing else. */
 static int parse_int(const char *s, long long *out)
 {
     const char *p = s;
@@ -406,6 +411,7 @@ static long long header_int(Reader *rd, const char *what, long long lo, long lon
 static void read_header(Reader *rd, Params *par)
 {
     par->n = header_int(rd, "the number of particles N", 1, SIM_MAX_N);
+    rd->n_line = rd->line;
     par->L = header_real(rd, "the box size L");
     if (!(par->L > 0 && par->L <= SIM_MAX_L))
         input_error(rd, rd->line, "the box size L must be > 0 and <= 1e50 (found '%s')", rd->tok[0]);
@@ -553,7 +559,7 @@ static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *si
         int64_t cx = 0, cy = 0;
         while (!placed) {
             if (++tries > PLACE_TRIES)
-                input_error(rd, 1,
+                input_error(rd, rd->n_line,
                             "cannot place %lld disks of radius %g without overlap in a box of side "
                             "%g (disk %lld failed %d tries; area fraction %.3f)",
                             (long long)par->n, par->r, par->L, (long long)i, PLACE_TRIES,
@@ -600,7 +606,7 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
     rd.text = slurp(opt, &rd.size);
     read_header(&rd, par);
     if (sim_alloc(sim, par->n))
-        input_error(&rd, 1, "not enough memory for N = %lld particles", (long long)par->n);
+        input_error(&rd, rd.n_line, "not enough memory for N = %lld particles", (long long)par->n);
     if (read_particles(&rd, par, sim) == 0) {
         generate(&rd, par, opt->seed, sim);
         if (!opt->quiet)
