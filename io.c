@@ -531,8 +531,9 @@ static double rng_unit(Rng *g)
 }
 
 /* Places n non-overlapping disks uniformly, each tried up to PLACE_TRIES times. A grid of cells at least
- * 2r wide, about one disk per cell, makes each overlap test look at 9 cells: expected O(n) in all. */
-static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *sim)
+ * 2r wide, about one disk per cell, makes each overlap test look at 9 cells: expected O(n) in all.
+ * Returns -1, or the index of the disk that found no place. */
+static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
 {
     Rng g;
     uint64_t sm = seed;
@@ -558,12 +559,11 @@ static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *si
         double x = lo, y = lo;
         int64_t cx = 0, cy = 0;
         while (!placed) {
-            if (++tries > PLACE_TRIES)
-                input_error(rd, rd->n_line,
-                            "cannot place %lld disks of radius %g without overlap in a box of side "
-                            "%g (disk %lld failed %d tries; area fraction %.3f)",
-                            (long long)par->n, par->r, par->L, (long long)i, PLACE_TRIES,
-                            (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
+            if (++tries > PLACE_TRIES) {
+                free(head);
+                free(next);
+                return i;
+            }
             x = clamp_coord(lo + span * rng_unit(&g), lo, hi);
             y = clamp_coord(lo + span * rng_unit(&g), lo, hi);
             cx = (int64_t)(x / cell);
@@ -595,6 +595,7 @@ static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *si
     }
     free(head);
     free(next);
+    return -1;
 }
 
 /* Reads and validates the whole input; generates the disks when the input lists none. */
@@ -608,7 +609,13 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for N = %lld particles", (long long)par->n);
     if (read_particles(&rd, par, sim) == 0) {
-        generate(&rd, par, opt->seed, sim);
+        int64_t failed = generate(par, opt->seed, sim);
+        if (failed >= 0)
+            input_error(&rd, rd.n_line,
+                        "cannot place %lld disks of radius %g without overlap in a box of side %g "
+                        "(disk %lld failed %d tries; area fraction %.3f)",
+                        (long long)par->n, par->r, par->L, (long long)failed, PLACE_TRIES,
+                        (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
         if (!opt->quiet)
             fprintf(stderr, "%s: generated %lld disks with seed %llu\n", backend_name,
                     (long long)par->n, (unsigned long long)opt->seed);
