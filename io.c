@@ -665,6 +665,7 @@ static void parse_args(int argc, char **argv, Options *opt)
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
+            if (fflush(stdout) || ferror(stdout)) io_fail("cannot write the help text: %s", strerror(errno));
             exit(0);
         } else if (strcmp(a, "--seed") == 0) {
             opt->seed = (uint64_t)option_value(argc, argv, &k, 0, 9223372036854775807LL);

@@ -23,6 +23,13 @@ while read -r name line; do
     done
 done < tests/bad/lines.txt
 
+# an error on the very last line of a long print-mode input still comes before any output
+awk '{ print } END { print "0 1 2 3" }' inputs/overlapping_print.in > "$TMP/late_error.in"
+late=$(($(wc -l < "$TMP/late_error.in")))
+for prog in $(backend_list); do
+    expect_error "bad/late_error $prog" "^$prog: $TMP/late_error.in:$late: .+ \(.+\)\$" ./$prog "$TMP/late_error.in"
+done
+
 for prog in $(backend_list); do
     STDIN_FILE=tests/bad/n_word.in expect_error "bad stdin (no path) $prog" "^$prog: <stdin>:1: .+ \(.+\)\$" ./$prog
     STDIN_FILE=tests/bad/x_nan.in expect_error "bad stdin ('-') $prog" "^$prog: <stdin>:6: .+ \(.+\)\$" ./$prog -
@@ -33,6 +40,7 @@ for prog in $(backend_list); do
     expect_error "--seed not a number $prog" "^$prog: .*--seed" ./$prog tests/hard/corners.in --seed 1x
     expect_error "two inputs $prog" "^$prog: " ./$prog tests/hard/corners.in tests/hard/corners.in
     expect_error "write to /dev/full $prog" "^$prog: .*write" sh -c "./$prog tests/hard/corners.in --quiet > /dev/full"
+    expect_error "--help to /dev/full $prog" "^$prog: .*write" sh -c "./$prog --help > /dev/full"
     expect_error "closed stdout $prog" "^$prog: .*write" sh -c "./$prog tests/hard/corners.in --quiet >&-"
     # 380 kB of output into a pipe whose reader has gone
     ./$prog inputs/random_300_print.in --quiet 2> "$TMP/err" | head -c 10 > /dev/null
