@@ -607,7 +607,8 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
     rd.text = slurp(opt, &rd.size);
     read_header(&rd, par);
     if (sim_alloc(sim, par->n))
-        input_error(&rd, rd.n_line, "not enough memory for N = %lld particles", (long long)par->n);
+        input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
+                    (long long)par->n);
     if (read_particles(&rd, par, sim) == 0) {
         int64_t failed = generate(par, opt->seed, sim);
         if (failed >= 0)
@@ -665,7 +666,8 @@ static void parse_args(int argc, char **argv, Options *opt)
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
-            if (fflush(stdout) || ferror(stdout)) io_fail("cannot write the help text: %s", strerror(errno));
+            if (fflush(stdout) || ferror(stdout))
+                io_fail("cannot write the help text: %s", strerror(errno));
             exit(0);
         } else if (strcmp(a, "--seed") == 0) {
             opt->seed = (uint64_t)option_value(argc, argv, &k, 0, 9223372036854775807LL);
