@@ -1,7 +1,8 @@
 # Invariants (tools/check.c) on the output of every bundled input, case and hard case: shape of every
-# line, finite reals, centres in [r, L-r], p + w <= S, kinetic energy kept to a few ulps per collision
-# (with --dump17, which prints exact reals); the final lines of print and perf mode are identical; omp
-# prints the same exact reals as seq. Then the checker itself must reject broken outputs.
+# line, finite reals, centres in [r, L-r], p + w <= S; with --dump17 (exact reals) also kinetic energy
+# kept to a few ulps per collision and no more steps that differ from a plain move (x += vx) than
+# events p + w. The final lines of print and perf mode are identical, and omp prints the same exact
+# reals as seq. Then the checker itself must reject broken outputs.
 check_output() { # NAME INPUT OUTPUT [--dump17]
     local msg
     if msg=$(./tools/check ${4:-} "$2" "$3" 2>&1); then pass "$1"; else fail "$1" "$msg"; fi
@@ -49,6 +50,7 @@ check_rejects "a missing line" "sed 3d"
 check_rejects "an extra line" "sed 3p"
 check_rejects "a missing final newline" "head -c -1"
 check_rejects "a centre outside [r, L-r]" "awk 'NR == 3 { \$3 = \"15.5\" } 1'"
+check_rejects "a centre moved without an event" "awk 'NR == 4 { \$3 = \"12.5\" } 1'"
 check_rejects "a changed kinetic energy" "awk 'NR == 6 { \$5 = \"0.5\" } 1'"
 check_rejects "a nan" "awk 'NR == 2 { \$4 = \"nan\" } 1'"
 check_rejects "p + w > S" "awk 'NR == 5 { \$8 = \"2\" } 1'"

@@ -8,7 +8,9 @@
  * - every centre lies in [r, L-r] (exactly with --dump17; within the %.8f rounding otherwise);
  * - counts: p, w >= 0, p + w <= S (one event per disk per step), the sum of p is even;
  * - with --dump17: the kinetic energy of every printed step equals that of step 0 within a few ulps per
- *   pair collision (walls only negate components, which is exact).
+ *   pair collision (walls only negate components, which is exact); and between consecutive printed
+ *   steps, a disk whose velocity stayed the same and whose centre moved to exactly clamp(x + vx, y + vy)
+ *   had no event, so each disk's count of steps that were not such a plain move is at most its p + w.
  * Prints nothing and exits 0 when all hold; otherwise one line "check: OUTPUT:line: problem", exit 1.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -73,6 +75,11 @@ static int is_g17(const char *s, size_t len)
 }
 
 /* An integer token without sign or leading zeros. */
+static double clamp(double c, double lo, double hi)
+{
+    return c < lo ? lo : (c > hi ? hi : c);
+}
+
 static long long parse_count(const char *s, size_t len, const char *what)
 {
     if (len == 0 || len > 18 || (len > 1 && s[0] == '0')) die("%s is not a plain integer", what);
@@ -122,6 +129,10 @@ int main(int argc, char **argv)
     long long blocks = print && steps > 1 ? steps + 1 : 2, block = 0, i = 0;
     long long step_of_block = 0, psum = 0;
     long double e0 = 0, e = 0, worst = 0;
+    double *prev = calloc((size_t)n * 4 + 1, sizeof *prev);  /* x, y, vx, vy in the last block */
+    long long *moved = calloc((size_t)n + 1, sizeof *moved); /* steps that were not a plain move */
+    long long prev_step = -2; /* no block before step 0 */
+    if (!prev || !moved) die("out of memory");
     while ((len = getline(&line, &cap, out)) > 0) {
         out_line++;
         if (block == blocks) die("more lines than the %lld expected", blocks * n);
@@ -159,9 +170,18 @@ int main(int argc, char **argv)
             if (!(v[k] >= lo - slack && v[k] <= hi + slack))
                 die("%c = %.17g lies outside [r, L-r] = [%.17g, %.17g]", "xy"[k], v[k], lo, hi);
         e += (long double)v[2] * v[2] + (long double)v[3] * v[3];
+        double *q = prev + 4 * i;
+        if (dump17 && step_of_block == prev_step + 1 &&
+            !(v[2] == q[2] && v[3] == q[3] && v[0] == clamp(q[0] + q[2], lo, hi) &&
+              v[1] == clamp(q[1] + q[3], lo, hi)))
+            moved[i]++;
+        memcpy(q, v, sizeof v);
         if (last) {
             long long p = parse_count(f[6], fl[6], "p"), w = parse_count(f[7], fl[7], "w");
             if (p + w > steps) die("p + w = %lld exceeds S = %lld (one event per step)", p + w, steps);
+            if (moved[i] > p + w)
+                die("disk %lld had %lld steps that were not a plain move, but p + w = %lld", i,
+                    moved[i], p + w);
             psum += p;
         }
         if (++i == n) {
@@ -171,9 +191,12 @@ int main(int argc, char **argv)
             e = 0;
             i = 0;
             block++;
+            prev_step = step_of_block;
         }
     }
     free(line);
+    free(prev);
+    free(moved);
     fclose(out);
     out_line++;
     if (block != blocks || i != 0) die("output ends early: expected %lld lines", blocks * n);
