@@ -7,11 +7,17 @@ rounding at all and its result is the rational answer written out in README.md. 
 IEEE rules (x + y == 0 is +0 unless both are -0; products and quotients take the xor of the signs).
 A value that needed rounding is marked inexact; printing an inexact value is an error.
 
-usage: tests/hard/derive.py CASE.in  ->  the expected stdout on stdout
+usage: tests/hard/derive.py [--inexact] CASE.in  ->  the expected stdout on stdout
+
+With --inexact it skips the exactness checks and prints whatever IEEE double arithmetic gives: an
+independent implementation of SPEC.md section 3 (Python floats are IEEE doubles, never fused), used to
+cross-check seq on scenes whose numbers are not dyadic.
 """
 import math
 import sys
 from fractions import Fraction as Q
+
+EXACT = True
 
 
 class X:
@@ -25,7 +31,7 @@ class X:
         o = o if isinstance(o, X) else X(o)
         r = f(self.v, o.v)
         ok = self.ok and o.ok
-        if ok and math.isfinite(r) and math.isfinite(self.v) and math.isfinite(o.v):
+        if EXACT and ok and math.isfinite(r) and math.isfinite(self.v) and math.isfinite(o.v):
             ok = Q(r) == g(Q(self.v), Q(o.v))
         return X(r, ok)
 
@@ -43,7 +49,7 @@ class X:
 
 def sqrt(a):
     r = math.sqrt(a.v)
-    return X(r, a.ok and Q(r) * Q(r) == Q(a.v))
+    return X(r, a.ok and (not EXACT or Q(r) * Q(r) == Q(a.v)))
 
 
 INF = X(math.inf)
@@ -98,7 +104,7 @@ def step(ds, cnt, lo, hi, sigma2):
     taken = {}
     for e in ev:
         if e[2] in taken or e[3] in taken: continue
-        if not e[0].ok: sys.exit("accepted event with an inexact time: %r" % (e,))
+        if EXACT and not e[0].ok: sys.exit("accepted event with an inexact time: %r" % (e,))
         taken[e[2]] = taken[e[3]] = e
     for i in range(n):
         if i not in taken:
@@ -138,12 +144,17 @@ def step(ds, cnt, lo, hi, sigma2):
 
 
 def fmt(v):
-    if not v.ok: sys.exit("an output value is inexact: %r" % v.v)
+    if EXACT and not v.ok: sys.exit("an output value is inexact: %r" % v.v)
     return "%.8f" % v.v
 
 
 def main():
-    tok = [l.split() for l in open(sys.argv[1]) if l.strip()]
+    global EXACT
+    args = sys.argv[1:]
+    if args[0] == "--inexact":
+        EXACT = False
+        args = args[1:]
+    tok = [l.split() for l in open(args[0]) if l.strip()]
     n, L, r, S, mode = int(tok[0][0]), X(tok[1][0]), X(tok[2][0]), int(tok[3][0]), tok[4][0]
     ds = [None] * n
     for t in tok[5:]:
