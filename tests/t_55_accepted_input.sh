@@ -3,7 +3,7 @@
 # bytes of the clean file, on every backend. Also stdin ('-' and no path), option order, --help and
 # the seeded placement.
 clean=tests/cases/example_dense_print.in
-./seq "$clean" --quiet > "$TMP/clean.out"
+clean_out=tests/cases/example_dense_print.out
 
 accept() { # NAME FILTER: the clean input through FILTER must give the clean output
     sh -c "$2" < "$clean" > "$TMP/$1.in"
@@ -11,9 +11,9 @@ accept() { # NAME FILTER: the clean input through FILTER must give the clean out
         fail "accept/$1" "the filter changed nothing"
         return
     fi
-    same_bytes "accept/$1 seq" "$TMP/clean.out" ./seq "$TMP/$1.in" --quiet
-    same_bytes "accept/$1 omp" "$TMP/clean.out" ./omp "$TMP/$1.in" --quiet --threads 3
-    if have_gpu; then same_bytes "accept/$1 cuda" "$TMP/clean.out" ./cuda "$TMP/$1.in" --quiet; fi
+    same_bytes "accept/$1 seq" "$clean_out" ./seq "$TMP/$1.in" --quiet
+    same_bytes "accept/$1 omp" "$clean_out" ./omp "$TMP/$1.in" --quiet --threads 3
+    if have_gpu; then same_bytes "accept/$1 cuda" "$clean_out" ./cuda "$TMP/$1.in" --quiet; fi
 }
 plus='{ for (k = 1; k <= NF; k++) if ($k ~ /^[0-9.]/) $k = "+" $k; print }'
 accept crlf "sed 's/\$/\r/'"
@@ -29,10 +29,10 @@ accept shuffled_particles "awk 'NR <= 5 { print; fflush(); next } { print | \"so
 accept other_spellings "awk 'NR == 1 { \$1 = \"060\" } NR == 2 { \$1 = \"0.4E+2\" } NR == 3 { \$1 = \"1.000\" } NR == 4 { \$1 = \"+40\" } 1'"
 accept everything_at_once "awk '$reverse' | awk '$plus' | awk '{ print \"\"; print } END { printf \"\t\" }' | sed 's/\$/ \r/'"
 
-same_bytes "stdin without a path" "$TMP/clean.out" sh -c "./seq --quiet < $clean"
-same_bytes "stdin as '-'" "$TMP/clean.out" sh -c "./seq - --quiet < $clean"
-same_bytes "stdin as '-' omp" "$TMP/clean.out" sh -c "./omp --quiet - --threads 2 < $clean"
-same_bytes "options before the path" "$TMP/clean.out" ./seq --quiet "$clean"
+same_bytes "stdin without a path" "$clean_out" sh -c "./seq --quiet < $clean"
+same_bytes "stdin as '-'" "$clean_out" sh -c "./seq - --quiet < $clean"
+same_bytes "stdin as '-' omp" "$clean_out" sh -c "./omp --quiet - --threads 2 < $clean"
+same_bytes "options before the path" "$clean_out" ./seq --quiet "$clean"
 
 for prog in seq omp; do
     if ./$prog --help > "$TMP/out" 2> "$TMP/err" && [ ! -s "$TMP/err" ] && grep -q "^usage: $prog" "$TMP/out" &&
