@@ -16,7 +16,11 @@ expect_error() {
     if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
 }
 
+for f in tests/bad/*.in; do
+    grep -q "^$(basename "$f" .in) " tests/bad/lines.txt || fail "bad/$(basename "$f" .in)" "not in lines.txt"
+done
 while read -r name line; do
+    case $name in '#'* | '') continue ;; esac
     f=tests/bad/$name.in
     for prog in $(backend_list); do
         expect_error "bad/$name $prog" "^$prog: $f:$line: .+ \(.+\)\$" ./$prog "$f"
