@@ -41,6 +41,10 @@ seq_san: seq.c io.c common.h Makefile
 tools/%: tools/%.c common.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
 
+# the formatter check calls io.c's own io_format_line
+tools/fmtcheck: tools/fmtcheck.c io.o common.h Makefile
+	$(CC) $(CFLAGS) tools/fmtcheck.c io.o -o $@ $(LDLIBS)
+
 test: all seq_san
 	@bash tests/run.sh
 

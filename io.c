@@ -1,7 +1,8 @@
 /* io.c: everything outside the timed step loop, shared by every backend.
  *
- * The driver (io_main, which each backend's main calls), the command line, reading and validating the input (SPEC.md 1 and 6), the seeded
- * random placement, the exact %.8f formatter and buffered output (SPEC.md 2), clocks and progress.
+ * The driver (io_main, which each backend's main calls), the command line, reading and validating the
+ * input (SPEC.md 1 and 6), the seeded random placement, the exact %.8f formatter and buffered output
+ * (SPEC.md 2), clocks and progress.
  * Every input error is found before the first byte goes to stdout.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -243,6 +244,7 @@ typedef struct {
     size_t size;
     size_t pos;  /* start of the next line */
     long line;   /* number of the line last returned, 1-based */
+    long n_line; /* line of N, named by errors about N as a whole (memory, placement) */
     char *tok[8]; /* tokens of that line (NUL-terminated in place) */
     int ntok;     /* tokens found; more than 8 counts on */
 } Reader;
@@ -263,7 +265,7 @@ static char *slurp(const Options *opt, size_t *size)
     FILE *f = stdin;
     if (strcmp(opt->path, "-") != 0) {
         f = fopen(opt->path, "rb");
-        if (!f) io_fail("cannot open %s: %s", opt->path, strerror(errno));
+        if (!f) io_fail("%s: cannot open the input (%s)", opt->path, strerror(errno));
     }
     size_t cap = 1 << 16, len = 0;
     char *buf = io_alloc(cap, 1);
@@ -279,7 +281,7 @@ static char *slurp(const Options *opt, size_t *size)
         len += got;
         if (got == 0) break;
     }
-    if (ferror(f)) io_fail("cannot read %s: %s", opt->label, strerror(errno));
+    if (ferror(f)) io_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
     if (f != stdin) fclose(f);
     buf[len] = '\0';
     *size = len;
@@ -300,6 +302,10 @@ static int next_record(Reader *rd)
         char *end = nl ? nl : rd->text + rd->size;
         rd->pos = (size_t)(end - rd->text) + (nl ? 1 : 0);
         rd->line++;
+        char *nul = memchr(s, '\0', (size_t)(end - s));
+        if (nul)
+            input_error(rd, rd->line, "unexpected byte 0 in the text (found one at column %ld)",
+                        (long)(nul - s) + 1);
         *end = '\0';
         rd->ntok = 0;
         for (char *p = s; p < end;) {
@@ -317,8 +323,7 @@ static int next_record(Reader *rd)
     return 0;
 }
 
-/* Accepts [+-]digits, nothing else (an embedded NUL byte ends the token early and is caught by the
- * length check). */
+/* Accepts [+-]digits, nothing else. */
 static int parse_int(const char *s, long long *out)
 {
     const char *p = s;
@@ -406,6 +411,7 @@ static long long header_int(Reader *rd, const char *what, long long lo, long lon
 static void read_header(Reader *rd, Params *par)
 {
     par->n = header_int(rd, "the number of particles N", 1, SIM_MAX_N);
+    rd->n_line = rd->line;
     par->L = header_real(rd, "the box size L");
     if (!(par->L > 0 && par->L <= SIM_MAX_L))
         input_error(rd, rd->line, "the box size L must be > 0 and <= 1e50 (found '%s')", rd->tok[0]);
@@ -525,8 +531,9 @@ static double rng_unit(Rng *g)
 }
 
 /* Places n non-overlapping disks uniformly, each tried up to PLACE_TRIES times. A grid of cells at least
- * 2r wide, about one disk per cell, makes each overlap test look at 9 cells: expected O(n) in all. */
-static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *sim)
+ * 2r wide, about one disk per cell, makes each overlap test look at 9 cells: expected O(n) in all.
+ * Returns -1, or the index of the disk that found no place. */
+static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
 {
     Rng g;
     uint64_t sm = seed;
@@ -552,12 +559,11 @@ static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *si
         double x = lo, y = lo;
         int64_t cx = 0, cy = 0;
         while (!placed) {
-            if (++tries > PLACE_TRIES)
-                input_error(rd, 1,
-                            "cannot place %lld disks of radius %g without overlap in a box of side "
-                            "%g (disk %lld failed %d tries; area fraction %.3f)",
-                            (long long)par->n, par->r, par->L, (long long)i, PLACE_TRIES,
-                            (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
+            if (++tries > PLACE_TRIES) {
+                free(head);
+                free(next);
+                return i;
+            }
             x = clamp_coord(lo + span * rng_unit(&g), lo, hi);
             y = clamp_coord(lo + span * rng_unit(&g), lo, hi);
             cx = (int64_t)(x / cell);
@@ -589,6 +595,7 @@ static void generate(const Reader *rd, const Params *par, uint64_t seed, Sim *si
     }
     free(head);
     free(next);
+    return -1;
 }
 
 /* Reads and validates the whole input; generates the disks when the input lists none. */
@@ -600,9 +607,16 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
     rd.text = slurp(opt, &rd.size);
     read_header(&rd, par);
     if (sim_alloc(sim, par->n))
-        input_error(&rd, 1, "not enough memory for N = %lld particles", (long long)par->n);
+        input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
+                    (long long)par->n);
     if (read_particles(&rd, par, sim) == 0) {
-        generate(&rd, par, opt->seed, sim);
+        int64_t failed = generate(par, opt->seed, sim);
+        if (failed >= 0)
+            input_error(&rd, rd.n_line,
+                        "cannot place %lld disks of radius %g without overlap in a box of side %g "
+                        "(disk %lld failed %d tries; area fraction %.3f)",
+                        (long long)par->n, par->r, par->L, (long long)failed, PLACE_TRIES,
+                        (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
         if (!opt->quiet)
             fprintf(stderr, "%s: generated %lld disks with seed %llu\n", backend_name,
                     (long long)par->n, (unsigned long long)opt->seed);
@@ -652,6 +666,8 @@ static void parse_args(int argc, char **argv, Options *opt)
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
+            if (fflush(stdout) || ferror(stdout))
+                io_fail("cannot write the help text: %s", strerror(errno));
             exit(0);
         } else if (strcmp(a, "--seed") == 0) {
             opt->seed = (uint64_t)option_value(argc, argv, &k, 0, 9223372036854775807LL);

@@ -71,7 +71,7 @@ static uint64_t detect_pairs(const Sim *s, const Params *p, EventList *l)
 static uint64_t choose_events(EventList *l, int64_t n, int64_t *event_of)
 {
     uint64_t accepted = 0;
-    qsort(l->ev, l->len, sizeof *l->ev, event_cmp);
+    if (l->len) qsort(l->ev, l->len, sizeof *l->ev, event_cmp); /* qsort(NULL, 0, ...) is undefined */
     for (int64_t i = 0; i < n; i++) event_of[i] = -1;
     for (size_t k = 0; k < l->len; k++) {
         const Event *e = &l->ev[k];

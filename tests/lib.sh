@@ -25,3 +25,25 @@ same_bytes() {
         fail "$name" "exit $?: $(head -c 300 "$TMP/err")"
     fi
 }
+
+# on_backends NAME EXPECTED_FILE ARGS...: same_bytes for seq, omp at 1, 2, 3 and 7 threads, and cuda
+# (SKIP without a GPU), each run as ./PROG ARGS --quiet.
+on_backends() {
+    local name=$1 expected=$2 t
+    shift 2
+    same_bytes "$name seq" "$expected" ./seq "$@" --quiet
+    for t in 1 2 3 7; do
+        same_bytes "$name omp $t threads" "$expected" ./omp "$@" --quiet --threads "$t"
+    done
+    if have_gpu; then
+        same_bytes "$name cuda" "$expected" ./cuda "$@" --quiet
+    else
+        skip "$name cuda" "no GPU"
+    fi
+}
+
+# The programs that must reject bad input the same way: seq, omp, and cuda where a GPU answers.
+backend_list() {
+    echo seq omp
+    if have_gpu; then echo cuda; fi
+}
