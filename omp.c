@@ -2,11 +2,14 @@
  *
  * Same bytes as seq.c for every input and thread count; only the search for pairs and the choice of
  * events are organised differently:
+ * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort at the
+ *   start of every step moves them), so that neighbours are neighbours in memory; each slot remembers
+ *   its disk's original index, which alone decides the event order and the output order.
  * - broad phase: the step is cut into K time slices (K from this step's fastest disk, 1 for slow
  *   scenes). In each slice every disk's swept box (its path over the slice, grown by r and a rounding
  *   margin) is binned by its centre into square cells at least as wide as two boxes can be apart and
  *   still overlap, so overlapping boxes lie in the same or neighbouring cells. A pair whose boxes
- *   overlap goes to the narrow phase (pair_time) in the first slice of that overlap only.
+ *   overlap goes to the narrow phase (pair_time) if it approaches and is closest within that slice.
  * - choice: per-disk lists of candidate events (CSR), then rounds of "accept every event that is the
  *   smallest remaining event of all its disks", finished by a sort and walk once few disks remain.
  *   That is exactly the greedy choice of SPEC.md 3.3, whatever the thread count.
@@ -38,16 +41,25 @@ const char backend_options[] =
 
 /* ==== types ========================================================================================== */
 
-/* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
+/* The box swept by one disk over one slice, grown by the radius and the rounding margin, with the
+ * disk's state at the start of the step: the narrow phase then reads only the boxes it scans. */
 typedef struct {
     double xlo, xhi, ylo, yhi;
-    int32_t i; /* original index of the disk */
+    double x, y, vx, vy;
+    int32_t slot, id; /* slot and original index of the disk */
 } Box;
 
 typedef struct {
     double t;     /* time of the event, 0..1 */
-    int32_t i, j; /* original indices, i < j */
+    int32_t i, j; /* original indices, i < j: the event's key */
+    int32_t a, b; /* their slots */
 } PairEvent;
+
+/* The disks in slot order: SoA like Sim, plus each slot's original index. */
+typedef struct {
+    double *x, *y, *vx, *vy;
+    int32_t *id, *pc, *wc;
+} Slots;
 
 /* The geometry of one step's broad phase. */
 typedef struct {
@@ -73,18 +85,20 @@ typedef struct {
 } Thread;
 
 typedef struct {
-    Sim *s;
+    Sim *sim;         /* the caller's state, original order: filled for printing and at the end */
+    Slots s, spare;   /* the disks in slot order; spare receives the next order */
     const Params *p;
     const Options *opt;
     Output *out;
     int nt;           /* threads in the parallel region */
     Plan plan;
     Thread *th;
-    int32_t *cell_of; /* n: cell of each disk in the current slice */
+    int32_t *cell_of; /* n: cell of each slot in the current slice */
     int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
     int32_t *cell_start; /* max cells + 1: first box of each cell */
     int64_t max_cells;
     Box *boxes;       /* n: the slice's boxes in cell order */
+    /* the rest is indexed by slot */
     double *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
     size_t n_ev, ev_cap;
@@ -92,7 +106,7 @@ typedef struct {
     size_t *adj;      /* 2 * n_ev: event indices */
     size_t adj_cap;
     int32_t *active;  /* n: undecided disks, each thread's in its own range */
-    int32_t *best_p;  /* n: partner of a disk's smallest remaining event (itself: wall; -1: none) */
+    int32_t *best_p;  /* n: partner slot of the smallest remaining event (itself: wall; -1: none) */
     double *best_t;   /* n: time of that event */
     int32_t *acc_p;   /* n: partner of the accepted event (itself: wall; -1: none) */
     double *acc_t;    /* n: time of the accepted event */
@@ -105,7 +119,8 @@ typedef struct {
 typedef struct SeqEvent {
     double t;
     int kind;
-    int32_t i, j;
+    int32_t i, j; /* original indices: the key */
+    int32_t a, b; /* slots */
 } SeqEvent;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -123,6 +138,47 @@ static void *grow(void *ptr, size_t *cap, size_t need, size_t size)
     if (!p) io_fail("out of memory (%zu x %zu bytes)", c, size);
     *cap = c;
     return p;
+}
+
+/* ==== broad phase ==================================================================================== */
+static void slots_alloc(Slots *s, int64_t n)
+{
+    s->x = io_alloc((size_t)n, sizeof *s->x);
+    s->y = io_alloc((size_t)n, sizeof *s->y);
+    s->vx = io_alloc((size_t)n, sizeof *s->vx);
+    s->vy = io_alloc((size_t)n, sizeof *s->vy);
+    s->id = io_alloc((size_t)n, sizeof *s->id);
+    s->pc = io_alloc((size_t)n, sizeof *s->pc);
+    s->wc = io_alloc((size_t)n, sizeof *s->wc);
+}
+
+static void slots_free(Slots *s)
+{
+    free(s->x);
+    free(s->y);
+    free(s->vx);
+    free(s->vy);
+    free(s->id);
+    free(s->pc);
+    free(s->wc);
+}
+
+/* Copies the slots of this thread's range back to the caller's state, in original order. */
+static void slots_unpermute(Work *w, int tid)
+{
+    const Slots *s = &w->s;
+    Sim *sim = w->sim;
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        int32_t i = s->id[q];
+        sim->x[i] = s->x[q];
+        sim->y[i] = s->y[q];
+        sim->vx[i] = s->vx[q];
+        sim->vy[i] = s->vy[q];
+        sim->pc[i] = s->pc[q];
+        sim->wc[i] = s->wc[q];
+    }
 }
 
 /* ==== broad phase ==================================================================================== */
@@ -164,15 +220,20 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     return pl;
 }
 
-static inline void slice_box(const Sim *s, int64_t i, double ta, double tb, double grow, Box *b)
+static inline void slice_box(const Slots *s, int64_t q, double ta, double tb, double grow, Box *b)
 {
-    double xa = s->x[i] + s->vx[i] * ta, xb = s->x[i] + s->vx[i] * tb;
-    double ya = s->y[i] + s->vy[i] * ta, yb = s->y[i] + s->vy[i] * tb;
+    double xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
+    double ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
     b->xlo = (xa < xb ? xa : xb) - grow;
     b->xhi = (xa < xb ? xb : xa) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
     b->yhi = (ya < yb ? yb : ya) + grow;
-    b->i = (int32_t)i;
+    b->x = s->x[q];
+    b->y = s->y[q];
+    b->vx = s->vx[q];
+    b->vy = s->vy[q];
+    b->slot = (int32_t)q;
+    b->id = s->id[q];
 }
 
 static inline int boxes_overlap(const Box *a, const Box *b)
@@ -188,22 +249,24 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
     return (int64_t)c;
 }
 
-/* Counting sort of the slice's boxes into cell order: per-thread histograms, a prefix sum over cells
- * and threads, a scatter. Within a cell the boxes keep index order. */
-static void bin_slice(Work *w, int tid, double ta, double tb)
+/* Counting sort of the slots into the cells of their slice boxes: per-thread histograms, a prefix sum
+ * over cells and threads, a scatter (inside a cell the slots keep their order). With reorder the
+ * disks themselves move to the new order (into spare); otherwise the boxes are written in cell order. */
+static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
 {
     const Plan *pl = &w->plan;
+    const Slots *s = &w->s;
     int nt = w->nt;
     int64_t cells = pl->g * pl->g, from, to;
     int32_t *h = w->hist + (size_t)tid * (size_t)cells;
     memset(h, 0, (size_t)cells * sizeof *h);
     range_of(w->p->n, tid, nt, &from, &to);
-    for (int64_t i = from; i < to; i++) {
+    for (int64_t q = from; q < to; q++) {
         Box b;
-        slice_box(w->s, i, ta, tb, pl->grow, &b);
+        slice_box(s, q, ta, tb, pl->grow, &b);
         int64_t c = cell_coord(b.ylo, b.yhi, pl->y0, pl->inv_h, pl->g) * pl->g +
                     cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
-        w->cell_of[i] = (int32_t)c;
+        w->cell_of[q] = (int32_t)c;
         h[c]++;
     }
 #pragma omp barrier
@@ -238,38 +301,86 @@ static void bin_slice(Work *w, int tid, double ta, double tb)
         base += v;
     }
 #pragma omp barrier
-    for (int64_t i = from; i < to; i++) {
-        int32_t c = w->cell_of[i];
-        int32_t pos = w->cell_start[c] + h[c]++;
-        slice_box(w->s, i, ta, tb, pl->grow, &w->boxes[pos]);
+    if (reorder) {
+        const Slots *d = &w->spare;
+        for (int64_t q = from; q < to; q++) {
+            int32_t c = w->cell_of[q];
+            int32_t pos = w->cell_start[c] + h[c]++;
+            d->x[pos] = s->x[q];
+            d->y[pos] = s->y[q];
+            d->vx[pos] = s->vx[q];
+            d->vy[pos] = s->vy[q];
+            d->id[pos] = s->id[q];
+            d->pc[pos] = s->pc[q];
+            d->wc[pos] = s->wc[q];
+        }
+    } else {
+        for (int64_t q = from; q < to; q++) {
+            int32_t c = w->cell_of[q];
+            int32_t pos = w->cell_start[c] + h[c]++;
+            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+        }
     }
 #pragma omp barrier
 }
 
-static void push_event(Thread *th, double t, int32_t i, int32_t j)
+/* Slice 0 also puts the disks into its cell order, so its boxes are simply in slot order; the wall
+ * events (3.1) are found on the way. */
+static void reorder_slots(Work *w, int tid, double tb)
+{
+    const Params *p = w->p;
+    bin_slice(w, tid, 0, tb, 1);
+#pragma omp single
+    {
+        Slots t = w->s;
+        w->s = w->spare;
+        w->spare = t;
+    }
+    const Slots *s = &w->s;
+    int64_t from, to;
+    range_of(p->n, tid, w->nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        slice_box(s, q, 0, tb, w->plan.grow, &w->boxes[q]);
+        double tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
+                             wall_time(s->y[q], s->vy[q], p->lo, p->hi));
+        w->wall_t[q] = tw <= 1 ? tw : -1;
+    }
+#pragma omp barrier
+}
+
+static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, int32_t b)
 {
     th->ev = grow(th->ev, &th->cap, th->len + 1, sizeof *th->ev);
-    PairEvent e = {t, i, j};
+    PairEvent e = {t, i, j, a, b};
     th->ev[th->len++] = e;
 }
 
-/* Narrow phase for two disks whose boxes overlap in slice k, unless they overlapped in slice k - 1
- * too (that slice tested them already: its boxes are computed by the very same operations). */
-static inline void try_pair(Work *w, Thread *th, const Box *a, const Box *b, int k, double tp,
-                            double ta)
+/* Narrow phase for two disks whose boxes overlap in slice k. A pair can meet only while it
+ * approaches (b < 0, as in pair_time) and is closest at tau = -b / a clamped to [0, 1]; if it meets at
+ * all it is within reach at tau, so its boxes overlap in tau's slice, and that slice alone tests it.
+ * (Rounding moves tau by about eps * |dx| / |dv|, which moves the disks by about eps * |dx|, far
+ * inside the margin.) The disk with the lower original index is always pair_time's first. */
+static inline void try_pair(const Work *w, Thread *th, const Box *p, const Box *q, int k)
 {
-    const Sim *s = w->s;
-    if (k > 0) {
-        Box pa, pb;
-        slice_box(s, a->i, tp, ta, w->plan.grow, &pa);
-        slice_box(s, b->i, tp, ta, w->plan.grow, &pb);
-        if (boxes_overlap(&pa, &pb)) return;
+    double dx = q->x - p->x, dy = q->y - p->y;
+    double dvx = q->vx - p->vx, dvy = q->vy - p->vy;
+    double b = dx * dvx + dy * dvy;
+    if (!(b < 0)) return;
+    int K = w->plan.k;
+    if (K > 1) {
+        double tau = -b / (dvx * dvx + dvy * dvy);
+        int ks = tau < 1 ? (int)(tau * K) : K - 1;
+        if (ks > K - 1) ks = K - 1;
+        if (ks != k) return;
     }
-    int32_t i = a->i < b->i ? a->i : b->i, j = a->i < b->i ? b->i : a->i;
+    if (q->id < p->id) {
+        const Box *t = p;
+        p = q;
+        q = t;
+    }
     th->tests++;
-    double t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j], s->vy[j],
-                         w->p->sigma2);
-    if (t >= 0) push_event(th, t, i, j);
+    double t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
+    if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
 }
 
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
@@ -282,7 +393,6 @@ static void scan_slice(Work *w, int tid, int k)
     const Box *bx = w->boxes;
     const int32_t *cs = w->cell_start;
     int64_t g = pl->g;
-    double tp = (double)(k - 1) / pl->k, ta = (double)k / pl->k;
     int64_t chunk = g / (8 * w->nt) + 1;
 #pragma omp for schedule(dynamic, chunk)
     for (int64_t cy = 0; cy < g; cy++) {
@@ -299,9 +409,9 @@ static void scan_slice(Work *w, int tid, int k)
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
                 const Box *ba = &bx[a];
                 for (int32_t b = a + 1; b < end1; b++)
-                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k, tp, ta);
+                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k);
                 for (int32_t b = lo2; b < end2; b++)
-                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k, tp, ta);
+                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k);
             }
         }
     }
@@ -319,7 +429,7 @@ static int pair_cmp(const void *pa, const void *pb)
 
 static void check_broad_phase(Work *w, int64_t step)
 {
-    const Sim *s = w->s;
+    const Slots *s = &w->s;
     int64_t n = w->p->n;
     PairEvent *mine = io_alloc(w->n_ev, sizeof *mine);
     memcpy(mine, w->ev, w->n_ev * sizeof *mine);
@@ -328,17 +438,18 @@ static void check_broad_phase(Work *w, int64_t step)
     for (size_t e = 0; e < w->n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
     size_t found = 0;
-    for (int64_t i = 0; i < n; i++)
-        for (int64_t j = i + 1; j < n; j++) {
-            double t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
-                                 s->vy[j], w->p->sigma2);
+    for (int64_t qa = 0; qa < n; qa++)
+        for (int64_t qb = qa + 1; qb < n; qb++) {
+            int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
+            double t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
+                                 s->vy[b], w->p->sigma2);
             if (t < 0) continue;
-            PairEvent key = {t, (int32_t)i, (int32_t)j};
+            PairEvent key = {t, s->id[a], s->id[b], 0, 0};
             PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
             if (!hit || hit->t != t)
-                io_fail("--check: step %lld: the broad phase missed the event of disks %lld and %lld "
+                io_fail("--check: step %lld: the broad phase missed the event of disks %d and %d "
                         "at t = %.17g",
-                        (long long)step, (long long)i, (long long)j, t);
+                        (long long)step, key.i, key.j, t);
             found++;
         }
     if (found != uniq)
@@ -349,7 +460,7 @@ static void check_broad_phase(Work *w, int64_t step)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
-/* Gathers the threads' pair events and builds each disk's list of them (CSR: count, prefix, fill;
+/* Gathers the threads' pair events and builds each slot's list of them (CSR: count, prefix, fill;
  * the order inside a list does not matter, only its smallest event is ever used). */
 static void build_lists(Work *w, int tid)
 {
@@ -370,17 +481,17 @@ static void build_lists(Work *w, int tid)
     Thread *th = &w->th[tid];
     if (th->len) memcpy(w->ev + th->ev_off, th->ev, th->len * sizeof *th->ev);
     range_of(n, tid, nt, &from, &to);
-    for (int64_t i = from; i < to; i++) w->off[i] = 0;
+    for (int64_t q = from; q < to; q++) w->off[q] = 0;
 #pragma omp barrier
     for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
 #pragma omp atomic
-        w->off[w->ev[e].i]++;
+        w->off[w->ev[e].a]++;
 #pragma omp atomic
-        w->off[w->ev[e].j]++;
+        w->off[w->ev[e].b]++;
     }
 #pragma omp barrier
     int64_t sum = 0;
-    for (int64_t i = from; i < to; i++) sum += w->off[i];
+    for (int64_t q = from; q < to; q++) sum += w->off[q];
     th->partial = sum;
 #pragma omp barrier
 #pragma omp single
@@ -392,19 +503,19 @@ static void build_lists(Work *w, int tid)
             acc += v;
         }
     }
-    sum = th->partial; /* inclusive prefix: off[i] = end of disk i's list */
-    for (int64_t i = from; i < to; i++) {
-        sum += w->off[i];
-        w->off[i] = sum;
+    sum = th->partial; /* inclusive prefix: off[q] = end of slot q's list */
+    for (int64_t q = from; q < to; q++) {
+        sum += w->off[q];
+        w->off[q] = sum;
     }
 #pragma omp barrier
     for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
         int64_t pos;
 #pragma omp atomic capture
-        pos = --w->off[w->ev[e].i];
+        pos = --w->off[w->ev[e].a];
         w->adj[pos] = e;
 #pragma omp atomic capture
-        pos = --w->off[w->ev[e].j];
+        pos = --w->off[w->ev[e].b];
         w->adj[pos] = e;
     }
 #pragma omp barrier
@@ -421,35 +532,36 @@ static int seq_event_cmp(const void *pa, const void *pb)
 /* The last undecided disks: their remaining events sorted and walked, as seq.c does. */
 static void finish_sequential(Work *w)
 {
+    const Slots *s = &w->s;
     size_t len = 0;
     for (int t = 0; t < w->nt; t++) {
         int64_t from, to;
         range_of(w->p->n, t, w->nt, &from, &to);
-        for (int64_t a = 0; a < w->th[t].n_active; a++) {
-            int32_t i = w->active[from + a];
+        for (int64_t k = 0; k < w->th[t].n_active; k++) {
+            int32_t q = w->active[from + k];
             w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-            if (w->wall_t[i] >= 0) {
-                SeqEvent e = {w->wall_t[i], 0, i, i};
+            if (w->wall_t[q] >= 0) {
+                SeqEvent e = {w->wall_t[q], 0, s->id[q], s->id[q], q, q};
                 w->fin[len++] = e;
             }
-            for (int64_t q = w->off[i]; q < w->off[i + 1]; q++) {
-                const PairEvent *pe = &w->ev[w->adj[q]];
-                if (pe->i != i || w->taken[pe->j]) continue;
+            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
+                const PairEvent *pe = &w->ev[w->adj[u]];
+                if (pe->a != q || w->taken[pe->b]) continue;
                 w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-                SeqEvent e = {pe->t, 1, pe->i, pe->j};
+                SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
                 w->fin[len++] = e;
             }
         }
     }
     qsort(w->fin, len, sizeof *w->fin, seq_event_cmp);
     uint64_t accepted = 0;
-    for (size_t q = 0; q < len; q++) {
-        const SeqEvent *e = &w->fin[q];
-        if (w->taken[e->i] || w->taken[e->j]) continue;
-        w->taken[e->i] = w->taken[e->j] = 1;
-        w->acc_p[e->i] = e->j;
-        w->acc_p[e->j] = e->i;
-        w->acc_t[e->i] = w->acc_t[e->j] = e->t;
+    for (size_t u = 0; u < len; u++) {
+        const SeqEvent *e = &w->fin[u];
+        if (w->taken[e->a] || w->taken[e->b]) continue;
+        w->taken[e->a] = w->taken[e->b] = 1;
+        w->acc_p[e->a] = e->b;
+        w->acc_p[e->b] = e->a;
+        w->acc_t[e->a] = w->acc_t[e->b] = e->t;
         accepted++;
     }
     w->th[0].events += accepted;
@@ -460,28 +572,30 @@ static void finish_sequential(Work *w)
  * every round makes progress; once few disks remain the sequential walk ends the step. */
 static void choose_events(Work *w, int tid)
 {
+    const int32_t *id = w->s.id;
     Thread *th = &w->th[tid];
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     int32_t *act = w->active + from;
     int64_t na = 0;
-    for (int64_t i = from; i < to; i++) {
-        w->taken[i] = 0;
-        w->acc_p[i] = -1;
-        if (w->wall_t[i] >= 0 || w->off[i + 1] > w->off[i]) act[na++] = (int32_t)i;
+    for (int64_t q = from; q < to; q++) {
+        w->taken[q] = 0;
+        w->acc_p[q] = -1;
+        if (w->wall_t[q] >= 0 || w->off[q + 1] > w->off[q]) act[na++] = (int32_t)q;
     }
 #pragma omp barrier
     for (;;) {
-        for (int64_t a = 0; a < na; a++) {
-            int32_t i = act[a], bp = -1, bi = 0, bj = 0, bk = 0;
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
             double bt = 0;
-            if (w->wall_t[i] >= 0) {
-                bp = bi = bj = i;
-                bt = w->wall_t[i];
+            if (w->wall_t[q] >= 0) {
+                bp = q;
+                bi = bj = id[q];
+                bt = w->wall_t[q];
             }
-            for (int64_t q = w->off[i]; q < w->off[i + 1]; q++) {
-                const PairEvent *e = &w->ev[w->adj[q]];
-                int32_t other = e->i == i ? e->j : e->i;
+            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
+                const PairEvent *e = &w->ev[w->adj[u]];
+                int32_t other = e->a == q ? e->b : e->a;
                 if (w->taken[other]) continue;
                 if (bp < 0 || event_before(e->t, 1, e->i, e->j, bt, bk, bi, bj)) {
                     bp = other;
@@ -491,29 +605,29 @@ static void choose_events(Work *w, int tid)
                     bj = e->j;
                 }
             }
-            w->best_p[i] = bp;
-            w->best_t[i] = bt;
+            w->best_p[q] = bp;
+            w->best_t[q] = bt;
         }
 #pragma omp barrier
         int64_t kept = 0;
-        for (int64_t a = 0; a < na; a++) {
-            int32_t i = act[a], bp = w->best_p[i];
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = act[k], bp = w->best_p[q];
             if (bp < 0) continue;
-            if (bp == i) {
-                w->taken[i] = 1;
-                w->acc_p[i] = i;
-                w->acc_t[i] = w->best_t[i];
+            if (bp == q) {
+                w->taken[q] = 1;
+                w->acc_p[q] = q;
+                w->acc_t[q] = w->best_t[q];
                 th->events++;
-            } else if (w->best_p[bp] == i) {
-                if (i < bp) {
-                    w->taken[i] = w->taken[bp] = 1;
-                    w->acc_p[i] = bp;
-                    w->acc_p[bp] = i;
-                    w->acc_t[i] = w->acc_t[bp] = w->best_t[i];
+            } else if (w->best_p[bp] == q) {
+                if (q < bp) {
+                    w->taken[q] = w->taken[bp] = 1;
+                    w->acc_p[q] = bp;
+                    w->acc_p[bp] = q;
+                    w->acc_t[q] = w->acc_t[bp] = w->best_t[q];
                     th->events++;
                 }
             } else {
-                act[kept++] = i;
+                act[kept++] = q;
             }
         }
         na = kept;
@@ -534,22 +648,21 @@ static void choose_events(Work *w, int tid)
 
 static void move_range(Work *w, int tid)
 {
-    Sim *s = w->s;
+    Slots *s = &w->s;
     double lo = w->p->lo, hi = w->p->hi;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
-        int32_t q = w->acc_p[i];
+        int64_t j = w->acc_p[i];
         double t = w->acc_t[i];
-        if (q < 0) {
+        if (j < 0) {
             s->x[i] = s->x[i] + s->vx[i];
             s->y[i] = s->y[i] + s->vy[i];
-        } else if (q == i) {
+        } else if (j == i) {
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
-        } else if (q > i) { /* the pair is handled once, from its lower index */
-            int64_t j = q;
+        } else if (s->id[i] < s->id[j]) { /* the pair is handled once, from its lower index */
             s->x[i] = s->x[i] + s->vx[i] * t;
             s->y[i] = s->y[i] + s->vy[i] * t;
             s->x[j] = s->x[j] + s->vx[j] * t;
@@ -577,13 +690,15 @@ static void print_state(Work *w, int tid, int64_t step)
     Thread *th = &w->th[tid];
     int64_t n = w->p->n;
     int dump17 = io_dump17(w->out);
+    slots_unpermute(w, tid);
+#pragma omp barrier
     for (int64_t base = 0; base < n; base += (int64_t)w->nt * PRINT_BLOCK) {
         int64_t from = base + (int64_t)tid * PRINT_BLOCK, to = from + PRINT_BLOCK;
         if (to > n) to = n;
         th->text_len = 0;
         for (int64_t i = from; i < to; i++) {
             th->text = grow(th->text, &th->text_cap, th->text_len + IO_LINE_MAX, 1);
-            th->text_len += io_format_line(th->text + th->text_len, step, i, w->s, 0, dump17);
+            th->text_len += io_format_line(th->text + th->text_len, step, i, w->sim, 0, dump17);
         }
 #pragma omp barrier
 #pragma omp single
@@ -595,19 +710,16 @@ static void print_state(Work *w, int tid, int64_t step)
 
 static void step_run(Work *w, int tid, int64_t step)
 {
-    const Sim *s = w->s;
+    const Slots *s = &w->s;
     const Params *p = w->p;
     Thread *th = &w->th[tid];
     int64_t from, to;
     range_of(p->n, tid, w->nt, &from, &to);
 
-    /* wall events (3.1) and the fastest disk, for the plan */
+    /* the fastest disk sets the plan of the broad phase */
     double vm = 0;
-    for (int64_t i = from; i < to; i++) {
-        double tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
-                             wall_time(s->y[i], s->vy[i], p->lo, p->hi));
-        w->wall_t[i] = tw <= 1 ? tw : -1;
-        double ax = fabs(s->vx[i]), ay = fabs(s->vy[i]);
+    for (int64_t q = from; q < to; q++) {
+        double ax = fabs(s->vx[q]), ay = fabs(s->vy[q]);
         if (ax > vm) vm = ax;
         if (ay > vm) vm = ay;
     }
@@ -622,9 +734,13 @@ static void step_run(Work *w, int tid, int64_t step)
         w->plan = plan_step(p, v, p->n, w->nt, w->max_cells);
     }
 
-    /* pair events (3.2): broad phase slice by slice, narrow phase on the survivors */
-    for (int k = 0; k < w->plan.k; k++) {
-        bin_slice(w, tid, (double)k / w->plan.k, (double)(k + 1) / w->plan.k);
+    /* wall events (3.1) and pair events (3.2): the broad phase slice by slice, each slice's
+     * surviving pairs through the narrow phase */
+    int K = w->plan.k;
+    reorder_slots(w, tid, 1.0 / K);
+    scan_slice(w, tid, 0);
+    for (int k = 1; k < K; k++) {
+        bin_slice(w, tid, (double)k / K, (double)(k + 1) / K, 0);
         scan_slice(w, tid, k);
     }
     build_lists(w, tid);
@@ -649,11 +765,22 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     int64_t n = par->n;
     Work w;
     memset(&w, 0, sizeof w);
-    w.s = sim;
+    w.sim = sim;
     w.p = par;
     w.opt = opt;
     w.out = out;
     w.max_cells = n;
+    slots_alloc(&w.s, n);
+    slots_alloc(&w.spare, n);
+    for (int64_t i = 0; i < n; i++) {
+        w.s.x[i] = sim->x[i];
+        w.s.y[i] = sim->y[i];
+        w.s.vx[i] = sim->vx[i];
+        w.s.vy[i] = sim->vy[i];
+        w.s.id[i] = (int32_t)i;
+        w.s.pc[i] = sim->pc[i];
+        w.s.wc[i] = sim->wc[i];
+    }
     w.th = io_alloc((size_t)nt_max, sizeof *w.th);
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
     w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
@@ -675,6 +802,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         w.nt = omp_get_num_threads();
         int tid = omp_get_thread_num();
         for (int64_t step = 1; step <= par->steps; step++) step_run(&w, tid, step);
+        slots_unpermute(&w, tid);
     }
     st->seconds = io_now() - t0;
 
@@ -684,6 +812,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         free(w.th[t].ev);
         free(w.th[t].text);
     }
+    slots_free(&w.s);
+    slots_free(&w.spare);
     free(w.th);
     free(w.cell_of);
     free(w.hist);
