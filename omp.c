@@ -41,13 +41,17 @@ const char backend_options[] =
 
 /* ==== types ========================================================================================== */
 
-/* The box swept by one disk over one slice, grown by the radius and the rounding margin, with the
- * disk's state at the start of the step: the narrow phase then reads only the boxes it scans. */
+/* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
 typedef struct {
     double xlo, xhi, ylo, yhi;
+} Box;
+
+/* A disk's state at the start of the step, stored beside its box so that the narrow phase reads
+ * only memory the scan is already streaming through. */
+typedef struct {
     double x, y, vx, vy;
     int32_t slot, id; /* slot and original index of the disk */
-} Box;
+} Body;
 
 typedef struct {
     double t;     /* time of the event, 0..1 */
@@ -98,6 +102,7 @@ typedef struct {
     int32_t *cell_start; /* max cells + 1: first box of each cell */
     int64_t max_cells;
     Box *boxes;       /* n: the slice's boxes in cell order */
+    Body *bodies;     /* n: the disks of those boxes */
     /* the rest is indexed by slot */
     double *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
@@ -228,6 +233,10 @@ static inline void slice_box(const Slots *s, int64_t q, double ta, double tb, do
     b->xhi = (xa < xb ? xb : xa) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
     b->yhi = (ya < yb ? yb : ya) + grow;
+}
+
+static inline void slot_body(const Slots *s, int64_t q, Body *b)
+{
     b->x = s->x[q];
     b->y = s->y[q];
     b->vx = s->vx[q];
@@ -303,9 +312,14 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
 #pragma omp barrier
     if (reorder) {
         const Slots *d = &w->spare;
+        const Params *p = w->p;
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
+            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            double tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
+                                 wall_time(s->y[q], s->vy[q], p->lo, p->hi));
+            w->wall_t[pos] = tw <= 1 ? tw : -1;
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -319,16 +333,16 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
             slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            slot_body(s, q, &w->bodies[pos]);
         }
     }
 #pragma omp barrier
 }
 
-/* Slice 0 also puts the disks into its cell order, so its boxes are simply in slot order; the wall
- * events (3.1) are found on the way. */
+/* Slice 0 also puts the disks into its cell order, so its boxes are in slot order and its narrow
+ * phase reads the slots themselves; the wall events (3.1) are found on the way. */
 static void reorder_slots(Work *w, int tid, double tb)
 {
-    const Params *p = w->p;
     bin_slice(w, tid, 0, tb, 1);
 #pragma omp single
     {
@@ -336,16 +350,6 @@ static void reorder_slots(Work *w, int tid, double tb)
         w->s = w->spare;
         w->spare = t;
     }
-    const Slots *s = &w->s;
-    int64_t from, to;
-    range_of(p->n, tid, w->nt, &from, &to);
-    for (int64_t q = from; q < to; q++) {
-        slice_box(s, q, 0, tb, w->plan.grow, &w->boxes[q]);
-        double tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
-                             wall_time(s->y[q], s->vy[q], p->lo, p->hi));
-        w->wall_t[q] = tw <= 1 ? tw : -1;
-    }
-#pragma omp barrier
 }
 
 static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, int32_t b)
@@ -360,7 +364,7 @@ static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, in
  * all it is within reach at tau, so its boxes overlap in tau's slice, and that slice alone tests it.
  * (Rounding moves tau by about eps * |dx| / |dv|, which moves the disks by about eps * |dx|, far
  * inside the margin.) The disk with the lower original index is always pair_time's first. */
-static inline void try_pair(const Work *w, Thread *th, const Box *p, const Box *q, int k)
+static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body *q, int k)
 {
     double dx = q->x - p->x, dy = q->y - p->y;
     double dvx = q->vx - p->vx, dvy = q->vy - p->vy;
@@ -374,13 +378,22 @@ static inline void try_pair(const Work *w, Thread *th, const Box *p, const Box *
         if (ks != k) return;
     }
     if (q->id < p->id) {
-        const Box *t = p;
+        const Body *t = p;
         p = q;
         q = t;
     }
     th->tests++;
     double t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
     if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
+}
+
+/* The same for slice 0, whose disks are the slots themselves. */
+static inline void try_slots(const Work *w, Thread *th, int32_t a, int32_t b)
+{
+    const Slots *s = &w->s;
+    Body p = {s->x[a], s->y[a], s->vx[a], s->vy[a], a, s->id[a]};
+    Body q = {s->x[b], s->y[b], s->vx[b], s->vy[b], b, s->id[b]};
+    try_pair(w, th, &p, &q, 0);
 }
 
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
@@ -391,6 +404,7 @@ static void scan_slice(Work *w, int tid, int k)
     const Plan *pl = &w->plan;
     Thread *th = &w->th[tid];
     const Box *bx = w->boxes;
+    const Body *bd = w->bodies;
     const int32_t *cs = w->cell_start;
     int64_t g = pl->g;
     int64_t chunk = g / (8 * w->nt) + 1;
@@ -409,9 +423,15 @@ static void scan_slice(Work *w, int tid, int k)
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
                 const Box *ba = &bx[a];
                 for (int32_t b = a + 1; b < end1; b++)
-                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k);
+                    if (boxes_overlap(ba, &bx[b])) {
+                        if (k == 0) try_slots(w, th, a, b);
+                        else try_pair(w, th, &bd[a], &bd[b], k);
+                    }
                 for (int32_t b = lo2; b < end2; b++)
-                    if (boxes_overlap(ba, &bx[b])) try_pair(w, th, ba, &bx[b], k);
+                    if (boxes_overlap(ba, &bx[b])) {
+                        if (k == 0) try_slots(w, th, a, b);
+                        else try_pair(w, th, &bd[a], &bd[b], k);
+                    }
             }
         }
     }
@@ -786,6 +806,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
     w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
     w.boxes = io_alloc((size_t)n, sizeof *w.boxes);
+    w.bodies = io_alloc((size_t)n, sizeof *w.bodies);
     w.wall_t = io_alloc((size_t)n, sizeof *w.wall_t);
     w.off = io_alloc((size_t)n + 1, sizeof *w.off);
     w.active = io_alloc((size_t)n, sizeof *w.active);
@@ -819,6 +840,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.hist);
     free(w.cell_start);
     free(w.boxes);
+    free(w.bodies);
     free(w.wall_t);
     free(w.ev);
     free(w.off);
