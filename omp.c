@@ -46,8 +46,8 @@ typedef struct {
     double xlo, xhi, ylo, yhi;
 } Box;
 
-/* A disk's state at the start of the step, stored beside its box so that the narrow phase reads
- * only memory the scan is already streaming through. */
+/* A disk's state at the start of the step, stored in the cell order of the boxes, so that the
+ * narrow phase of a slice reads memory next to what its scan streams through. */
 typedef struct {
     double x, y, vx, vy;
     int32_t slot, id; /* slot and original index of the disk */
@@ -64,6 +64,14 @@ typedef struct {
     double *x, *y, *vx, *vy;
     int32_t *id, *pc, *wc;
 } Slots;
+
+/* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
+typedef struct {
+    double t;
+    int kind;     /* 0: wall, 1: pair */
+    int32_t i, j; /* original indices */
+    int32_t a, b; /* slots */
+} SeqEvent;
 
 /* The geometry of one step's broad phase. */
 typedef struct {
@@ -117,16 +125,9 @@ typedef struct {
     double *acc_t;    /* n: time of the accepted event */
     unsigned char *taken; /* n: 1 once the disk has an accepted event */
     int64_t undecided;   /* disks left after a round of the choice */
-    struct SeqEvent *fin; /* events of the sequential finish */
+    SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
 } Work;
-
-typedef struct SeqEvent {
-    double t;
-    int kind;
-    int32_t i, j; /* original indices: the key */
-    int32_t a, b; /* slots */
-} SeqEvent;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
 {
@@ -201,7 +202,8 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;
     pl.y0 = pl.x0;
-    int64_t gcap = 1;
+    int64_t gcap = (int64_t)sqrt((double)max_cells);
+    while (gcap > 1 && gcap * gcap > max_cells) gcap--;
     while ((gcap + 1) * (gcap + 1) <= max_cells) gcap++;
     double best = -1;
     pl.k = 1;
@@ -457,6 +459,9 @@ static void check_broad_phase(Work *w, int64_t step)
     size_t uniq = 0;
     for (size_t e = 0; e < w->n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
+    if (uniq != w->n_ev)
+        io_fail("--check: step %lld: the broad phase found %zu events more than once",
+                (long long)step, w->n_ev - uniq);
     size_t found = 0;
     for (int64_t qa = 0; qa < n; qa++)
         for (int64_t qb = qa + 1; qb < n; qb++) {
@@ -789,7 +794,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.p = par;
     w.opt = opt;
     w.out = out;
-    w.max_cells = n;
+    /* at most n cells, and per-thread histograms of at most 8n counts in all */
+    w.max_cells = nt_max <= 8 ? n : 8 * n / nt_max;
+    if (w.max_cells < 1) w.max_cells = 1;
     slots_alloc(&w.s, n);
     slots_alloc(&w.spare, n);
     for (int64_t i = 0; i < n; i++) {
