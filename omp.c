@@ -2,9 +2,10 @@
  *
  * Same bytes as seq.c for every input and thread count; only the search for pairs and the choice of
  * events are organised differently:
- * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort at the
- *   start of every step moves them), so that neighbours are neighbours in memory; each slot remembers
- *   its disk's original index, which alone decides the event order and the output order.
+ * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort moves
+ *   them at the start of a step, every step for fast scenes, every few steps for slow ones), so that
+ *   neighbours are neighbours in memory; each slot remembers its disk's original index, which alone
+ *   decides the event order and the output order.
  * - broad phase: the step is cut into K time slices (K from this step's fastest disk, 1 for slow
  *   scenes). In each slice every disk's swept box (its path over the slice, grown by r and a rounding
  *   margin) is binned by its centre into square cells at least as wide as two boxes can be apart and
@@ -32,6 +33,7 @@ const char backend_options[] =
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
 #define K_MAX 65536      /* most time slices per step */
+#define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
 /* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
  * one cell of one thread's histogram, testing one pair of boxes. */
@@ -110,7 +112,8 @@ typedef struct {
     int32_t *cell_start; /* max cells + 1: first box of each cell */
     int64_t max_cells;
     Box *boxes;       /* n: the slice's boxes in cell order */
-    Body *bodies;     /* n: the disks of those boxes */
+    Body *bodies;     /* n: the disks of those boxes (slices after the first) */
+    int32_t *box_slot; /* n: the slots of those boxes (first slice) */
     /* the rest is indexed by slot */
     double *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
@@ -260,10 +263,24 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
     return (int64_t)c;
 }
 
+/* What a binning writes in cell order besides the boxes. */
+enum { BIN_BODIES, BIN_SLOTS, BIN_REORDER };
+
+/* 3.1: the wall event of the disk in slot q, stored for slot dst. */
+static inline void wall_event(Work *w, int64_t q, int64_t dst)
+{
+    const Slots *s = &w->s;
+    const Params *p = w->p;
+    double tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
+                         wall_time(s->y[q], s->vy[q], p->lo, p->hi));
+    w->wall_t[dst] = tw <= 1 ? tw : -1;
+}
+
 /* Counting sort of the slots into the cells of their slice boxes: per-thread histograms, a prefix sum
- * over cells and threads, a scatter (inside a cell the slots keep their order). With reorder the
- * disks themselves move to the new order (into spare); otherwise the boxes are written in cell order. */
-static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
+ * over cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell
+ * order with their disks' bodies (BIN_BODIES) or slots (BIN_SLOTS); BIN_REORDER moves the disks
+ * themselves to the new order (into spare). The first slice finds the wall events (3.1) on the way. */
+static void bin_slice(Work *w, int tid, double ta, double tb, int mode)
 {
     const Plan *pl = &w->plan;
     const Slots *s = &w->s;
@@ -279,6 +296,7 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
                     cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
         w->cell_of[q] = (int32_t)c;
         h[c]++;
+        if (mode == BIN_SLOTS) wall_event(w, q, q);
     }
 #pragma omp barrier
     int64_t c0, c1, sum = 0;
@@ -312,16 +330,14 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
         base += v;
     }
 #pragma omp barrier
-    if (reorder) {
+    if (mode == BIN_REORDER) {
         const Slots *d = &w->spare;
-        const Params *p = w->p;
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
             slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
-            double tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
-                                 wall_time(s->y[q], s->vy[q], p->lo, p->hi));
-            w->wall_t[pos] = tw <= 1 ? tw : -1;
+            w->box_slot[pos] = pos;
+            wall_event(w, q, pos);
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -335,22 +351,18 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int reorder)
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
             slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
-            slot_body(s, q, &w->bodies[pos]);
+            if (mode == BIN_SLOTS) w->box_slot[pos] = (int32_t)q;
+            else slot_body(s, q, &w->bodies[pos]);
         }
     }
 #pragma omp barrier
-}
-
-/* Slice 0 also puts the disks into its cell order, so its boxes are in slot order and its narrow
- * phase reads the slots themselves; the wall events (3.1) are found on the way. */
-static void reorder_slots(Work *w, int tid, double tb)
-{
-    bin_slice(w, tid, 0, tb, 1);
+    if (mode == BIN_REORDER) {
 #pragma omp single
-    {
-        Slots t = w->s;
-        w->s = w->spare;
-        w->spare = t;
+        {
+            Slots t = w->s;
+            w->s = w->spare;
+            w->spare = t;
+        }
     }
 }
 
@@ -389,7 +401,7 @@ static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body
     if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
 }
 
-/* The same for slice 0, whose disks are the slots themselves. */
+/* The same for the first slice, which reads the disks from their slots. */
 static inline void try_slots(const Work *w, Thread *th, int32_t a, int32_t b)
 {
     const Slots *s = &w->s;
@@ -426,12 +438,12 @@ static void scan_slice(Work *w, int tid, int k)
                 const Box *ba = &bx[a];
                 for (int32_t b = a + 1; b < end1; b++)
                     if (boxes_overlap(ba, &bx[b])) {
-                        if (k == 0) try_slots(w, th, a, b);
+                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
                         else try_pair(w, th, &bd[a], &bd[b], k);
                     }
                 for (int32_t b = lo2; b < end2; b++)
                     if (boxes_overlap(ba, &bx[b])) {
-                        if (k == 0) try_slots(w, th, a, b);
+                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
                         else try_pair(w, th, &bd[a], &bd[b], k);
                     }
             }
@@ -485,8 +497,8 @@ static void check_broad_phase(Work *w, int64_t step)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
-/* Gathers the threads' pair events and builds each slot's list of them (CSR: count, prefix, fill;
- * the order inside a list does not matter, only its smallest event is ever used). */
+/* Gathers the threads' pair events, builds each slot's list of them (CSR: count, prefix, fill; the
+ * order inside a list does not matter, only its smallest event is ever used) and starts the choice. */
 static void build_lists(Work *w, int tid)
 {
     int nt = w->nt;
@@ -506,7 +518,11 @@ static void build_lists(Work *w, int tid)
     Thread *th = &w->th[tid];
     if (th->len) memcpy(w->ev + th->ev_off, th->ev, th->len * sizeof *th->ev);
     range_of(n, tid, nt, &from, &to);
-    for (int64_t q = from; q < to; q++) w->off[q] = 0;
+    for (int64_t q = from; q < to; q++) {
+        w->off[q] = 0;
+        w->taken[q] = 0;
+        w->acc_p[q] = -1;
+    }
 #pragma omp barrier
     for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
 #pragma omp atomic
@@ -515,8 +531,23 @@ static void build_lists(Work *w, int tid)
         w->off[w->ev[e].b]++;
     }
 #pragma omp barrier
-    int64_t sum = 0;
-    for (int64_t q = from; q < to; q++) sum += w->off[q];
+    /* a disk with a wall event and no pair event keeps its wall event; a disk with pair events
+     * goes to the rounds of choose_events */
+    int32_t *act = w->active + from;
+    int64_t sum = 0, na = 0;
+    for (int64_t q = from; q < to; q++) {
+        int64_t c = w->off[q];
+        sum += c;
+        if (c > 0) {
+            act[na++] = (int32_t)q;
+        } else if (w->wall_t[q] >= 0) {
+            w->taken[q] = 1;
+            w->acc_p[q] = (int32_t)q;
+            w->acc_t[q] = w->wall_t[q];
+            th->events++;
+        }
+    }
+    th->n_active = na;
     th->partial = sum;
 #pragma omp barrier
 #pragma omp single
@@ -602,13 +633,7 @@ static void choose_events(Work *w, int tid)
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     int32_t *act = w->active + from;
-    int64_t na = 0;
-    for (int64_t q = from; q < to; q++) {
-        w->taken[q] = 0;
-        w->acc_p[q] = -1;
-        if (w->wall_t[q] >= 0 || w->off[q + 1] > w->off[q]) act[na++] = (int32_t)q;
-    }
-#pragma omp barrier
+    int64_t na = th->n_active;
     for (;;) {
         for (int64_t k = 0; k < na; k++) {
             int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
@@ -671,10 +696,19 @@ static void choose_events(Work *w, int tid)
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
 
+static inline double fastest(double vm, double vx, double vy)
+{
+    double ax = fabs(vx), ay = fabs(vy);
+    if (ax > vm) vm = ax;
+    return ay > vm ? ay : vm;
+}
+
+/* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
+ * notes the largest velocity component it leaves, for the next step's plan. */
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->s;
-    double lo = w->p->lo, hi = w->p->hi;
+    double lo = w->p->lo, hi = w->p->hi, vm = 0;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
@@ -687,7 +721,7 @@ static void move_range(Work *w, int tid)
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
-        } else if (s->id[i] < s->id[j]) { /* the pair is handled once, from its lower index */
+        } else if (s->id[i] < s->id[j]) {
             s->x[i] = s->x[i] + s->vx[i] * t;
             s->y[i] = s->y[i] + s->vy[i] * t;
             s->x[j] = s->x[j] + s->vx[j] * t;
@@ -700,12 +734,15 @@ static void move_range(Work *w, int tid)
             s->pc[j]++;
             s->x[j] = clamp_coord(s->x[j], lo, hi);
             s->y[j] = clamp_coord(s->y[j], lo, hi);
+            vm = fastest(vm, s->vx[j], s->vy[j]);
         } else {
             continue;
         }
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);
+        vm = fastest(vm, s->vx[i], s->vy[i]);
     }
+    w->th[tid].vmax = vm;
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -735,22 +772,11 @@ static void print_state(Work *w, int tid, int64_t step)
 
 static void step_run(Work *w, int tid, int64_t step)
 {
-    const Slots *s = &w->s;
     const Params *p = w->p;
     Thread *th = &w->th[tid];
-    int64_t from, to;
-    range_of(p->n, tid, w->nt, &from, &to);
 
-    /* the fastest disk sets the plan of the broad phase */
-    double vm = 0;
-    for (int64_t q = from; q < to; q++) {
-        double ax = fabs(s->vx[q]), ay = fabs(s->vy[q]);
-        if (ax > vm) vm = ax;
-        if (ay > vm) vm = ay;
-    }
-    th->vmax = vm;
+    /* the fastest disk (found by the last move) sets the plan of the broad phase */
     th->len = 0;
-#pragma omp barrier
 #pragma omp single
     {
         double v = 0;
@@ -762,10 +788,10 @@ static void step_run(Work *w, int tid, int64_t step)
     /* wall events (3.1) and pair events (3.2): the broad phase slice by slice, each slice's
      * surviving pairs through the narrow phase */
     int K = w->plan.k;
-    reorder_slots(w, tid, 1.0 / K);
+    bin_slice(w, tid, 0, 1.0 / K, K > 1 || step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
     scan_slice(w, tid, 0);
     for (int k = 1; k < K; k++) {
-        bin_slice(w, tid, (double)k / K, (double)(k + 1) / K, 0);
+        bin_slice(w, tid, (double)k / K, (double)(k + 1) / K, BIN_BODIES);
         scan_slice(w, tid, k);
     }
     build_lists(w, tid);
@@ -822,6 +848,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.acc_p = io_alloc((size_t)n, sizeof *w.acc_p);
     w.acc_t = io_alloc((size_t)n, sizeof *w.acc_t);
     w.taken = io_alloc((size_t)n, sizeof *w.taken);
+    w.box_slot = io_alloc((size_t)n, sizeof *w.box_slot);
+    for (int64_t i = 0; i < n; i++) w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
 
     double t0 = io_now();
 #pragma omp parallel
@@ -858,6 +886,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.acc_p);
     free(w.acc_t);
     free(w.taken);
+    free(w.box_slot);
     free(w.fin);
     return 0;
 }
