@@ -252,7 +252,7 @@ static inline void slot_body(const Slots *s, int64_t q, Body *b)
 
 static inline int boxes_overlap(const Box *a, const Box *b)
 {
-    return a->xlo <= b->xhi && b->xlo <= a->xhi && a->ylo <= b->yhi && b->ylo <= a->yhi;
+    return (a->xlo <= b->xhi) & (b->xlo <= a->xhi) & (a->ylo <= b->yhi) & (b->ylo <= a->yhi);
 }
 
 static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
