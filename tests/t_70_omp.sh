@@ -67,6 +67,7 @@ OMP_THREAD_COUNTS="4 5 6 8 9 10 11 12 13 14 15 16" omp_compare rounds_threads "$
 for args in "4000 --fraction 0.3 --speed 0.5 --steps 4" \
             "3000 --assignment --L 3000 --steps 3" \
             "3000 --r 0.01 --L 300 --speed 3000 --steps 3" \
+            "2000 --r 1e-6 --L 1 --speed 1e5 --steps 3" \
             "4000 --fraction 0.7 --overlap --speed 2 --steps 3"; do
     # shellcheck disable=SC2086
     $GEN $args > "$D/check.in"
