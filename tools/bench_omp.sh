@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 
 REPEATS=${REPEATS:-3}
 THREADS=${THREADS:-"1 2"}
-CASES=${CASES:-"dense fixed assignment assignment1e5"}
+CASES=${CASES:-"dense fixed print assignment assignment1e5"}
 WORK=${WORK:-bench/tmp}
 BIG=${BIG:-0}
 
@@ -86,6 +86,15 @@ for c in $CASES; do
         for t in $THREADS; do
             eval "a=\$fixed_100000_$t b=\$fixed_400000_$t"
             echo "# fixed density, $t threads: 4x the disks costs $(ratio "$b" "$a")x the time"
+        done
+        ;;
+    print)
+        in=$WORK/print.in
+        echo "# tools/gen 100000 --fraction 0.2 --speed 0.5 --steps 20 --mode print > $in"
+        tools/gen 100000 --fraction 0.2 --speed 0.5 --steps 20 --mode print > "$in"
+        for t in $THREADS; do
+            measure print omp "$t" 100000 20 "$in"
+            echo "# print: $(wc -c < "$WORK/last.out") bytes written to a file"
         done
         ;;
     assignment)
