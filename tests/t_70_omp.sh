@@ -25,6 +25,10 @@ mid_dense        3000 --fraction 0.4 --speed 1 --steps 8
 mid_overlap      3000 --fraction 0.6 --overlap --speed 1 --steps 6
 mid_fast         2500 --assignment --L 1500 --steps 6
 rounds_deep      12000 --fraction 3 --overlap --speed 0.3 --steps 2
+fast_seed2       400 --assignment --L 400 --steps 15 --seed 2
+fast_seed3       400 --assignment --L 200 --overlap --steps 15 --seed 3 --mode print
+dense_seed4      800 --r 5 --fraction 0.3 --speed 4 --steps 25 --seed 4
+slow_seed5       2000 --fraction 0.4 --speed 0.1 --steps 20 --seed 5
 rounds_print     12000 --fraction 1.5 --overlap --speed 3 --steps 2 --mode print
 SCENES
 }
