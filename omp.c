@@ -766,7 +766,8 @@ static void print_state(Work *w, int tid, int64_t step)
         }
 #pragma omp barrier
 #pragma omp single
-        for (int t = 0; t < w->nt; t++) io_write_bytes(w->out, w->th[t].text, w->th[t].text_len);
+        for (int t = 0; t < w->nt; t++)
+            if (w->th[t].text_len) io_write_bytes(w->out, w->th[t].text, w->th[t].text_len);
     }
 }
 
