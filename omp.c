@@ -14,7 +14,8 @@
  * - choice: per-disk lists of candidate events (CSR), then rounds of "accept every event that is the
  *   smallest remaining event of all its disks", finished by a sort and walk once few disks remain.
  *   That is exactly the greedy choice of SPEC.md 3.3, whatever the thread count.
- * - move, and in print mode formatting, in parallel over disks; no floating-point reductions anywhere.
+ * - move, and in print mode formatting, in parallel over disks. No floating-point sums across threads
+ *   anywhere; the one reduction, the fastest velocity component, is a maximum and exact.
  * All buffers are allocated once (event buffers grow geometrically when a step needs more).
  */
 #include "common.h"
