@@ -1,136 +1,904 @@
-/* omp.c: the OpenMP backend.
+/* omp.c: the OpenMP backend, linear in N per step.
  *
- * For now a thin parallel version of seq.c: the all-pairs test is split over threads, each filling its
- * own event list; the lists are merged, sorted by the same key and walked in order, so the choice is
- * exactly the sequential greedy one whatever the thread count.
+ * Same bytes as seq.c for every input and thread count; only the search for pairs and the choice of
+ * events are organised differently:
+ * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort moves
+ *   them at the start of a step, every step for fast scenes, every few steps for slow ones), so that
+ *   neighbours are neighbours in memory; each slot remembers its disk's original index, which alone
+ *   decides the event order and the output order.
+ * - broad phase: the step is cut into K time slices (K from this step's fastest disk, 1 for slow
+ *   scenes). In each slice every disk's swept box (its path over the slice, grown by r and a rounding
+ *   margin) is binned by its centre into square cells at least as wide as two boxes can be apart and
+ *   still overlap, so overlapping boxes lie in the same or neighbouring cells. A pair whose boxes
+ *   overlap goes to the narrow phase (pair_time) if it approaches and is closest within that slice.
+ * - choice: per-disk lists of candidate events (CSR), then rounds of "accept every event that is the
+ *   smallest remaining event of all its disks", finished by a sort and walk once few disks remain.
+ *   That is exactly the greedy choice of SPEC.md 3.3, whatever the thread count.
+ * - move, and in print mode formatting, in parallel over disks. No floating-point sums across threads
+ *   anywhere; the one reduction, the fastest velocity component, is a maximum and exact.
+ * All buffers are allocated once (event buffers grow geometrically when a step needs more).
  */
 #include "common.h"
 
 #include <omp.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 const char backend_name[] = "omp";
-const char backend_options[] = "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n";
+const char backend_options[] =
+    "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
+    "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
+    "               phase missed an event; for testing\n";
 
+#define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
+#define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
+#define K_MAX 65536      /* most time slices per step */
+#define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
+
+/* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
+ * one cell of one thread's histogram, testing one pair of boxes. */
+#define COST_BIN 1.0
+#define COST_CELL 0.3
+#define COST_BOX 0.25
+
+/* ==== types ========================================================================================== */
+
+/* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
+typedef struct {
+    double xlo, xhi, ylo, yhi;
+} Box;
+
+/* A disk's state at the start of the step, stored in the cell order of the boxes, so that the
+ * narrow phase of a slice reads memory next to what its scan streams through. */
+typedef struct {
+    double x, y, vx, vy;
+    int32_t slot, id; /* slot and original index of the disk */
+} Body;
+
+typedef struct {
+    double t;     /* time of the event, 0..1 */
+    int32_t i, j; /* original indices, i < j: the event's key */
+    int32_t a, b; /* their slots */
+} PairEvent;
+
+/* The disks in slot order: SoA like Sim, plus each slot's original index. */
+typedef struct {
+    double *x, *y, *vx, *vy;
+    int32_t *id, *pc, *wc;
+} Slots;
+
+/* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
 typedef struct {
     double t;
-    int kind;
-    int64_t i, j;
-} Event;
+    int kind;     /* 0: wall, 1: pair */
+    int32_t i, j; /* original indices */
+    int32_t a, b; /* slots */
+} SeqEvent;
+
+/* The geometry of one step's broad phase. */
+typedef struct {
+    int k;        /* time slices */
+    int64_t g;    /* cells per side; g * g cells */
+    double x0, y0; /* lower corner of the grid */
+    double inv_h; /* 1 / cell side */
+    double grow;  /* r plus the rounding margin: half the size of a box at rest */
+} Plan;
+
+/* Per-thread state, padded so that threads never share a cache line. */
+typedef struct {
+    PairEvent *ev;    /* pair events found by this thread this step */
+    size_t len, cap;
+    char *text;       /* formatted lines (print mode) */
+    size_t text_len, text_cap;
+    int64_t n_active; /* undecided disks of this thread's range, at active + range start */
+    int64_t partial;  /* this thread's part of a prefix sum */
+    size_t ev_off;    /* where this thread's events go in the gathered list */
+    uint64_t tests, events;
+    double vmax;
+    char pad[64];
+} Thread;
 
 typedef struct {
-    Event *ev;
-    size_t len, cap;
-} EventList;
+    Sim *sim;         /* the caller's state, original order: filled for printing and at the end */
+    Slots s, spare;   /* the disks in slot order; spare receives the next order */
+    const Params *p;
+    const Options *opt;
+    Output *out;
+    int nt;           /* threads in the parallel region */
+    Plan plan;
+    Thread *th;
+    int32_t *cell_of; /* n: cell of each slot in the current slice */
+    int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
+    int32_t *cell_start; /* max cells + 1: first box of each cell */
+    int64_t max_cells;
+    Box *boxes;       /* n: the slice's boxes in cell order */
+    Body *bodies;     /* n: the disks of those boxes (slices after the first) */
+    int32_t *box_slot; /* n: the slots of those boxes (first slice) */
+    /* the rest is indexed by slot */
+    double *wall_t;   /* n: wall event time, or -1 */
+    PairEvent *ev;    /* all pair events of the step */
+    size_t n_ev, ev_cap;
+    int64_t *off;     /* n + 1: CSR offsets of each disk's events in adj */
+    size_t *adj;      /* 2 * n_ev: event indices */
+    size_t adj_cap;
+    int32_t *active;  /* n: undecided disks, each thread's in its own range */
+    int32_t *best_p;  /* n: partner slot of the smallest remaining event (itself: wall; -1: none) */
+    double *best_t;   /* n: time of that event */
+    int32_t *acc_p;   /* n: partner of the accepted event (itself: wall; -1: none) */
+    double *acc_t;    /* n: time of the accepted event */
+    unsigned char *taken; /* n: 1 once the disk has an accepted event */
+    int64_t undecided;   /* disks left after a round of the choice */
+    SeqEvent *fin;    /* events of the sequential finish */
+    size_t fin_cap;
+} Work;
 
-static void events_push(EventList *l, double t, int kind, int64_t i, int64_t j)
+static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
 {
-    if (l->len == l->cap) {
-        l->cap = l->cap ? 2 * l->cap : 1024;
-        Event *grown = realloc(l->ev, l->cap * sizeof *grown);
-        if (!grown) io_fail("out of memory for %zu events", l->cap);
-        l->ev = grown;
-    }
-    Event e = {t, kind, i, j};
-    l->ev[l->len++] = e;
+    *from = n * tid / nt;
+    *to = n * (tid + 1) / nt;
 }
 
-static int event_cmp(const void *pa, const void *pb)
+static void *grow(void *ptr, size_t *cap, size_t need, size_t size)
 {
-    const Event *a = pa, *b = pb;
+    if (need <= *cap) return ptr;
+    size_t c = *cap ? *cap : 1024;
+    while (c < need) c *= 2;
+    void *p = realloc(ptr, c * size);
+    if (!p) io_fail("out of memory (%zu x %zu bytes)", c, size);
+    *cap = c;
+    return p;
+}
+
+/* ==== broad phase ==================================================================================== */
+static void slots_alloc(Slots *s, int64_t n)
+{
+    s->x = io_alloc((size_t)n, sizeof *s->x);
+    s->y = io_alloc((size_t)n, sizeof *s->y);
+    s->vx = io_alloc((size_t)n, sizeof *s->vx);
+    s->vy = io_alloc((size_t)n, sizeof *s->vy);
+    s->id = io_alloc((size_t)n, sizeof *s->id);
+    s->pc = io_alloc((size_t)n, sizeof *s->pc);
+    s->wc = io_alloc((size_t)n, sizeof *s->wc);
+}
+
+static void slots_free(Slots *s)
+{
+    free(s->x);
+    free(s->y);
+    free(s->vx);
+    free(s->vy);
+    free(s->id);
+    free(s->pc);
+    free(s->wc);
+}
+
+/* Copies the slots of this thread's range back to the caller's state, in original order. */
+static void slots_unpermute(Work *w, int tid)
+{
+    const Slots *s = &w->s;
+    Sim *sim = w->sim;
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        int32_t i = s->id[q];
+        sim->x[i] = s->x[q];
+        sim->y[i] = s->y[q];
+        sim->vx[i] = s->vx[q];
+        sim->vy[i] = s->vy[q];
+        sim->pc[i] = s->pc[q];
+        sim->wc[i] = s->wc[q];
+    }
+}
+
+/* ==== broad phase ==================================================================================== */
+
+/* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
+ * that touch at a time of slice k have boxes that overlap in slice k; the margin m covers, with a
+ * factor of at least 1000 to spare, the rounding of positions (about eps * scale) and that of
+ * pair_time near a graze, where D > 0 can hold while the exact path misses contact by up to about
+ * eps * dd / r. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
+ * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
+static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max_cells)
+{
+    Plan pl;
+    double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
+    double m = 1e-9 * (r + r) + 1e-9 * scale + 1e-12 * (reach / r) * reach;
+    pl.grow = r + m;
+    double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
+    pl.x0 = p->lo - vm - pl.grow;
+    pl.y0 = pl.x0;
+    int64_t gcap = (int64_t)sqrt((double)max_cells);
+    while (gcap > 1 && gcap * gcap > max_cells) gcap--;
+    while ((gcap + 1) * (gcap + 1) <= max_cells) gcap++;
+    double best = -1;
+    pl.k = 1;
+    pl.g = 1;
+    for (int k = 1; k <= K_MAX; k = k < 8 ? k + 1 : k + k / 8) {
+        /* centres of two overlapping boxes are at most 2 * grow + (displacement in a slice) apart */
+        double h = (2 * pl.grow + vm / k) * (1 + 1e-9) + 1e-9 * scale;
+        double gd = extent / h;
+        int64_t g = gd < (double)gcap ? (int64_t)gd : gcap;
+        if (g < 1) g = 1;
+        double cells = (double)g * (double)g, nd = (double)n;
+        double cost = k * (nd * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nd * nd / cells);
+        if (best < 0 || cost < best) {
+            best = cost;
+            pl.k = k;
+            pl.g = g;
+        }
+        if (vm / k < 1e-3 * pl.grow) break; /* slices no longer shrink the cells */
+    }
+    pl.inv_h = (double)pl.g / extent;
+    return pl;
+}
+
+static inline void slice_box(const Slots *s, int64_t q, double ta, double tb, double grow, Box *b)
+{
+    double xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
+    double ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
+    b->xlo = (xa < xb ? xa : xb) - grow;
+    b->xhi = (xa < xb ? xb : xa) + grow;
+    b->ylo = (ya < yb ? ya : yb) - grow;
+    b->yhi = (ya < yb ? yb : ya) + grow;
+}
+
+static inline void slot_body(const Slots *s, int64_t q, Body *b)
+{
+    b->x = s->x[q];
+    b->y = s->y[q];
+    b->vx = s->vx[q];
+    b->vy = s->vy[q];
+    b->slot = (int32_t)q;
+    b->id = s->id[q];
+}
+
+static inline int boxes_overlap(const Box *a, const Box *b)
+{
+    return (a->xlo <= b->xhi) & (b->xlo <= a->xhi) & (a->ylo <= b->yhi) & (b->ylo <= a->yhi);
+}
+
+static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
+{
+    double c = ((lo + hi) * 0.5 - origin) * inv_h;
+    if (!(c > 0)) return 0;
+    if (c > (double)(g - 1)) return g - 1;
+    return (int64_t)c;
+}
+
+/* What a binning writes in cell order besides the boxes. */
+enum { BIN_BODIES, BIN_SLOTS, BIN_REORDER };
+
+/* 3.1: the wall event of the disk in slot q, stored for slot dst. Most disks are farther from every
+ * wall than they move in a step (with a relative 1e-9 to spare, so the quotient is surely > 1): they
+ * need no division. */
+static inline void wall_event(Work *w, int64_t q, int64_t dst)
+{
+    const Slots *s = &w->s;
+    const Params *p = w->p;
+    double x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
+    double ax = fabs(vx) * (1 + 1e-9), ay = fabs(vy) * (1 + 1e-9);
+    if (x - p->lo > ax && p->hi - x > ax && y - p->lo > ay && p->hi - y > ay) {
+        w->wall_t[dst] = -1;
+        return;
+    }
+    double tw = min_time(wall_time(x, vx, p->lo, p->hi), wall_time(y, vy, p->lo, p->hi));
+    w->wall_t[dst] = tw <= 1 ? tw : -1;
+}
+
+/* Counting sort of the slots into the cells of their slice boxes: per-thread histograms, a prefix sum
+ * over cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell
+ * order with their disks' bodies (BIN_BODIES) or slots (BIN_SLOTS); BIN_REORDER moves the disks
+ * themselves to the new order (into spare). The first slice finds the wall events (3.1) on the way. */
+static void bin_slice(Work *w, int tid, double ta, double tb, int mode)
+{
+    const Plan *pl = &w->plan;
+    const Slots *s = &w->s;
+    int nt = w->nt;
+    int64_t cells = pl->g * pl->g, from, to;
+    int32_t *h = w->hist + (size_t)tid * (size_t)cells;
+    memset(h, 0, (size_t)cells * sizeof *h);
+    range_of(w->p->n, tid, nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        Box b;
+        slice_box(s, q, ta, tb, pl->grow, &b);
+        int64_t c = cell_coord(b.ylo, b.yhi, pl->y0, pl->inv_h, pl->g) * pl->g +
+                    cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
+        w->cell_of[q] = (int32_t)c;
+        h[c]++;
+        if (mode == BIN_SLOTS) wall_event(w, q, q);
+    }
+#pragma omp barrier
+    int64_t c0, c1, sum = 0;
+    range_of(cells, tid, nt, &c0, &c1);
+    for (int64_t c = c0; c < c1; c++) {
+        int32_t tot = 0;
+        for (int t = 0; t < nt; t++) {
+            int32_t v = w->hist[(size_t)t * (size_t)cells + (size_t)c];
+            w->hist[(size_t)t * (size_t)cells + (size_t)c] = tot;
+            tot += v;
+        }
+        w->cell_start[c] = tot;
+        sum += tot;
+    }
+    w->th[tid].partial = sum;
+#pragma omp barrier
+#pragma omp single
+    {
+        int64_t acc = 0;
+        for (int t = 0; t < nt; t++) {
+            int64_t v = w->th[t].partial;
+            w->th[t].partial = acc;
+            acc += v;
+        }
+        w->cell_start[cells] = (int32_t)acc;
+    }
+    int64_t base = w->th[tid].partial;
+    for (int64_t c = c0; c < c1; c++) {
+        int32_t v = w->cell_start[c];
+        w->cell_start[c] = (int32_t)base;
+        base += v;
+    }
+#pragma omp barrier
+    if (mode == BIN_REORDER) {
+        const Slots *d = &w->spare;
+        for (int64_t q = from; q < to; q++) {
+            int32_t c = w->cell_of[q];
+            int32_t pos = w->cell_start[c] + h[c]++;
+            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            w->box_slot[pos] = pos;
+            wall_event(w, q, pos);
+            d->x[pos] = s->x[q];
+            d->y[pos] = s->y[q];
+            d->vx[pos] = s->vx[q];
+            d->vy[pos] = s->vy[q];
+            d->id[pos] = s->id[q];
+            d->pc[pos] = s->pc[q];
+            d->wc[pos] = s->wc[q];
+        }
+    } else {
+        for (int64_t q = from; q < to; q++) {
+            int32_t c = w->cell_of[q];
+            int32_t pos = w->cell_start[c] + h[c]++;
+            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            if (mode == BIN_SLOTS) w->box_slot[pos] = (int32_t)q;
+            else slot_body(s, q, &w->bodies[pos]);
+        }
+    }
+#pragma omp barrier
+    if (mode == BIN_REORDER) {
+#pragma omp single
+        {
+            Slots t = w->s;
+            w->s = w->spare;
+            w->spare = t;
+        }
+    }
+}
+
+static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, int32_t b)
+{
+    th->ev = grow(th->ev, &th->cap, th->len + 1, sizeof *th->ev);
+    PairEvent e = {t, i, j, a, b};
+    th->ev[th->len++] = e;
+}
+
+/* Narrow phase for two disks whose boxes overlap in slice k. A pair can meet only while it
+ * approaches (b < 0, as in pair_time) and is closest at tau = -b / a clamped to [0, 1]; if it meets at
+ * all it is within reach at tau, so its boxes overlap in tau's slice, and that slice alone tests it.
+ * (Rounding moves tau by about eps * |dx| / |dv|, which moves the disks by about eps * |dx|, far
+ * inside the margin.) The disk with the lower original index is always pair_time's first. */
+static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body *q, int k)
+{
+    double dx = q->x - p->x, dy = q->y - p->y;
+    double dvx = q->vx - p->vx, dvy = q->vy - p->vy;
+    double b = dx * dvx + dy * dvy;
+    if (!(b < 0)) return;
+    int K = w->plan.k;
+    if (K > 1) {
+        double tau = -b / (dvx * dvx + dvy * dvy);
+        int ks = tau < 1 ? (int)(tau * K) : K - 1;
+        if (ks > K - 1) ks = K - 1;
+        if (ks != k) return;
+    }
+    if (q->id < p->id) {
+        const Body *t = p;
+        p = q;
+        q = t;
+    }
+    th->tests++;
+    double t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
+    if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
+}
+
+/* The same for the first slice, which reads the disks from their slots. */
+static inline void try_slots(const Work *w, Thread *th, int32_t a, int32_t b)
+{
+    const Slots *s = &w->s;
+    Body p = {s->x[a], s->y[a], s->vx[a], s->vy[a], a, s->id[a]};
+    Body q = {s->x[b], s->y[b], s->vx[b], s->vy[b], b, s->id[b]};
+    try_pair(w, th, &p, &q, 0);
+}
+
+/* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
+ * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
+ * memory and the three northern cells are contiguous, so two ranges cover them. */
+static void scan_slice(Work *w, int tid, int k)
+{
+    const Plan *pl = &w->plan;
+    Thread *th = &w->th[tid];
+    const Box *bx = w->boxes;
+    const Body *bd = w->bodies;
+    const int32_t *cs = w->cell_start;
+    int64_t g = pl->g;
+    int64_t chunk = g / (8 * w->nt) + 1;
+#pragma omp for schedule(dynamic, chunk)
+    for (int64_t cy = 0; cy < g; cy++) {
+        for (int64_t cx = 0; cx < g; cx++) {
+            int64_t c = cy * g + cx;
+            int32_t end1 = cs[cx + 1 < g ? c + 2 : c + 1];
+            int32_t lo2 = 0, end2 = 0;
+            if (cy + 1 < g) {
+                int64_t first = (cy + 1) * g + (cx > 0 ? cx - 1 : 0);
+                int64_t last = (cy + 1) * g + (cx + 1 < g ? cx + 1 : cx);
+                lo2 = cs[first];
+                end2 = cs[last + 1];
+            }
+            for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
+                const Box *ba = &bx[a];
+                for (int32_t b = a + 1; b < end1; b++)
+                    if (boxes_overlap(ba, &bx[b])) {
+                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
+                        else try_pair(w, th, &bd[a], &bd[b], k);
+                    }
+                for (int32_t b = lo2; b < end2; b++)
+                    if (boxes_overlap(ba, &bx[b])) {
+                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
+                        else try_pair(w, th, &bd[a], &bd[b], k);
+                    }
+            }
+        }
+    }
+}
+
+/* ==== --check: the broad phase against all pairs ================================================ */
+
+static int pair_cmp(const void *pa, const void *pb)
+{
+    const PairEvent *a = pa, *b = pb;
+    if (a->i != b->i) return a->i < b->i ? -1 : 1;
+    if (a->j != b->j) return a->j < b->j ? -1 : 1;
+    return 0;
+}
+
+static void check_broad_phase(Work *w, int64_t step)
+{
+    const Slots *s = &w->s;
+    int64_t n = w->p->n;
+    PairEvent *mine = io_alloc(w->n_ev, sizeof *mine);
+    memcpy(mine, w->ev, w->n_ev * sizeof *mine);
+    qsort(mine, w->n_ev, sizeof *mine, pair_cmp);
+    size_t uniq = 0;
+    for (size_t e = 0; e < w->n_ev; e++)
+        if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
+    if (uniq != w->n_ev)
+        io_fail("--check: step %lld: the broad phase found %zu events more than once",
+                (long long)step, w->n_ev - uniq);
+    size_t found = 0;
+    for (int64_t qa = 0; qa < n; qa++)
+        for (int64_t qb = qa + 1; qb < n; qb++) {
+            int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
+            double t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
+                                 s->vy[b], w->p->sigma2);
+            if (t < 0) continue;
+            PairEvent key = {t, s->id[a], s->id[b], 0, 0};
+            PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
+            if (!hit || hit->t != t)
+                io_fail("--check: step %lld: the broad phase missed the event of disks %d and %d "
+                        "at t = %.17g",
+                        (long long)step, key.i, key.j, t);
+            found++;
+        }
+    if (found != uniq)
+        io_fail("--check: step %lld: the broad phase found %zu events, all pairs %zu",
+                (long long)step, uniq, found);
+    free(mine);
+}
+
+/* ==== choosing the events (SPEC.md 3.3) ========================================================== */
+
+/* Gathers the threads' pair events, builds each slot's list of them (CSR: count, prefix, fill; the
+ * order inside a list does not matter, only its smallest event is ever used) and starts the choice. */
+static void build_lists(Work *w, int tid)
+{
+    int nt = w->nt;
+    int64_t n = w->p->n, from, to;
+#pragma omp single
+    {
+        size_t total = 0;
+        for (int t = 0; t < nt; t++) {
+            w->th[t].ev_off = total;
+            total += w->th[t].len;
+        }
+        w->n_ev = total;
+        w->ev = grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
+        w->adj = grow(w->adj, &w->adj_cap, 2 * total, sizeof *w->adj);
+        w->off[n] = (int64_t)(2 * total);
+    }
+    Thread *th = &w->th[tid];
+    if (th->len) memcpy(w->ev + th->ev_off, th->ev, th->len * sizeof *th->ev);
+    range_of(n, tid, nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        w->off[q] = 0;
+        w->taken[q] = 0;
+        w->acc_p[q] = -1;
+    }
+#pragma omp barrier
+    for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
+#pragma omp atomic
+        w->off[w->ev[e].a]++;
+#pragma omp atomic
+        w->off[w->ev[e].b]++;
+    }
+#pragma omp barrier
+    /* a disk with a wall event and no pair event keeps its wall event; a disk with pair events
+     * goes to the rounds of choose_events */
+    int32_t *act = w->active + from;
+    int64_t sum = 0, na = 0;
+    for (int64_t q = from; q < to; q++) {
+        int64_t c = w->off[q];
+        sum += c;
+        if (c > 0) {
+            act[na++] = (int32_t)q;
+        } else if (w->wall_t[q] >= 0) {
+            w->taken[q] = 1;
+            w->acc_p[q] = (int32_t)q;
+            w->acc_t[q] = w->wall_t[q];
+            th->events++;
+        }
+    }
+    th->n_active = na;
+    th->partial = sum;
+#pragma omp barrier
+#pragma omp single
+    {
+        int64_t acc = 0;
+        for (int t = 0; t < nt; t++) {
+            int64_t v = w->th[t].partial;
+            w->th[t].partial = acc;
+            acc += v;
+        }
+    }
+    sum = th->partial; /* inclusive prefix: off[q] = end of slot q's list */
+    for (int64_t q = from; q < to; q++) {
+        sum += w->off[q];
+        w->off[q] = sum;
+    }
+#pragma omp barrier
+    for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
+        int64_t pos;
+#pragma omp atomic capture
+        pos = --w->off[w->ev[e].a];
+        w->adj[pos] = e;
+#pragma omp atomic capture
+        pos = --w->off[w->ev[e].b];
+        w->adj[pos] = e;
+    }
+#pragma omp barrier
+}
+
+static int seq_event_cmp(const void *pa, const void *pb)
+{
+    const SeqEvent *a = pa, *b = pb;
     if (event_before(a->t, a->kind, a->i, a->j, b->t, b->kind, b->i, b->j)) return -1;
     if (event_before(b->t, b->kind, b->i, b->j, a->t, a->kind, a->i, a->j)) return 1;
     return 0;
 }
 
-static void detect(const Sim *s, const Params *p, EventList *mine)
+/* The last undecided disks: their remaining events sorted and walked, as seq.c does. */
+static void finish_sequential(Work *w)
 {
-#pragma omp for schedule(dynamic, 16)
-    for (int64_t i = 0; i < p->n; i++) {
-        double tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
-                             wall_time(s->y[i], s->vy[i], p->lo, p->hi));
-        if (tw <= 1) events_push(mine, tw, 0, i, i);
-        for (int64_t j = i + 1; j < p->n; j++) {
-            double t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
-                                 s->vy[j], p->sigma2);
-            if (t >= 0) events_push(mine, t, 1, i, j);
+    const Slots *s = &w->s;
+    size_t len = 0;
+    for (int t = 0; t < w->nt; t++) {
+        int64_t from, to;
+        range_of(w->p->n, t, w->nt, &from, &to);
+        for (int64_t k = 0; k < w->th[t].n_active; k++) {
+            int32_t q = w->active[from + k];
+            w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+            if (w->wall_t[q] >= 0) {
+                SeqEvent e = {w->wall_t[q], 0, s->id[q], s->id[q], q, q};
+                w->fin[len++] = e;
+            }
+            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
+                const PairEvent *pe = &w->ev[w->adj[u]];
+                if (pe->a != q || w->taken[pe->b]) continue;
+                w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+                SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
+                w->fin[len++] = e;
+            }
         }
+    }
+    qsort(w->fin, len, sizeof *w->fin, seq_event_cmp);
+    uint64_t accepted = 0;
+    for (size_t u = 0; u < len; u++) {
+        const SeqEvent *e = &w->fin[u];
+        if (w->taken[e->a] || w->taken[e->b]) continue;
+        w->taken[e->a] = w->taken[e->b] = 1;
+        w->acc_p[e->a] = e->b;
+        w->acc_p[e->b] = e->a;
+        w->acc_t[e->a] = w->acc_t[e->b] = e->t;
+        accepted++;
+    }
+    w->th[0].events += accepted;
+}
+
+/* Rounds: every undecided disk finds its smallest event among those whose disks are all free; an
+ * event that is the smallest of each of its disks is accepted. The global smallest always is, so
+ * every round makes progress; once few disks remain the sequential walk ends the step. */
+static void choose_events(Work *w, int tid)
+{
+    const int32_t *id = w->s.id;
+    Thread *th = &w->th[tid];
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    int32_t *act = w->active + from;
+    int64_t na = th->n_active;
+    for (;;) {
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
+            double bt = 0;
+            if (w->wall_t[q] >= 0) {
+                bp = q;
+                bi = bj = id[q];
+                bt = w->wall_t[q];
+            }
+            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
+                const PairEvent *e = &w->ev[w->adj[u]];
+                int32_t other = e->a == q ? e->b : e->a;
+                if (w->taken[other]) continue;
+                if (bp < 0 || event_before(e->t, 1, e->i, e->j, bt, bk, bi, bj)) {
+                    bp = other;
+                    bt = e->t;
+                    bk = 1;
+                    bi = e->i;
+                    bj = e->j;
+                }
+            }
+            w->best_p[q] = bp;
+            w->best_t[q] = bt;
+        }
+#pragma omp barrier
+        int64_t kept = 0;
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = act[k], bp = w->best_p[q];
+            if (bp < 0) continue;
+            if (bp == q) {
+                w->taken[q] = 1;
+                w->acc_p[q] = q;
+                w->acc_t[q] = w->best_t[q];
+                th->events++;
+            } else if (w->best_p[bp] == q) {
+                if (q < bp) {
+                    w->taken[q] = w->taken[bp] = 1;
+                    w->acc_p[q] = bp;
+                    w->acc_p[bp] = q;
+                    w->acc_t[q] = w->acc_t[bp] = w->best_t[q];
+                    th->events++;
+                }
+            } else {
+                act[kept++] = q;
+            }
+        }
+        na = kept;
+        th->n_active = na;
+#pragma omp barrier
+#pragma omp single
+        {
+            int64_t left = 0;
+            for (int t = 0; t < w->nt; t++) left += w->th[t].n_active;
+            w->undecided = left;
+            if (left > 0 && left <= SEQ_FINISH) finish_sequential(w);
+        }
+        if (w->undecided <= SEQ_FINISH) break;
     }
 }
 
-static void move_one(Sim *s, const Params *p, const Event *e, int64_t i)
+/* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
+
+static inline double fastest(double vm, double vx, double vy)
 {
-    double lo = p->lo, hi = p->hi;
-    if (!e) {
-        s->x[i] = s->x[i] + s->vx[i];
-        s->y[i] = s->y[i] + s->vy[i];
-    } else if (e->kind == 0) {
-        wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], e->t, lo, hi);
-        finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
-        s->wc[i]++;
-    } else if (i == e->i) {
-        int64_t j = e->j;
-        s->x[i] = s->x[i] + s->vx[i] * e->t;
-        s->y[i] = s->y[i] + s->vy[i] * e->t;
-        s->x[j] = s->x[j] + s->vx[j] * e->t;
-        s->y[j] = s->y[j] + s->vy[j] * e->t;
-        pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
-        finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
-        finish_step(&s->x[j], &s->y[j], s->vx[j], s->vy[j], e->t, lo, hi);
-        s->pc[i]++;
-        s->pc[j]++;
-    }
-    if (!e || i == e->i || e->kind == 0) {
+    double ax = fabs(vx), ay = fabs(vy);
+    if (ax > vm) vm = ax;
+    return ay > vm ? ay : vm;
+}
+
+/* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
+ * notes the largest velocity component it leaves, for the next step's plan. */
+static void move_range(Work *w, int tid)
+{
+    Slots *s = &w->s;
+    double lo = w->p->lo, hi = w->p->hi, vm = 0;
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t i = from; i < to; i++) {
+        int64_t j = w->acc_p[i];
+        double t = w->acc_t[i];
+        if (j < 0) {
+            s->x[i] = s->x[i] + s->vx[i];
+            s->y[i] = s->y[i] + s->vy[i];
+        } else if (j == i) {
+            wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
+            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
+            s->wc[i]++;
+        } else if (s->id[i] < s->id[j]) {
+            s->x[i] = s->x[i] + s->vx[i] * t;
+            s->y[i] = s->y[i] + s->vy[i] * t;
+            s->x[j] = s->x[j] + s->vx[j] * t;
+            s->y[j] = s->y[j] + s->vy[j] * t;
+            pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j],
+                        &s->vy[j]);
+            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
+            finish_step(&s->x[j], &s->y[j], s->vx[j], s->vy[j], t, lo, hi);
+            s->pc[i]++;
+            s->pc[j]++;
+            s->x[j] = clamp_coord(s->x[j], lo, hi);
+            s->y[j] = clamp_coord(s->y[j], lo, hi);
+            vm = fastest(vm, s->vx[j], s->vy[j]);
+        } else {
+            continue;
+        }
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);
+        vm = fastest(vm, s->vx[i], s->vy[i]);
     }
-    if (e && e->kind == 1 && i == e->i) {
-        s->x[e->j] = clamp_coord(s->x[e->j], lo, hi);
-        s->y[e->j] = clamp_coord(s->y[e->j], lo, hi);
+    w->th[tid].vmax = vm;
+}
+
+/* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
+
+static void print_state(Work *w, int tid, int64_t step)
+{
+    Thread *th = &w->th[tid];
+    int64_t n = w->p->n;
+    int dump17 = io_dump17(w->out);
+    slots_unpermute(w, tid);
+#pragma omp barrier
+    for (int64_t base = 0; base < n; base += (int64_t)w->nt * PRINT_BLOCK) {
+        int64_t from = base + (int64_t)tid * PRINT_BLOCK, to = from + PRINT_BLOCK;
+        if (to > n) to = n;
+        th->text_len = 0;
+        for (int64_t i = from; i < to; i++) {
+            th->text = grow(th->text, &th->text_cap, th->text_len + IO_LINE_MAX, 1);
+            th->text_len += io_format_line(th->text + th->text_len, step, i, w->sim, 0, dump17);
+        }
+#pragma omp barrier
+#pragma omp single
+        for (int t = 0; t < w->nt; t++)
+            if (w->th[t].text_len) io_write_bytes(w->out, w->th[t].text, w->th[t].text_len);
     }
+}
+
+/* ==== one step =========================================================================================== */
+
+static void step_run(Work *w, int tid, int64_t step)
+{
+    const Params *p = w->p;
+    Thread *th = &w->th[tid];
+
+    /* the fastest disk (found by the last move) sets the plan of the broad phase */
+    th->len = 0;
+#pragma omp single
+    {
+        double v = 0;
+        for (int t = 0; t < w->nt; t++)
+            if (w->th[t].vmax > v) v = w->th[t].vmax;
+        w->plan = plan_step(p, v, p->n, w->nt, w->max_cells);
+    }
+
+    /* wall events (3.1) and pair events (3.2): the broad phase slice by slice, each slice's
+     * surviving pairs through the narrow phase */
+    int K = w->plan.k;
+    bin_slice(w, tid, 0, 1.0 / K, K > 1 || step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
+    scan_slice(w, tid, 0);
+    for (int k = 1; k < K; k++) {
+        bin_slice(w, tid, (double)k / K, (double)(k + 1) / K, BIN_BODIES);
+        scan_slice(w, tid, k);
+    }
+    build_lists(w, tid);
+#pragma omp single
+    if (w->opt->check) check_broad_phase(w, step);
+
+    /* the greedy choice (3.3), then the moves (3.4, 3.5) */
+    choose_events(w, tid);
+#pragma omp barrier
+    move_range(w, tid);
+#pragma omp barrier
+    if (p->print && step < p->steps) print_state(w, tid, step);
+#pragma omp single
+    io_progress(w->out, step);
 }
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
     if (opt->threads > 0) omp_set_num_threads(opt->threads);
-    int nt = omp_get_max_threads();
-    EventList *lists = io_alloc((size_t)nt, sizeof *lists);
-    EventList all = {NULL, 0, 0};
-    int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
+    omp_set_dynamic(0);
+    int nt_max = omp_get_max_threads();
+    int64_t n = par->n;
+    Work w;
+    memset(&w, 0, sizeof w);
+    w.sim = sim;
+    w.p = par;
+    w.opt = opt;
+    w.out = out;
+    /* at most n cells, and per-thread histograms of at most 8n counts in all */
+    w.max_cells = nt_max <= 8 ? n : 8 * n / nt_max;
+    if (w.max_cells < 1) w.max_cells = 1;
+    slots_alloc(&w.s, n);
+    slots_alloc(&w.spare, n);
+    for (int64_t i = 0; i < n; i++) {
+        w.s.x[i] = sim->x[i];
+        w.s.y[i] = sim->y[i];
+        w.s.vx[i] = sim->vx[i];
+        w.s.vy[i] = sim->vy[i];
+        w.s.id[i] = (int32_t)i;
+        w.s.pc[i] = sim->pc[i];
+        w.s.wc[i] = sim->wc[i];
+    }
+    w.th = io_alloc((size_t)nt_max, sizeof *w.th);
+    w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
+    w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
+    w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
+    w.boxes = io_alloc((size_t)n, sizeof *w.boxes);
+    w.bodies = io_alloc((size_t)n, sizeof *w.bodies);
+    w.wall_t = io_alloc((size_t)n, sizeof *w.wall_t);
+    w.off = io_alloc((size_t)n + 1, sizeof *w.off);
+    w.active = io_alloc((size_t)n, sizeof *w.active);
+    w.best_p = io_alloc((size_t)n, sizeof *w.best_p);
+    w.best_t = io_alloc((size_t)n, sizeof *w.best_t);
+    w.acc_p = io_alloc((size_t)n, sizeof *w.acc_p);
+    w.acc_t = io_alloc((size_t)n, sizeof *w.acc_t);
+    w.taken = io_alloc((size_t)n, sizeof *w.taken);
+    w.box_slot = io_alloc((size_t)n, sizeof *w.box_slot);
+    for (int64_t i = 0; i < n; i++) w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
+
     double t0 = io_now();
-    for (int64_t step = 1; step <= par->steps; step++) {
 #pragma omp parallel
-        {
-            EventList *mine = &lists[omp_get_thread_num()];
-            mine->len = 0;
-            detect(sim, par, mine);
-        }
-        all.len = 0;
-        for (int k = 0; k < nt; k++)
-            for (size_t e = 0; e < lists[k].len; e++)
-                events_push(&all, lists[k].ev[e].t, lists[k].ev[e].kind, lists[k].ev[e].i,
-                            lists[k].ev[e].j);
-        qsort(all.ev, all.len, sizeof *all.ev, event_cmp);
-        for (int64_t i = 0; i < par->n; i++) event_of[i] = -1;
-        for (size_t k = 0; k < all.len; k++) {
-            const Event *e = &all.ev[k];
-            if (event_of[e->i] >= 0 || event_of[e->j] >= 0) continue;
-            event_of[e->i] = event_of[e->j] = (int64_t)k;
-            st->events++;
-        }
-        st->pair_tests += (uint64_t)par->n * (uint64_t)(par->n - 1) / 2;
-#pragma omp parallel for schedule(static)
-        for (int64_t i = 0; i < par->n; i++)
-            move_one(sim, par, event_of[i] < 0 ? NULL : &all.ev[event_of[i]], i);
-        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, par->n, 0);
-        io_progress(out, step);
+    {
+#pragma omp single
+        w.nt = omp_get_num_threads();
+        int tid = omp_get_thread_num();
+        for (int64_t step = 1; step <= par->steps; step++) step_run(&w, tid, step);
+        slots_unpermute(&w, tid);
     }
     st->seconds = io_now() - t0;
-    for (int k = 0; k < nt; k++) free(lists[k].ev);
-    free(lists);
-    free(all.ev);
-    free(event_of);
+
+    for (int t = 0; t < nt_max; t++) {
+        st->pair_tests += w.th[t].tests;
+        st->events += w.th[t].events;
+        free(w.th[t].ev);
+        free(w.th[t].text);
+    }
+    slots_free(&w.s);
+    slots_free(&w.spare);
+    free(w.th);
+    free(w.cell_of);
+    free(w.hist);
+    free(w.cell_start);
+    free(w.boxes);
+    free(w.bodies);
+    free(w.wall_t);
+    free(w.ev);
+    free(w.off);
+    free(w.adj);
+    free(w.active);
+    free(w.best_p);
+    free(w.best_t);
+    free(w.acc_p);
+    free(w.acc_t);
+    free(w.taken);
+    free(w.box_slot);
+    free(w.fin);
     return 0;
 }
 

@@ -1,0 +1,83 @@
+# omp against seq, byte for byte, on generated scenes that stress the broad phase and the choice of
+# events: slow, fast (a quarter of the box per step), dense, dilute, overlapping, and scenes of 12000
+# heavily overlapping disks that need several parallel rounds before the sequential finish, at 1, 2,
+# 3 and 7 threads. Then --check
+# (the broad phase against all pairs, every step) on scenes of a few thousand disks.
+GEN=tools/gen
+D=$TMP/omp
+mkdir -p "$D"
+
+# name and tools/gen arguments, one scene a line
+omp_scenes() {
+    cat <<'SCENES'
+slow_print       400 --speed 0.5 --steps 40 --mode print
+fast_print       300 --assignment --L 300 --steps 20 --mode print
+fast_dilute      300 --assignment --L 3000 --steps 20 --mode print
+dense_gas        500 --r 5 --fraction 0.05 --speed 4 --steps 40
+packed           600 --fraction 0.45 --speed 0.2 --steps 30 --mode print
+dilute           200 --fraction 0.01 --speed 3 --steps 40 --mode print
+overlap_print    300 --fraction 0.5 --overlap --speed 1 --steps 30 --mode print
+overlap_fast     200 --overlap --assignment --L 100 --steps 20 --mode print
+tiny_radius      300 --r 0.001 --fraction 0.1 --speed 2 --steps 30 --mode print
+one_disk         1 --fraction 0.1 --speed 3 --steps 50 --mode print
+two_disks        2 --fraction 0.3 --speed 3 --steps 50 --mode print
+mid_dense        3000 --fraction 0.4 --speed 1 --steps 8
+mid_overlap      3000 --fraction 0.6 --overlap --speed 1 --steps 6
+mid_fast         2500 --assignment --L 1500 --steps 6
+rounds_deep      12000 --fraction 3 --overlap --speed 0.3 --steps 2
+fast_seed2       400 --assignment --L 400 --steps 15 --seed 2
+fast_seed3       400 --assignment --L 200 --overlap --steps 15 --seed 3 --mode print
+dense_seed4      800 --r 5 --fraction 0.3 --speed 4 --steps 25 --seed 4
+slow_seed5       2000 --fraction 0.4 --speed 0.1 --steps 20 --seed 5
+rounds_print     12000 --fraction 1.5 --overlap --speed 3 --steps 2 --mode print
+SCENES
+}
+
+omp_compare() { # name input [extra options]
+    local name=$1 in=$2
+    shift 2
+    if ! ./seq "$in" --quiet "$@" > "$D/$name.ref" 2> "$D/err"; then
+        fail "omp/$name seq" "$(head -c 300 "$D/err")"
+        return
+    fi
+    local t bad=""
+    for t in ${OMP_THREAD_COUNTS:-1 2 3 7}; do
+        if ! ./omp "$in" --quiet --threads "$t" "$@" > "$D/out" 2> "$D/err"; then
+            bad="$bad $t:exit($(head -c 200 "$D/err"))"
+        elif ! cmp -s "$D/out" "$D/$name.ref"; then
+            bad="$bad $t:differs"
+        fi
+    done
+    if [ -z "$bad" ]; then
+        pass "omp/$name same bytes as seq at ${OMP_THREAD_COUNTS:-1 2 3 7} threads"
+    else
+        fail "omp/$name" "$bad"
+    fi
+}
+
+while read -r name args; do
+    # shellcheck disable=SC2086
+    $GEN $args > "$D/$name.in"
+    omp_compare "$name" "$D/$name.in"
+done < <(omp_scenes)
+
+# the assignment's own random scene (no particle lines), and %.17g output
+printf '300\n400\n1\n15\nprint\n' > "$D/random.in"
+omp_compare random "$D/random.in" --seed 7
+omp_compare dump17 "$D/overlap_print.in" --dump17
+OMP_THREAD_COUNTS="4 5 6 8 9 10 11 12 13 14 15 16" omp_compare rounds_threads "$D/rounds_print.in"
+
+# --check: the broad phase must find every event all pairs find
+for args in "4000 --fraction 0.3 --speed 0.5 --steps 4" \
+            "3000 --assignment --L 3000 --steps 3" \
+            "3000 --r 0.01 --L 300 --speed 3000 --steps 3" \
+            "2000 --r 1e-6 --L 1 --speed 1e5 --steps 3" \
+            "4000 --fraction 0.7 --overlap --speed 2 --steps 3"; do
+    # shellcheck disable=SC2086
+    $GEN $args > "$D/check.in"
+    if ./omp "$D/check.in" --quiet --check --threads 2 > /dev/null 2> "$D/err"; then
+        pass "omp --check: $args"
+    else
+        fail "omp --check: $args" "$(head -c 300 "$D/err")"
+    fi
+done
