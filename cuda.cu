@@ -19,6 +19,7 @@
 
 #include <cub/cub.cuh>
 #include <cuda/functional>
+#include <cooperative_groups.h>
 #include <cuda_runtime.h>
 
 #include <stdio.h>
@@ -78,6 +79,15 @@ typedef struct {
     int64_t m;      /* entries: n * K */
     int bits;       /* significant bits of a (slice, cell) key */
 } Grid;
+
+/* A slot in a list shared by the whole grid: one atomic per group of threads that append together. */
+static __device__ __forceinline__ unsigned long long list_append(unsigned long long *count)
+{
+    cooperative_groups::coalesced_group g = cooperative_groups::coalesced_threads();
+    unsigned long long base = 0;
+    if (g.thread_rank() == 0) base = atomicAdd(count, (unsigned long long)g.size());
+    return g.shfl(base, 0) + g.thread_rank();
+}
 
 static __device__ __forceinline__ uint64_t time_key(double t)
 {
@@ -209,7 +219,7 @@ __global__ void detect_kernel(DevState st, const uint32_t *keys, const int32_t *
                     e.a = id < id2 ? s : s2;
                     e.b = id < id2 ? s2 : s;
                     e.lo = id < id2 ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
-                    unsigned long long at = atomicAdd(&info->found, 1ULL);
+                    unsigned long long at = list_append(&info->found);
                     if ((int64_t)at < cap) ev[at] = e;
                     atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
                     atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
@@ -267,7 +277,7 @@ static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t
 {
     PairEvent e = ev[i];
     if (partner[e.a] >= 0 || partner[e.b] >= 0) return;
-    out[atomicAdd(count_out, 1ULL)] = e;
+    out[list_append(count_out)] = e;
     best_hi[e.a] = wall_hi[e.a];
     best_hi[e.b] = wall_hi[e.b];
     best_lo[e.a] = NO_EVENT;
