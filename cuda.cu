@@ -77,6 +77,7 @@ typedef struct {
     double cs;      /* cell side, length */
     uint32_t ncell; /* g * g */
     int64_t m;      /* entries: n * K */
+    int64_t cells;  /* K * ncell; also the key of an entry left out */
     int bits;       /* significant bits of a (slice, cell) key */
 } Grid;
 
@@ -117,17 +118,29 @@ static __device__ __forceinline__ uint64_t wall_key(double x, double y, double v
 
 /* ==== bin ================================================================================================ */
 
-/* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle. */
-__global__ void bin_kernel(DevState st, int64_t n, Grid gr, uint32_t *keys, int32_t *vals)
+/* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle.
+ * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
+ * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
+ * disk's wall time get no entry (key gr.cells sorts them last): disks flying through a wall would
+ * otherwise pile up in the border cells. fl(t K) <= fl(tw K) for t < tw, so the slice test is exact. */
+__global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, int32_t *vals)
 {
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= gr.m) return;
     int64_t k = e / n, s = e - k * n;
+    double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
+    vals[e] = (int32_t)s;
+    if (k > 0) {
+        double tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
+        if (tw <= 1 && (double)k > floor(tw * gr.K)) {
+            keys[e] = (uint32_t)gr.cells;
+            return;
+        }
+    }
     double f = (double)(2 * k + 1) / (double)(2 * gr.K);
-    double mx = st.x[s] + st.vx[s] * f, my = st.y[s] + st.vy[s] * f;
+    double mx = x + vx * f, my = y + vy * f;
     int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
     keys[e] = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
-    vals[e] = (int32_t)s;
 }
 
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. */
@@ -169,11 +182,12 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
 }
 
 /* range[c] = [first, end) of the sorted entries of key c; the array is zeroed before. */
-__global__ void ranges_kernel(const uint32_t *keys, int64_t m, int2 *range)
+__global__ void ranges_kernel(const uint32_t *keys, int64_t m, int64_t cells, int2 *range)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= m) return;
     uint32_t k = keys[p];
+    if (k >= cells) return;
     if (p == 0 || keys[p - 1] != k) range[k].x = (int)p;
     if (p == m - 1 || keys[p + 1] != k) range[k].y = (int)(p + 1);
 }
@@ -185,17 +199,18 @@ __global__ void ranges_kernel(const uint32_t *keys, int64_t m, int2 *range)
 template <bool identity>
 __global__ void detect_kernel(DevState st, const uint32_t *keys, const int32_t *vals, const int2 *range,
                               Grid gr, double sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
-                              uint64_t *best_hi)
+                              const uint64_t *wall_hi, uint64_t *best_hi)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     unsigned long long tests = 0;
-    if (p < gr.m) {
+    if (p < gr.m && keys[p] < gr.cells) {
         uint32_t key = keys[p];
         uint32_t k = key / gr.ncell, c = key - k * gr.ncell;
         int64_t cy = c / gr.g, cx = c - cy * gr.g;
         int32_t s = identity ? (int32_t)p : vals[p];
         double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
         int32_t id = st.id[s];
+        uint64_t wall = wall_hi[s];
         int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < gr.g ? cx + 1 : gr.g - 1;
         for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
             if (ny < 0 || ny >= gr.g) continue;
@@ -216,6 +231,7 @@ __global__ void detect_kernel(DevState st, const uint32_t *keys, const int32_t *
                     }
                     PairEvent e;
                     e.hi = time_key(t) | 1;
+                    if (!(e.hi < wall && e.hi < wall_hi[s2])) continue; /* a wall event comes first */
                     e.a = id < id2 ? s : s2;
                     e.b = id < id2 ? s2 : s;
                     e.lo = id < id2 ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
@@ -616,9 +632,9 @@ static Grid grid_choose(const Cuda *c, double vmax)
     gr.cs = L / (double)gr.g;
     gr.ncell = (uint32_t)(gr.g * gr.g);
     gr.m = c->n * gr.K;
-    uint64_t cells = (uint64_t)gr.K * gr.ncell;
+    gr.cells = (int64_t)gr.K * gr.ncell;
     gr.bits = 1;
-    while (gr.bits < 32 && (1ULL << gr.bits) < cells) gr.bits++;
+    while (gr.bits < 32 && (1LL << gr.bits) <= gr.cells) gr.bits++;
     return gr;
 }
 
@@ -631,7 +647,7 @@ static int step_launch(Cuda *c, const Grid *gr)
     CUDA_CHECK(cudaMemsetAsync(c->info, 0, sizeof(StepInfo), s));
     CUDA_CHECK(cudaMemsetAsync(c->counts, 0, (PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), s));
 
-    bin_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->keys, c->vals);
+    bin_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->vals);
     CUDA_LAUNCHED();
     size_t tmp = c->sort_tmp_bytes;
     CUDA_CHECK(cub::DeviceRadixSort::SortPairs(c->sort_tmp, tmp, c->keys, c->keys_sorted, c->vals,
@@ -647,16 +663,16 @@ static int step_launch(Cuda *c, const Grid *gr)
         CUDA_LAUNCHED();
     }
     CUDA_CHECK(cudaMemsetAsync(c->range, 0, (size_t)gr->K * gr->ncell * sizeof(int2), s));
-    ranges_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->keys_sorted, gr->m, c->range);
+    ranges_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->keys_sorted, gr->m, gr->cells, c->range);
     CUDA_LAUNCHED();
     if (gr->K == 1)
         detect_kernel<true><<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], c->keys_sorted, c->vals_sorted,
                                                                   c->range, *gr, c->par.sigma2, c->ev[0],
-                                                                  c->ev_cap, c->info, c->best_hi);
+                                                                  c->ev_cap, c->info, c->wall_hi, c->best_hi);
     else
         detect_kernel<false><<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], c->keys_sorted, c->vals_sorted,
                                                                    c->range, *gr, c->par.sigma2, c->ev[0],
-                                                                   c->ev_cap, c->info, c->best_hi);
+                                                                   c->ev_cap, c->info, c->wall_hi, c->best_hi);
     CUDA_LAUNCHED();
 
     int64_t grid = blocks_for(c->ev_cap);

@@ -17,7 +17,7 @@ DATA=${DATA:-/tmp/gpu_run}
 mkdir -p "$DATA"
 
 provenance() {
-    echo "git $(git rev-parse --short HEAD 2>/dev/null || echo none), $(nvcc --version | tail -1)," \
+    echo "git $(cat REVISION 2>/dev/null || git rev-parse --short HEAD 2>/dev/null || echo none), $(nvcc --version | tail -1)," \
         "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader), $(nproc) cores"
 }
 
@@ -54,10 +54,11 @@ do_check() {
         tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
         printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
         for f in san san_random; do
-            "$san" --tool memcheck --leak-check full --error-exitcode 9 ./cuda "$DATA/$f.in" --quiet \
-                > "$DATA/$f.out" 2> "$OUT/memcheck_$f.log" && echo "memcheck $f: clean" \
+            "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_$f.log" \
+                ./cuda "$DATA/$f.in" --quiet > "$DATA/$f.out" && echo "memcheck $f: clean" \
                 || { echo "memcheck $f: ERRORS"; tail -20 "$OUT/memcheck_$f.log"; }
-            ./seq "$DATA/$f.in" --quiet | cmp - "$DATA/$f.out" && echo "memcheck $f output == seq"
+            ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
+            cmp -s "$DATA/$f.seq" "$DATA/$f.out" && echo "memcheck $f output == seq" || echo "memcheck $f output DIFFERS"
         done
     else
         echo "compute-sanitizer not found"
@@ -101,11 +102,26 @@ do_big() {
     echo "gas_$n,cuda,$n,$(grep 'step loop' "$DATA/big.err" | sed -E 's/.* ([0-9.]+) s step loop, ([0-9.e+]+).*/\1,\2/')" >> "$CSV"
 }
 
+# Kernel time per phase (nsys), for the gas and the random scene.
+do_profile() {
+    local nsys
+    nsys=$(command -v nsys || ls /usr/local/cuda/bin/nsys /opt/nvidia/nsight-systems/*/bin/nsys 2>/dev/null | head -1 || true)
+    [ -n "$nsys" ] || { echo "nsys not found"; return; }
+    tools/gen 1000000 --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/prof_gas.in"
+    printf '32000\n20000\n1\n100\nperf\n' > "$DATA/prof_random.in"
+    for f in prof_gas prof_random; do
+        "$nsys" profile -o "$DATA/$f" --force-overwrite true ./cuda "$DATA/$f.in" --quiet > /dev/null 2>&1
+        "$nsys" stats --report cuda_gpu_kern_sum,cuda_gpu_mem_time_sum --format csv "$DATA/$f.nsys-rep" 2>/dev/null \
+            | cut -d, -f1-4,9 | head -40 | tee "$OUT/$f.csv"
+    done
+}
+
 case ${1:-all} in
 check) do_check ;;
 perf) do_perf ;;
+profile) do_profile ;;
 big) do_big ;;
-all) timeout 300 bash "$0" check; timeout 240 bash "$0" perf ;;
+all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
 *) echo "usage: $0 check|perf|big|all" >&2; exit 2 ;;
 esac
-[ -f "$CSV" ] && column -s, -t < "$CSV" | tail -30 || true
+[ -f "$CSV" ] && tail -30 "$CSV" || true
