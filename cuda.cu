@@ -5,8 +5,10 @@
  * overflow). A step:
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
- *            lies in neighbouring cells (see grid_choose); one radix sort orders all (slice, cell) keys
- *   gather   with K = 1 the disks themselves are reordered by cell, for locality
+ *            lies in neighbouring cells (see grid_choose); a counting sort orders the (slice, cell)
+ *            entries: count, exclusive scan, scatter
+ *   scatter  with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
+ *            each disk per entry does
  *   detect   wall events, then every pair in the 3x3 neighbouring cells of the same slice; a pair is
  *            kept only in the slice that holds its event time, so it is found exactly once
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
@@ -43,9 +45,10 @@ extern "C" const char backend_options[] = "";
 #define THREADS 256
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
-#define ENTRY_CAP (1LL << 27)     /* (slice, disk) entries a step may bin, unless N alone is more */
-#define PARALLEL_ROUNDS 4         /* choice rounds run over the whole grid before the one-block finish */
-#define SLICE_COST 4.0            /* cost of binning one entry, in pair tests: sets K */
+#define ENTRY_CAP (1LL << 26)     /* (slice, disk) entries a step may bin, unless N alone is more */
+#define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
+#define SLICE_COST 16.0           /* cost of binning one entry, in pair tests: sets K */
+#define PHASES 7
 
 /* ==== device state ======================================================================================= */
 
@@ -78,7 +81,6 @@ typedef struct {
     uint32_t ncell; /* g * g */
     int64_t m;      /* entries: n * K */
     int64_t cells;  /* K * ncell; also the key of an entry left out */
-    int bits;       /* significant bits of a (slice, cell) key */
 } Grid;
 
 /* A slot in a list shared by the whole grid: one atomic per group of threads that append together. */
@@ -121,15 +123,17 @@ static __device__ __forceinline__ uint64_t wall_key(double x, double y, double v
 /* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle.
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
- * disk's wall time get no entry (key gr.cells sorts them last): disks flying through a wall would
- * otherwise pile up in the border cells. fl(t K) <= fl(tw K) for t < tw, so the slice test is exact. */
-__global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, int32_t *vals)
+ * disk's wall time get no entry (key gr.cells): disks flying through a wall would otherwise pile up in
+ * the border cells. fl(t K) <= fl(tw K) for t < tw, so the slice test is exact. The rank of an entry
+ * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
+ * changes where disks sit in memory and nothing else (every decision compares values). */
+__global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, uint32_t *rank,
+                           uint32_t *count)
 {
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= gr.m) return;
     int64_t k = e / n, s = e - k * n;
     double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
-    vals[e] = (int32_t)s;
     if (k > 0) {
         double tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
         if (tw <= 1 && (double)k > floor(tw * gr.K)) {
@@ -140,28 +144,30 @@ __global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t
     double f = (double)(2 * k + 1) / (double)(2 * gr.K);
     double mx = x + vx * f, my = y + vy * f;
     int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
-    keys[e] = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
+    uint32_t key = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
+    keys[e] = key;
+    rank[e] = atomicAdd(&count[key], 1u);
 }
 
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. */
-static __device__ __forceinline__ void slot_init(int64_t s, double x, double y, double vx, double vy,
-                                                 const Params par, uint64_t *wall_hi, uint64_t *best_hi,
+static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
                                                  uint64_t *best_lo, int32_t *partner)
 {
-    uint64_t w = wall_key(x, y, vx, vy, par.lo, par.hi);
     wall_hi[s] = w;
     best_hi[s] = w;
     best_lo[s] = NO_EVENT;
     partner[s] = -1;
 }
 
-/* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p). */
-__global__ void gather_kernel(DevState in, DevState out, const int32_t *perm, int64_t n, Params par,
-                              uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+/* K = 1: every disk moves to its place in cell order (start[] is the exclusive sum of the counts). */
+__global__ void scatter_state_kernel(DevState in, DevState out, int64_t n, Params par, const uint32_t *keys,
+                                     const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
+                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
 {
-    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (p >= n) return;
-    int32_t s = perm[p];
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (s >= n) return;
+    uint32_t key = keys[s];
+    int64_t p = (int64_t)start[key] + rank[s];
     double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
     out.x[p] = x;
     out.y[p] = y;
@@ -170,7 +176,37 @@ __global__ void gather_kernel(DevState in, DevState out, const int32_t *perm, in
     out.pc[p] = in.pc[s];
     out.wc[p] = in.wc[s];
     out.id[p] = in.id[s];
-    slot_init(p, x, y, vx, vy, par, wall_hi, best_hi, best_lo, partner);
+    keys_sorted[p] = key;
+    slot_init(p, wall_key(x, y, vx, vy, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
+}
+
+/* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
+typedef struct {
+    double *x, *y, *vx, *vy;
+    int32_t *id, *slot;
+    uint64_t *wall;
+} Entries;
+
+/* K > 1: the disks stay in place; each entry's copy goes to its place in (slice, cell) order. */
+__global__ void scatter_entries_kernel(DevState st, int64_t n, Grid gr, Params par, const uint32_t *keys,
+                                       const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
+                                       Entries en)
+{
+    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (e >= gr.m) return;
+    uint32_t key = keys[e];
+    if (key >= gr.cells) return;
+    int64_t k = e / n, s = e - k * n;
+    int64_t p = (int64_t)start[key] + rank[e];
+    double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
+    en.x[p] = x;
+    en.y[p] = y;
+    en.vx[p] = vx;
+    en.vy[p] = vy;
+    en.id[p] = st.id[s];
+    en.slot[p] = (int32_t)s;
+    en.wall[p] = wall_key(x, y, vx, vy, par.lo, par.hi);
+    keys_sorted[p] = key;
 }
 
 __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_hi, uint64_t *best_hi,
@@ -178,68 +214,54 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
-    slot_init(s, st.x[s], st.y[s], st.vx[s], st.vy[s], par, wall_hi, best_hi, best_lo, partner);
-}
-
-/* range[c] = [first, end) of the sorted entries of key c; the array is zeroed before. */
-__global__ void ranges_kernel(const uint32_t *keys, int64_t m, int64_t cells, int2 *range)
-{
-    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (p >= m) return;
-    uint32_t k = keys[p];
-    if (k >= cells) return;
-    if (p == 0 || keys[p - 1] != k) range[k].x = (int)p;
-    if (p == m - 1 || keys[p + 1] != k) range[k].y = (int)(p + 1);
+    slot_init(s, wall_key(st.x[s], st.y[s], st.vx[s], st.vy[s], par.lo, par.hi), wall_hi, best_hi, best_lo,
+              partner);
 }
 
 /* ==== detect ============================================================================================= */
 
-/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own. With
- * K = 1 (identity) slot == entry. */
-template <bool identity>
-__global__ void detect_kernel(DevState st, const uint32_t *keys, const int32_t *vals, const int2 *range,
-                              Grid gr, double sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
-                              const uint64_t *wall_hi, uint64_t *best_hi)
+/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own: three
+ * rows, each one contiguous run of entries. en.slot == NULL means entry == slot (K = 1). */
+__global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *start, Grid gr, double sigma2,
+                              PairEvent *ev, int64_t cap, StepInfo *info, uint64_t *best_hi)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     unsigned long long tests = 0;
-    if (p < gr.m && keys[p] < gr.cells) {
+    if (p < (int64_t)start[gr.cells]) {
         uint32_t key = keys[p];
         uint32_t k = key / gr.ncell, c = key - k * gr.ncell;
         int64_t cy = c / gr.g, cx = c - cy * gr.g;
-        int32_t s = identity ? (int32_t)p : vals[p];
-        double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
-        int32_t id = st.id[s];
-        uint64_t wall = wall_hi[s];
+        double x = en.x[p], y = en.y[p], vx = en.vx[p], vy = en.vy[p];
+        int32_t id = en.id[p];
+        uint64_t wall = en.wall[p];
         int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < gr.g ? cx + 1 : gr.g - 1;
         for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
             if (ny < 0 || ny >= gr.g) continue;
-            for (int64_t nx = x0; nx <= x1; nx++) {
-                int2 r = range[(int64_t)k * gr.ncell + ny * gr.g + nx];
-                for (int64_t q = r.x > p + 1 ? r.x : p + 1; q < r.y; q++) {
-                    int32_t s2 = identity ? (int32_t)q : vals[q];
-                    double x2 = st.x[s2], y2 = st.y[s2], vx2 = st.vx[s2], vy2 = st.vy[s2];
-                    int32_t id2 = st.id[s2];
-                    tests++;
-                    double t = id < id2 ? pair_time(x, y, vx, vy, x2, y2, vx2, vy2, sigma2)
-                                        : pair_time(x2, y2, vx2, vy2, x, y, vx, vy, sigma2);
-                    if (t < 0) continue;
-                    if (gr.K > 1) {
-                        int64_t kt = (int64_t)(t * gr.K);
-                        if (kt > gr.K - 1) kt = gr.K - 1;
-                        if (kt != (int64_t)k) continue;
-                    }
-                    PairEvent e;
-                    e.hi = time_key(t) | 1;
-                    if (!(e.hi < wall && e.hi < wall_hi[s2])) continue; /* a wall event comes first */
-                    e.a = id < id2 ? s : s2;
-                    e.b = id < id2 ? s2 : s;
-                    e.lo = id < id2 ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
-                    unsigned long long at = list_append(&info->found);
-                    if ((int64_t)at < cap) ev[at] = e;
-                    atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
-                    atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+            int64_t row = (int64_t)k * gr.ncell + ny * gr.g;
+            int64_t q0 = start[row + x0], q1 = start[row + x1 + 1];
+            for (int64_t q = q0 > p + 1 ? q0 : p + 1; q < q1; q++) {
+                double x2 = en.x[q], y2 = en.y[q], vx2 = en.vx[q], vy2 = en.vy[q];
+                int32_t id2 = en.id[q];
+                tests++;
+                double t = id < id2 ? pair_time(x, y, vx, vy, x2, y2, vx2, vy2, sigma2)
+                                    : pair_time(x2, y2, vx2, vy2, x, y, vx, vy, sigma2);
+                if (t < 0) continue;
+                if (gr.K > 1) {
+                    int64_t kt = (int64_t)(t * gr.K);
+                    if (kt > gr.K - 1) kt = gr.K - 1;
+                    if (kt != (int64_t)k) continue;
                 }
+                PairEvent e;
+                e.hi = time_key(t) | 1;
+                if (!(e.hi < wall && e.hi < en.wall[q])) continue; /* a wall event comes first */
+                int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
+                e.a = id < id2 ? s : s2;
+                e.b = id < id2 ? s2 : s;
+                e.lo = id < id2 ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
+                unsigned long long at = list_append(&info->found);
+                if ((int64_t)at < cap) ev[at] = e;
+                atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
+                atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
             }
         }
     }
@@ -453,12 +475,12 @@ typedef struct {
     Params par;
     DevState st[2];      /* old and new state; cur says which holds the current one */
     int cur;
-    uint32_t *keys, *keys_sorted;
-    int32_t *vals, *vals_sorted;
-    void *sort_tmp;
-    size_t sort_tmp_bytes;
-    int2 *range;
-    int64_t cell_cap;    /* cells (slices x g^2) the range array holds */
+    uint32_t *keys, *rank, *keys_sorted; /* per entry: cell key, rank within the cell, key in cell order */
+    uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
+    void *scan_tmp;
+    size_t scan_tmp_bytes;
+    Entries en;                          /* K > 1 only */
+    int64_t cell_cap;    /* cells (slices x g^2) count and start hold */
     int64_t entry_cap;   /* entries the key arrays hold */
     int max_slices;      /* K never exceeds this: entry_cap / n, capped */
     uint64_t *wall_hi, *best_hi, *best_lo;
@@ -472,7 +494,19 @@ typedef struct {
     cudaEvent_t copied;  /* the copy into out_host is complete */
     cudaStream_t stream;
     int sms;
+    int timed;                        /* --stats: time each phase with device events */
+    cudaEvent_t mark[PHASES + 1];
+    double phase_ms[PHASES];
+    unsigned long long *counts_host;  /* pinned copy of counts, for --stats */
+    unsigned long long left[PARALLEL_ROUNDS]; /* pair events still undecided before each round */
 } Cuda;
+
+static const char *const phase_names[PHASES] = {"bin", "scan", "scatter", "detect", "rounds", "finish", "move"};
+
+static void phase_mark(Cuda *c, int phase)
+{
+    if (c->timed) CUDA_CHECK(cudaEventRecord(c->mark[phase], c->stream));
+}
 
 static int64_t blocks_for(int64_t n)
 {
@@ -524,7 +558,7 @@ static void events_alloc(Cuda *c, int64_t cap)
     c->ev[1] = (PairEvent *)dev_alloc((size_t)cap * sizeof(PairEvent), "the event list");
 }
 
-static void cuda_open(Cuda *c, const Sim *sim, const Params *par)
+static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
 {
     int devices = 0;
     cudaError_t err = cudaGetDeviceCount(&devices);
@@ -536,6 +570,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par)
     c->par = *par;
     CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, 0));
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
+    c->timed = timed;
+    if (timed) {
+        for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[k]));
+        CUDA_CHECK(cudaMallocHost((void **)&c->counts_host, PARALLEL_ROUNDS * sizeof(unsigned long long)));
+    }
 
     state_alloc(&c->st[0], n);
     state_alloc(&c->st[1], n);
@@ -543,17 +582,26 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par)
     int64_t k = c->entry_cap / n;
     c->max_slices = (int)(k > MAX_SLICES ? MAX_SLICES : k);
     c->entry_cap = n * c->max_slices;
-    c->cell_cap = 3 * n > (1LL << 22) ? 3 * n : (1LL << 22);
-    if (c->cell_cap > INT32_MAX) c->cell_cap = INT32_MAX;
+    c->cell_cap = 3 * c->entry_cap > (1LL << 22) ? 3 * c->entry_cap : (1LL << 22);
+    if (c->cell_cap > INT32_MAX - 1) c->cell_cap = INT32_MAX - 1;
     size_t ne = (size_t)c->entry_cap;
     c->keys = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
+    c->rank = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->keys_sorted = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    c->vals = (int32_t *)dev_alloc(ne * 4, "the cell keys");
-    c->vals_sorted = (int32_t *)dev_alloc(ne * 4, "the cell keys");
-    CUDA_CHECK(cub::DeviceRadixSort::SortPairs(NULL, c->sort_tmp_bytes, c->keys, c->keys_sorted, c->vals,
-                                               c->vals_sorted, (int64_t)ne, 0, 32, c->stream));
-    c->sort_tmp = dev_alloc(c->sort_tmp_bytes, "the sort");
-    c->range = (int2 *)dev_alloc((size_t)c->cell_cap * sizeof(int2), "the cell table");
+    size_t nc = (size_t)c->cell_cap + 1;
+    c->count = (uint32_t *)dev_alloc(nc * 4, "the cell table");
+    c->start = (uint32_t *)dev_alloc(nc * 4, "the cell table");
+    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
+    c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
+    if (c->max_slices > 1) {
+        c->en.x = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.y = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.vx = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.vy = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
+        c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
+        c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
+    }
     c->wall_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
@@ -588,11 +636,18 @@ static void cuda_close(Cuda *c)
     state_free(&c->st[0]);
     state_free(&c->st[1]);
     cudaFree(c->keys);
+    cudaFree(c->rank);
     cudaFree(c->keys_sorted);
-    cudaFree(c->vals);
-    cudaFree(c->vals_sorted);
-    cudaFree(c->sort_tmp);
-    cudaFree(c->range);
+    cudaFree(c->count);
+    cudaFree(c->start);
+    cudaFree(c->scan_tmp);
+    cudaFree(c->en.x);
+    cudaFree(c->en.y);
+    cudaFree(c->en.vx);
+    cudaFree(c->en.vy);
+    cudaFree(c->en.id);
+    cudaFree(c->en.slot);
+    cudaFree(c->en.wall);
     cudaFree(c->wall_hi);
     cudaFree(c->best_hi);
     cudaFree(c->best_lo);
@@ -605,7 +660,32 @@ static void cuda_close(Cuda *c)
     cudaFree(c->out_dev);
     if (c->out_host) cudaEventDestroy(c->copied);
     cudaFreeHost(c->out_host);
+    if (c->timed) {
+        for (int k = 0; k <= PHASES; k++) cudaEventDestroy(c->mark[k]);
+        cudaFreeHost(c->counts_host);
+    }
     cudaStreamDestroy(c->stream);
+}
+
+/* After a step that counted: adds its phase times and its undecided events per round. */
+static void phase_collect(Cuda *c, unsigned long long found)
+{
+    for (int k = 0; k < PHASES; k++) {
+        float ms = 0;
+        CUDA_CHECK(cudaEventElapsedTime(&ms, c->mark[k], c->mark[k + 1]));
+        c->phase_ms[k] += ms;
+    }
+    c->left[0] += found;
+    for (int r = 1; r < PARALLEL_ROUNDS; r++) c->left[r] += c->counts_host[r];
+}
+
+static void phase_report(const Cuda *c)
+{
+    fprintf(stderr, "cuda: device time per phase (ms):");
+    for (int k = 0; k < PHASES; k++) fprintf(stderr, " %s %.3f", phase_names[k], c->phase_ms[k]);
+    fprintf(stderr, "\ncuda: pair events undecided before each grid-wide round:");
+    for (int r = 0; r < PARALLEL_ROUNDS; r++) fprintf(stderr, " %llu", c->left[r]);
+    fprintf(stderr, "\n");
 }
 
 /* The binning of a step whose largest velocity component is vmax. A pair with an event at t in slice
@@ -618,7 +698,8 @@ static Grid grid_choose(const Cuda *c, double vmax)
     const Params *p = &c->par;
     double n = (double)c->n, L = p->L, r = p->r;
     double dens = n / (L * L);
-    double kf = vmax * sqrt(4.5 * dens / SLICE_COST);
+    double cost = getenv("SLICE_COST_TRY") ? atof(getenv("SLICE_COST_TRY")) : SLICE_COST;
+    double kf = vmax * sqrt(4.5 * dens / cost);
     Grid gr;
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
@@ -633,8 +714,6 @@ static Grid grid_choose(const Cuda *c, double vmax)
     gr.ncell = (uint32_t)(gr.g * gr.g);
     gr.m = c->n * gr.K;
     gr.cells = (int64_t)gr.K * gr.ncell;
-    gr.bits = 1;
-    while (gr.bits < 32 && (1LL << gr.bits) <= gr.cells) gr.bits++;
     return gr;
 }
 
@@ -647,34 +726,40 @@ static int step_launch(Cuda *c, const Grid *gr)
     CUDA_CHECK(cudaMemsetAsync(c->info, 0, sizeof(StepInfo), s));
     CUDA_CHECK(cudaMemsetAsync(c->counts, 0, (PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), s));
 
-    bin_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->vals);
+    phase_mark(c, 0);
+    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)gr->cells + 1) * sizeof(uint32_t), s));
+    bin_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->rank, c->count);
     CUDA_LAUNCHED();
-    size_t tmp = c->sort_tmp_bytes;
-    CUDA_CHECK(cub::DeviceRadixSort::SortPairs(c->sort_tmp, tmp, c->keys, c->keys_sorted, c->vals,
-                                               c->vals_sorted, gr->m, 0, gr->bits, s));
+    phase_mark(c, 1);
+    size_t tmp = c->scan_tmp_bytes;
+    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, gr->cells + 1, s));
+    phase_mark(c, 2);
+    Entries en;
     if (gr->K == 1) {
-        gather_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->vals_sorted, n, c->par,
-                                                        c->wall_hi, c->best_hi, c->best_lo, c->partner);
+        scatter_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->keys,
+                                                               c->rank, c->start, c->keys_sorted, c->wall_hi,
+                                                               c->best_hi, c->best_lo, c->partner);
         CUDA_LAUNCHED();
         in = 1 - in;
+        DevState *d = &c->st[in];
+        en.x = d->x, en.y = d->y, en.vx = d->vx, en.vy = d->vy, en.id = d->id;
+        en.slot = NULL;
+        en.wall = c->wall_hi;
     } else {
         init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, c->par, c->wall_hi, c->best_hi,
                                                       c->best_lo, c->partner);
         CUDA_LAUNCHED();
+        scatter_entries_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->rank,
+                                                                     c->start, c->keys_sorted, c->en);
+        CUDA_LAUNCHED();
+        en = c->en;
     }
-    CUDA_CHECK(cudaMemsetAsync(c->range, 0, (size_t)gr->K * gr->ncell * sizeof(int2), s));
-    ranges_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->keys_sorted, gr->m, gr->cells, c->range);
-    CUDA_LAUNCHED();
-    if (gr->K == 1)
-        detect_kernel<true><<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], c->keys_sorted, c->vals_sorted,
-                                                                  c->range, *gr, c->par.sigma2, c->ev[0],
-                                                                  c->ev_cap, c->info, c->wall_hi, c->best_hi);
-    else
-        detect_kernel<false><<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], c->keys_sorted, c->vals_sorted,
-                                                                   c->range, *gr, c->par.sigma2, c->ev[0],
-                                                                   c->ev_cap, c->info, c->wall_hi, c->best_hi);
+    phase_mark(c, 3);
+    detect_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(en, c->keys_sorted, c->start, *gr, c->par.sigma2,
+                                                        c->ev[0], c->ev_cap, c->info, c->best_hi);
     CUDA_LAUNCHED();
 
+    phase_mark(c, 4);
     int64_t grid = blocks_for(c->ev_cap);
     if (grid > 8LL * c->sms) grid = 8LL * c->sms;
     const unsigned long long *found = &c->info->found;
@@ -697,14 +782,20 @@ static int step_launch(Cuda *c, const Grid *gr)
         accept_kernel<<<grid, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo, c->partner);
         CUDA_LAUNCHED();
     }
+    phase_mark(c, 5);
     finish_kernel<<<1, 1024, 0, s>>>(c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner,
                                      c->wall_hi, c->best_hi, c->best_lo);
     CUDA_LAUNCHED();
 
+    phase_mark(c, 6);
     move_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
                                                   c->best_hi, c->info);
     CUDA_LAUNCHED();
+    phase_mark(c, 7);
     CUDA_CHECK(cudaMemcpyAsync(c->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, s));
+    if (c->timed)
+        CUDA_CHECK(cudaMemcpyAsync(c->counts_host, c->counts, PARALLEL_ROUNDS * sizeof(unsigned long long),
+                                   cudaMemcpyDeviceToHost, s));
     c->cur = in; /* the state this step started from, in slot order; step_finish moves on */
     return 1 - in;
 }
@@ -799,11 +890,10 @@ static void state_download(Cuda *c, Sim *sim)
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
-    (void)opt;
     if (par->steps == 0) return 0;
     if (par->n > INT32_MAX / 2) io_fail("at most %d disks on the GPU", INT32_MAX / 2);
     Cuda c;
-    cuda_open(&c, sim, par);
+    cuda_open(&c, sim, par, opt->stats);
     double vmax = host_vmax(sim, par->n);
     int64_t printing = 0; /* step whose state is on its way to out_host, or 0 */
     CUDA_CHECK(cudaDeviceSynchronize());
@@ -826,6 +916,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                 continue; /* rerun the step from the untouched old buffers */
             }
             c.cur = next;
+            if (c.timed) phase_collect(&c, info->found);
             stats->pair_tests += info->tests;
             stats->events += info->events;
             unsigned long long bits = info->vmax;
@@ -845,6 +936,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     CUDA_CHECK(cudaStreamSynchronize(c.stream));
     stats->seconds = io_now() - t0;
     state_download(&c, sim);
+    if (c.timed) phase_report(&c);
     cuda_close(&c);
     return 0;
 }
