@@ -7,7 +7,7 @@
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_choose); a counting sort orders the (slice, cell)
  *            entries: count, exclusive scan, scatter
- *   scatter  with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
+ *   gather   with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
  *   detect   wall events, then every pair in the 3x3 neighbouring cells of the same slice; a pair is
  *            kept only in the slice that holds its event time, so it is found exactly once
@@ -47,7 +47,7 @@ extern "C" const char backend_options[] = "";
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_CAP (1LL << 26)     /* (slice, disk) entries a step may bin, unless N alone is more */
 #define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
-#define SLICE_COST 16.0           /* cost of binning one entry, in pair tests: sets K */
+#define SLICE_COST 64.0           /* cost of binning one entry, in pair tests: sets K */
 #define PHASES 7
 
 /* ==== device state ======================================================================================= */
@@ -159,15 +159,27 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
     partner[s] = -1;
 }
 
-/* K = 1: every disk moves to its place in cell order (start[] is the exclusive sum of the counts). */
-__global__ void scatter_state_kernel(DevState in, DevState out, int64_t n, Params par, const uint32_t *keys,
-                                     const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
-                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte entry
+ * index is scattered; the disks are then gathered with coalesced writes. */
+__global__ void place_kernel(int64_t m, int64_t cells, const uint32_t *keys, const uint32_t *rank,
+                             const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
 {
-    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (s >= n) return;
-    uint32_t key = keys[s];
-    int64_t p = (int64_t)start[key] + rank[s];
+    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (e >= m) return;
+    uint32_t key = keys[e];
+    if (key >= cells) return;
+    int64_t p = (int64_t)start[key] + rank[e];
+    keys_sorted[p] = key;
+    order[p] = (uint32_t)e;
+}
+
+/* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p). */
+__global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
+                                    uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+{
+    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= n) return;
+    uint32_t s = order[p];
     double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
     out.x[p] = x;
     out.y[p] = y;
@@ -176,7 +188,6 @@ __global__ void scatter_state_kernel(DevState in, DevState out, int64_t n, Param
     out.pc[p] = in.pc[s];
     out.wc[p] = in.wc[s];
     out.id[p] = in.id[s];
-    keys_sorted[p] = key;
     slot_init(p, wall_key(x, y, vx, vy, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
 }
 
@@ -187,26 +198,20 @@ typedef struct {
     uint64_t *wall;
 } Entries;
 
-/* K > 1: the disks stay in place; each entry's copy goes to its place in (slice, cell) order. */
-__global__ void scatter_entries_kernel(DevState st, int64_t n, Grid gr, Params par, const uint32_t *keys,
-                                       const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
-                                       Entries en)
+/* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
+__global__ void gather_entries_kernel(DevState st, int64_t n, const uint32_t *order, const uint32_t *start,
+                                      int64_t cells, const uint64_t *wall_hi, Entries en)
 {
-    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (e >= gr.m) return;
-    uint32_t key = keys[e];
-    if (key >= gr.cells) return;
-    int64_t k = e / n, s = e - k * n;
-    int64_t p = (int64_t)start[key] + rank[e];
-    double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
-    en.x[p] = x;
-    en.y[p] = y;
-    en.vx[p] = vx;
-    en.vy[p] = vy;
+    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= (int64_t)start[cells]) return;
+    int64_t s = (int64_t)(order[p] % (uint64_t)n);
+    en.x[p] = st.x[s];
+    en.y[p] = st.y[s];
+    en.vx[p] = st.vx[s];
+    en.vy[p] = st.vy[s];
     en.id[p] = st.id[s];
     en.slot[p] = (int32_t)s;
-    en.wall[p] = wall_key(x, y, vx, vy, par.lo, par.hi);
-    keys_sorted[p] = key;
+    en.wall[p] = wall_hi[s];
 }
 
 __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_hi, uint64_t *best_hi,
@@ -475,7 +480,8 @@ typedef struct {
     Params par;
     DevState st[2];      /* old and new state; cur says which holds the current one */
     int cur;
-    uint32_t *keys, *rank, *keys_sorted; /* per entry: cell key, rank within the cell, key in cell order */
+    uint32_t *keys, *rank;               /* per entry: cell key, rank within the cell */
+    uint32_t *keys_sorted, *order;       /* per place in cell order: key, entry */
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
@@ -501,7 +507,7 @@ typedef struct {
     unsigned long long left[PARALLEL_ROUNDS]; /* pair events still undecided before each round */
 } Cuda;
 
-static const char *const phase_names[PHASES] = {"bin", "scan", "scatter", "detect", "rounds", "finish", "move"};
+static const char *const phase_names[PHASES] = {"bin", "scan", "gather", "detect", "rounds", "finish", "move"};
 
 static void phase_mark(Cuda *c, int phase)
 {
@@ -588,6 +594,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     c->keys = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->rank = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->keys_sorted = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
+    c->order = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     size_t nc = (size_t)c->cell_cap + 1;
     c->count = (uint32_t *)dev_alloc(nc * 4, "the cell table");
     c->start = (uint32_t *)dev_alloc(nc * 4, "the cell table");
@@ -638,6 +645,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->keys);
     cudaFree(c->rank);
     cudaFree(c->keys_sorted);
+    cudaFree(c->order);
     cudaFree(c->count);
     cudaFree(c->start);
     cudaFree(c->scan_tmp);
@@ -735,10 +743,12 @@ static int step_launch(Cuda *c, const Grid *gr)
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, gr->cells + 1, s));
     phase_mark(c, 2);
     Entries en;
+    place_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(gr->m, gr->cells, c->keys, c->rank, c->start,
+                                                       c->keys_sorted, c->order);
+    CUDA_LAUNCHED();
     if (gr->K == 1) {
-        scatter_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->keys,
-                                                               c->rank, c->start, c->keys_sorted, c->wall_hi,
-                                                               c->best_hi, c->best_lo, c->partner);
+        gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
+                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner);
         CUDA_LAUNCHED();
         in = 1 - in;
         DevState *d = &c->st[in];
@@ -749,8 +759,8 @@ static int step_launch(Cuda *c, const Grid *gr)
         init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, c->par, c->wall_hi, c->best_hi,
                                                       c->best_lo, c->partner);
         CUDA_LAUNCHED();
-        scatter_entries_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->rank,
-                                                                     c->start, c->keys_sorted, c->en);
+        gather_entries_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, c->order, c->start, gr->cells,
+                                                                    c->wall_hi, c->en);
         CUDA_LAUNCHED();
         en = c->en;
     }
