@@ -6,11 +6,11 @@
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_choose); a counting sort orders the (slice, cell)
- *            entries: count, exclusive scan, scatter
+ *            entries: count, exclusive scan, place
  *   gather   with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
- *   detect   wall events, then every pair in the 3x3 neighbouring cells of the same slice; a pair is
- *            kept only in the slice that holds its event time, so it is found exactly once
+ *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
+ *            gather); a pair is kept only in the slice that holds its event time, so it is found once
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
@@ -48,7 +48,7 @@ extern "C" const char backend_options[] = "";
 #define ENTRY_CAP (1LL << 26)     /* (slice, disk) entries a step may bin, unless N alone is more */
 #define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
 #define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
-#define PHASES 7
+#define PHASES 7                  /* phases timed under --stats */
 
 /* ==== device state ======================================================================================= */
 
