@@ -1,0 +1,32 @@
+# cuda against seq, byte for byte, on generated scenes that stress the broad phase: slow and fast disks
+# (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes.
+# Each scene runs in print and perf mode. Without a GPU every case is a SKIP.
+cuda_scenes() {
+    echo "slow       tools/gen 2000 --fraction 0.2 --speed 0.5 --steps 40 --seed 3"
+    echo "medium     tools/gen 1500 --fraction 0.2 --speed 20 --steps 30 --seed 4"
+    echo "fast       tools/gen 600 --assignment --fraction 0.05 --steps 30 --seed 5"
+    echo "dense      tools/gen 1500 --fraction 0.45 --speed 1 --steps 40 --seed 6"
+    echo "dilute     tools/gen 300 --fraction 0.001 --speed 40 --steps 40 --seed 7"
+    echo "overlap    tools/gen 800 --overlap --fraction 0.5 --speed 1 --steps 30 --seed 8"
+    echo "walls      tools/gen 40 --fraction 0.3 --speed 3 --steps 300 --seed 9"
+    echo "random     printf 1000\n20000\n1\n20\nperf\n"
+    echo "random_r5  printf 700\n3000\n5\n25\nperf\n"
+}
+while read -r name cmd; do
+    if ! have_gpu; then
+        skip "cuda/$name print" "no GPU"
+        skip "cuda/$name perf" "no GPU"
+        continue
+    fi
+    if [ "${cmd%% *}" = printf ]; then
+        printf "${cmd#printf }" > "$TMP/cuda_$name.in"
+    elif ! $cmd > "$TMP/cuda_$name.in"; then
+        fail "cuda/$name" "cannot generate the scene"
+        continue
+    fi
+    for mode in print perf; do
+        sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$mode.in"
+        ./seq "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda_${name}_$mode.expected"
+        same_bytes "cuda/$name $mode" "$TMP/cuda_${name}_$mode.expected" ./cuda "$TMP/cuda_${name}_$mode.in" --quiet
+    done
+done <<< "$(cuda_scenes)"

@@ -1,0 +1,130 @@
+#!/usr/bin/env bash
+# tools/gpu_run.sh: on a machine with an NVIDIA GPU, builds everything, checks cuda against seq and
+# times cuda against omp on the same inputs. Logs and a CSV go to $OUT (default bench/tmp).
+#   tools/gpu_run.sh check   build, make test, compute-sanitizer memcheck on a small scene
+#   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene
+#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated and parsed on the host: ~8 minutes)
+#   tools/gpu_run.sh profile device time per phase (cuda --stats)
+#   tools/gpu_run.sh all     check, then perf
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-bench/tmp}
+mkdir -p "$OUT"
+THREADS=${THREADS:-16}
+GAS_STEPS=${GAS_STEPS:-50}
+RANDOM_STEPS=${RANDOM_STEPS:-200}
+CSV=$OUT/timings.csv
+DATA=${DATA:-/tmp/gpu_run}
+mkdir -p "$DATA"
+
+provenance() {
+    echo "git $(cat REVISION 2>/dev/null || git rev-parse --short HEAD 2>/dev/null || echo none), $(nvcc --version | tail -1)," \
+        "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader), $(nproc) cores"
+}
+
+# time_one LABEL N PROGRAM ARGS...: one run, step-loop time from the program's own stderr line.
+time_one() {
+    local label=$1 n=$2 prog=$3
+    shift 3
+    local err=$DATA/err
+    if ! "$prog" "$@" > "$DATA/$label.$(basename "$prog").out" 2> "$err"; then
+        echo "$label,$(basename "$prog"),$n,FAILED: $(head -c 200 "$err")" | tee -a "$CSV"
+        return
+    fi
+    local line secs ps
+    line=$(grep -E "step loop" "$err" | tail -1)
+    secs=$(echo "$line" | sed -E 's/.* ([0-9.]+) s step loop.*/\1/')
+    ps=$(echo "$line" | sed -E 's/.* ([0-9.e+]+) particle-steps\/s.*/\1/')
+    echo "$label,$(basename "$prog"),$n,$secs,$ps,$(grep -E 'pair tests' "$err" | sed -E 's/.*: //' || true)" \
+        | tee -a "$CSV"
+}
+
+same() { # same LABEL: the outputs of the two programs of LABEL agree
+    if cmp -s "$DATA/$1.cuda.out" "$DATA/$1.$2.out"; then echo "$1: cuda == $2"; else echo "$1: cuda != $2 DIFFER"; fi
+}
+
+do_check() {
+    make -j"$(nproc)" all seq_san 2>&1 | tail -3
+    nvidia-smi -L
+    set +e
+    make test 2>&1 | tee "$OUT/test.log" | grep -vE '^PASS' 
+    set -e
+    local san
+    san=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
+    if [ -x "$san" ]; then
+        tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
+        printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
+        for f in san san_random; do
+            "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_$f.log" \
+                ./cuda "$DATA/$f.in" --quiet > "$DATA/$f.out" && echo "memcheck $f: clean" \
+                || { echo "memcheck $f: ERRORS"; tail -20 "$OUT/memcheck_$f.log"; }
+            ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
+            cmp -s "$DATA/$f.seq" "$DATA/$f.out" && echo "memcheck $f output == seq" || echo "memcheck $f output DIFFERS"
+        done
+    else
+        echo "compute-sanitizer not found"
+    fi
+}
+
+do_perf() {
+    echo "# $(provenance)" >> "$CSV"
+    echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
+    for n in 1000000 10000000; do
+        [ -s "$DATA/gas_$n.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps $GAS_STEPS > "$DATA/gas_$n.in"
+        ./cuda "$DATA/gas_$n.in" > /dev/null 2>&1 # warm-up, discarded
+        time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
+        time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
+    done
+    # omp beside cuda on a gas small enough for an all-pairs omp
+    tools/gen 20000 --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/gas_20000.in"
+    time_one gas_20000 20000 ./omp "$DATA/gas_20000.in" --threads "$THREADS" --stats
+    time_one gas_20000 20000 ./cuda "$DATA/gas_20000.in" --stats
+    same gas_20000 omp
+    for n in 32000 1000000; do
+        local s=$RANDOM_STEPS
+        [ $n -gt 100000 ] && s=10
+        printf '%s\n20000\n1\n%s\nperf\n' $n $s > "$DATA/random_$n.in"
+        time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
+        time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
+    done
+    printf '32000\n20000\n1\n10\nperf\n' > "$DATA/random10_32000.in"
+    time_one random10_32000 32000 ./omp "$DATA/random10_32000.in" --threads "$THREADS" --stats
+    time_one random10_32000 32000 ./cuda "$DATA/random10_32000.in" --stats
+    same random10_32000 omp
+    printf '32000\n20000\n1\n20\nprint\n' > "$DATA/random_print.in"
+    time_one random_print 32000 ./cuda "$DATA/random_print.in"
+}
+
+# N = 1e8: generating (~5 min on one core), parsing and formatting the two printed states run on the
+# host and take far longer than the steps; each stage is logged as it ends.
+do_big() {
+    local n=100000000 t0
+    echo "# $(provenance)" >> "$CSV"
+    t0=$(date +%s)
+    [ -s "$DATA/big.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps 10 > "$DATA/big.in"
+    echo "big: input ready after $(( $(date +%s) - t0 )) s"
+    ./cuda "$DATA/big.in" --stats > /dev/null 2> "$DATA/big.err" || echo "big: cuda FAILED"
+    cat "$DATA/big.err"
+    echo "big: done after $(( $(date +%s) - t0 )) s"
+    echo "gas_$n,cuda,$n,$(grep 'step loop' "$DATA/big.err" | sed -E 's/.* ([0-9.]+) s step loop, ([0-9.e+]+).*/\1,\2/')" >> "$CSV"
+}
+
+# Device time per phase (cuda --stats times each phase with events), for the gas and the random scene.
+do_profile() {
+    [ -s "$DATA/gas_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps $GAS_STEPS > "$DATA/gas_10000000.in"
+    printf '32000\n20000\n1\n%s\nperf\n' $RANDOM_STEPS > "$DATA/random_32000.in"
+    for f in gas_10000000 random_32000; do
+        echo "$f:"
+        ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | tee "$OUT/phases_$f.log"
+    done
+}
+
+case ${1:-all} in
+check) do_check ;;
+perf) do_perf ;;
+profile) do_profile ;;
+big) do_big ;;
+all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
+*) echo "usage: $0 check|perf|big|all" >&2; exit 2 ;;
+esac
+[ -f "$CSV" ] && tail -30 "$CSV" || true
