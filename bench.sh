@@ -15,7 +15,8 @@ FILE_MAX_N=${FILE_MAX_N:-10000000}  # scenes with particle lines take ~45 bytes 
 THREADS=${THREADS:-""}              # omp thread counts; empty: 1, 2, 4, ... and the core count
 REPEATS=${REPEATS:-3}               # timed runs per point, after one discarded warm-up run
 TARGET_S=${TARGET_S:-1.0}           # aimed step-loop time of one run; steps are chosen per point
-CALIBRATE_S=${CALIBRATE_S:-0.1}     # probe runs grow their steps until the loop takes this long
+CALIBRATE_S=${CALIBRATE_S:-}       # probe runs grow their steps until the loop takes this long
+                                    # (default TARGET_S / 5)
 MAX_STEP_S=${MAX_STEP_S:-3.0}       # skip a point (and larger N) whose single step would take longer
 MAX_STEPS=${MAX_STEPS:-1000000}
 RUN_TIMEOUT=${RUN_TIMEOUT:-300}     # seconds before one run counts as hung
@@ -64,7 +65,7 @@ integer() {
 }
 
 # ---- options --------------------------------------------------------------------------------------
-QUICK=0 SIZES="" OUTPUT_GIVEN=0
+QUICK=0 SIZES="" OUTPUT_GIVEN=0 GIVEN=""
 COMMAND_LINE="./bench.sh $*"
 while [ $# -gt 0 ]; do
     case $1 in
@@ -74,9 +75,9 @@ while [ $# -gt 0 ]; do
         --scenes) SCENES=$(words "${2?--scenes needs a list}"); shift ;;
         --sizes) SIZES=$(words "${2?--sizes needs a list}"); shift ;;
         --threads) THREADS=$(words "${2?--threads needs a list}"); shift ;;
-        --repeats) REPEATS=$(integer "${2?--repeats needs a number}"); shift ;;
-        --target) TARGET_S=${2?--target needs seconds}; shift ;;
-        --max-step) MAX_STEP_S=${2?--max-step needs seconds}; shift ;;
+        --repeats) REPEATS=$(integer "${2?--repeats needs a number}"); GIVEN="$GIVEN repeats"; shift ;;
+        --target) TARGET_S=${2?--target needs seconds}; GIVEN="$GIVEN target"; shift ;;
+        --max-step) MAX_STEP_S=${2?--max-step needs seconds}; GIVEN="$GIVEN max-step"; shift ;;
         -o | --output) OUTPUT=${2?--output needs a file}; OUTPUT_GIVEN=1; shift ;;
         *) die "unknown option '$1' (see --help)" ;;
     esac
@@ -87,7 +88,9 @@ CORES=$(nproc)
 if [ "$QUICK" = 1 ]; then
     SIZES=${SIZES:-"1000 3000"}
     THREADS=${THREADS:-"1 $CORES"}
-    REPEATS=3 TARGET_S=0.05 CALIBRATE_S=0.01 MAX_STEP_S=0.5
+    [[ $GIVEN == *repeats* ]] || REPEATS=3
+    [[ $GIVEN == *target* ]] || TARGET_S=0.05
+    [[ $GIVEN == *max-step* ]] || MAX_STEP_S=0.5
     [ "$OUTPUT_GIVEN" = 1 ] || OUTPUT=$TMP_DIR/quick.csv
 fi
 if [ -z "$THREADS" ]; then
@@ -95,6 +98,10 @@ if [ -z "$THREADS" ]; then
     THREADS="$THREADS $CORES"
 fi
 [ "$REPEATS" -ge 1 ] || die "--repeats must be at least 1"
+seconds_ok() { [[ $1 =~ ^[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?$ ]] && awk -v s="$1" 'BEGIN { exit !(s > 0) }'; }
+seconds_ok "$TARGET_S" || die "--target must be positive seconds (found '$TARGET_S')"
+seconds_ok "$MAX_STEP_S" || die "--max-step must be positive seconds (found '$MAX_STEP_S')"
+CALIBRATE_S=${CALIBRATE_S:-$(awk -v t="$TARGET_S" 'BEGIN { print t / 5 }')}
 integers() { local n out=""; for n in "$@"; do out="$out $(integer "$n")" || exit 1; done; echo $out; }
 SIZES=$(integers $SIZES)
 SIZES_CPU=$(integers $SIZES_CPU)
@@ -208,6 +215,7 @@ provenance() {
     echo "# git: $hash ($dirty)"
     echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
     echo "# host: $(uname -n); kernel: $(uname -srm)"
+    echo "# load average at start (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
     echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $CORES"
     echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
     echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
@@ -305,29 +313,31 @@ for scene in $SCENES; do
     done
 done
 
-# ---- summary: min and median of the timed runs of each point ----------------------------------------
+# ---- summary: min and median of the timed runs of each point (its rows are consecutive) ------------
 {
     echo "$HEADER"
+    echo "# load average at end (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
     echo "backend,threads,scene,n,steps,runs,min_seconds,median_seconds,min_ns_per_particle_step,median_ns_per_particle_step,min_wall_seconds,median_wall_seconds,pair_tests_per_particle_step,events_per_particle_step,L,r,area_fraction"
-    grep -v -e '^#' -e '^backend,' "$OUTPUT" | sort -t, -k3,3 -k1,1 -k2,2n -k4,4n -k6,6n | awk -F, -v OFS=, '
+    grep -v -e '^#' -e '^backend,' "$OUTPUT" | awk -F, -v OFS=, '
         function median(a, k,   h) { h = int((k + 1) / 2); return k % 2 ? a[h] : (a[h] + a[h + 1]) / 2 }
         function sorted(a, k,   i, j, v) {
             for (i = 2; i <= k; i++) { v = a[i]; for (j = i - 1; j >= 1 && a[j] > v; j--) a[j + 1] = a[j]; a[j + 1] = v }
         }
-        function flush() {
+        function flush(   ps) {
             if (!k) return
             sorted(sec, k); sorted(wall, k)
             ps = n * s
-            print key, s, k, sec[1], median(sec, k), sec[1] * 1e9 / ps, median(sec, k) * 1e9 / ps,
-                  wall[1], median(wall, k), tests, ev, geo
+            printf "%s,%d,%d,%.6f,%.6f,%.6g,%.6g,%.6f,%.6f,%s,%s,%s\n", key, s, k, sec[1], median(sec, k),
+                   sec[1] * 1e9 / ps, median(sec, k) * 1e9 / ps, wall[1], median(wall, k), tests, ev, geo
             k = 0
         }
         {
             id = $1 "," $2 "," $3 "," $4
             if (id != key) { flush(); key = id }
-            n = $4; s = $5; k++; sec[k] = $7; wall[k] = $8; tests = $10; ev = $11; geo = $14 "," $15 "," $16
+            n = $4; s = $5; k++; sec[k] = $7 + 0; wall[k] = $8 + 0; tests = $10; ev = $11
+            geo = $14 "," $15 "," $16
         }
-        END { flush() }' CONVFMT=%.6g OFMT=%.6g
+        END { flush() }'
 } > "$SUMMARY"
 
 echo "bench.sh: $(grep -c -v -e '^#' -e '^backend,' "$OUTPUT") runs in" \
