@@ -206,8 +206,11 @@ calibrate() {
 make_var() { make -s --no-print-directory --eval='bench-print-%: ; @echo $($*)' "bench-print-$1" 2>/dev/null; }
 provenance() {
     local hash dirty cc nvcc gpu
-    hash=$(git rev-parse --short=12 HEAD 2>/dev/null || echo unknown)
-    dirty=$(git status --porcelain --untracked-files=no 2>/dev/null | grep -q . && echo dirty || echo clean)
+    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
+        dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
+    else
+        hash="unknown" dirty="not a git checkout"
+    fi
     cc=$(make_var CC)
     nvcc=$(make_var NVCC)
     echo "# bench.sh results (bench/README.md explains the columns)"

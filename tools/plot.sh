@@ -59,7 +59,7 @@ plot_time() {
         echo "set output '$png'"
         echo "set logscale xy; set grid; set key top left"
         echo "set xlabel 'N (particles)'; set ylabel 'ns per particle-step (min of runs)'"
-        echo "set format x '10^{%T}'"
+        echo "set format x '10^{%T}'; set format y '10^{%T}'"
         echo "set multiplot layout $rows,$cols title '$title'"
         for scene in $scenes; do
             plots=""
@@ -93,8 +93,8 @@ plot_speedup() {
     {
         echo "set terminal $TERMINAL size $w,$h font ',10'"
         echo "set output '$png'"
-        echo "set grid; set key top left; set logscale xy 2; set xrange [1:$maxt]; set yrange [*:$maxt]"
-        echo "set xtics ($tics); set ytics ($tics)"
+        echo "set grid; set key top left; set logscale xy 2; set xrange [1:$maxt]"
+        echo "set xtics ($tics); set ytics (0.125, 0.25, 0.5, $tics)"
         echo "set xlabel 'omp threads'; set ylabel 'speedup over 1 thread'"
         echo "set multiplot layout $rows,$cols title '$title'"
         for scene in $scenes; do
