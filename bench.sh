@@ -57,6 +57,7 @@ EOF
 }
 
 die() { echo "bench.sh: $*" >&2; exit 1; }
+[ -n "${EPOCHREALTIME:-}" ] || die "needs bash 5 or later (EPOCHREALTIME)"
 words() { echo "${1//,/ }"; }
 # Integer from 1000 or 1e3 notation.
 integer() {
@@ -202,6 +203,21 @@ calibrate() {
         s = int(g / p + 0.5); if (s < 1) s = 1; if (s > m) s = m; print s }')
 }
 
+# warm_up BACKEND THREADS BASE: the discarded run, with STEPS; a probe can be slowed by thread start-up,
+# so while the warm-up finishes in under a third of TARGET_S the steps are scaled up and it is run again.
+warm_up() {
+    local b=$1 t=$2 base=$3 k
+    for ((k = 0; k < 3; k++)); do
+        with_steps "$base" "$STEPS"
+        run_once "$b" "$t"
+        awk -v x="$SECONDS_LOOP" -v g="$TARGET_S" -v s="$STEPS" -v m="$MAX_STEPS" \
+            'BEGIN { exit !(x < g / 3 && s < m) }' || return 0
+        STEPS=$(awk -v x="$SECONDS_LOOP" -v g="$TARGET_S" -v s="$STEPS" -v m="$MAX_STEPS" 'BEGIN {
+            s = int(s * g / (x > 1e-6 ? x : 1e-6) + 0.5); print s < m ? s : m }')
+    done
+    with_steps "$base" "$STEPS"
+}
+
 # ---- provenance -----------------------------------------------------------------------------------
 make_var() { make -s --no-print-directory --eval='bench-print-%: ; @echo $($*)' "bench-print-$1" 2>/dev/null; }
 provenance() {
@@ -250,10 +266,17 @@ declare -A SIZES_OF LAST_N LAST_STEP PREV_N PREV_STEP SKIPPED
 for b in $RUNNABLE; do
     list=$SIZES
     [ -n "$list" ] || { [ "$b" = cuda ] && list=$SIZES_GPU || list=$SIZES_CPU; }
-    SIZES_OF[$b]=" $(echo $list) "
+    SIZES_OF[$b]=" $list "
 done
-ALL_SIZES=$(for b in $RUNNABLE; do echo ${SIZES_OF[$b]}; done | tr ' ' '\n' | sort -n -u)
-threads_of() { [ "$1" = omp ] && echo "$THREADS" || { [ "$1" = cuda ] && echo 0 || echo 1; }; }
+ALL_SIZES=$(for b in $RUNNABLE; do echo "${SIZES_OF[$b]}"; done | tr -s ' ' '\n' | sort -n -u)
+# thread counts of a backend: omp's list; seq runs 1; cuda has none and is written as 0
+threads_of() {
+    case $1 in
+        omp) echo "$THREADS" ;;
+        cuda) echo 0 ;;
+        *) echo 1 ;;
+    esac
+}
 
 # forecast KEY N: exit 0 when one step at N would take longer than MAX_STEP_S, judged from the last two
 # sizes measured (growth exponent between 1 and 2; 2 when only one is known, so seq is never run for
@@ -300,8 +323,7 @@ for scene in $SCENES; do
                     echo "bench.sh: $key: N >= $n skipped (one step takes $PER_STEP s)" >&2
                     continue
                 fi
-                with_steps "$base" "$STEPS"
-                run_once "$b" "$t"
+                warm_up "$b" "$t" "$base"
                 for ((k = 1; k <= REPEATS; k++)); do
                     run_once "$b" "$t"
                     awk -v OFS=, -v b="$b" -v t="$t" -v sc="$scene" -v n="$n" -v s="$STEPS" -v k="$k" \
