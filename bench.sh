@@ -148,15 +148,17 @@ scene_lists_disks() { [ "$1" != random ]; }
 scene_file() {
     local name=$1 n=$2 file="$TMP_DIR/$1-n$2-seed$SEED.in"
     if [ ! -s "$file" ] || [ tools/gen -nt "$file" ] || [ "$0" -nt "$file" ]; then
-        scene_make "$name" "$n" "$file.part" || die "cannot generate scene $name with N = $n"
-        mv "$file.part" "$file"
+        scene_make "$name" "$n" "$file.$$.part" || die "cannot generate scene $name with N = $n"
+        mv "$file.$$.part" "$file"
     fi
     echo "$file"
 }
 
 # ---- running one program --------------------------------------------------------------------------
-RUN_IN=$TMP_DIR/run.in
-RUN_ERR=$TMP_DIR/run.err
+# per invocation, so that a sweep and the test suite can share bench/tmp
+RUN_IN=$TMP_DIR/run.$$.in
+RUN_ERR=$TMP_DIR/run.$$.err
+trap 'rm -f "$RUN_IN" "$RUN_ERR"' EXIT
 # with_steps BASE S: the base input with its steps line replaced, as $RUN_IN.
 with_steps() {
     { head -n 3 "$1"; echo "$2"; tail -n +5 "$1"; } > "$RUN_IN"
@@ -172,7 +174,7 @@ run_once() {
     t0=$EPOCHREALTIME
     if ! env "${env[@]}" timeout "$RUN_TIMEOUT" "./$b" "${args[@]}" > /dev/null 2> "$RUN_ERR"; then
         cat "$RUN_ERR" >&2
-        die "./$b ${args[*]} failed (input kept in $RUN_IN)"
+        die "./$b ${args[*]} failed"
     fi
     t1=$EPOCHREALTIME
     WALL=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.6f", b - a }')
