@@ -16,7 +16,7 @@ HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
 PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
-.PHONY: all test golden bench clean tools
+.PHONY: all test golden bench plots clean tools
 all: $(PROGRAMS) $(TOOLS)
 ifneq ($(HAVE_NVCC),yes)
 	@echo "cuda skipped: $(NVCC) not found"
@@ -54,6 +54,10 @@ golden: seq
 
 bench: all
 	./bench.sh --quick
+
+# figures from the committed bench/*.summary.csv (needs gnuplot: apt-get install gnuplot-nox)
+plots:
+	@bash tools/plot.sh
 
 clean:
 	rm -f seq omp cuda seq_san io.o $(TOOLS)

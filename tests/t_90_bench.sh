@@ -1,0 +1,40 @@
+# bench.sh --quick runs on this machine and writes well-formed CSVs: provenance lines, the column header,
+# rows with the header's field count and sane numbers, and a summary with one row per point.
+bench_csv=$TMP/bench.csv
+bench_sum=$TMP/bench.summary.csv
+if ./bench.sh --quick -o "$bench_csv" > "$TMP/bench.log" 2>&1; then
+    pass "bench.sh --quick runs"
+else
+    fail "bench.sh --quick runs" "$(tail -n 3 "$TMP/bench.log")"
+fi
+bench_problem=$(awk -F, '
+    /^#/ { if (header) { print "comment after the header: " $0; exit }; prov[substr($0, 3)] = 1; next }
+    !header {
+        header = $0; nf = NF
+        if ($0 != "backend,threads,scene,n,steps,run,seconds,wall_seconds,ns_per_particle_step,pair_tests_per_particle_step,events_per_particle_step,pair_tests,events,L,r,area_fraction") {
+            print "unexpected header: " $0; exit
+        }
+        next
+    }
+    NF != nf { print "line " NR " has " NF " fields, not " nf; exit }
+    $1 !~ /^(seq|omp|cuda)$/ { print "line " NR ": unknown backend " $1; exit }
+    {
+        for (k = 2; k <= NF; k++) if (k != 3 && $k !~ /^[0-9.e+-]+$/) { print "line " NR " field " k " not a number: " $k; exit }
+        if (!($7 > 0 && $8 >= $7 && $9 > 0 && $5 >= 1)) { print "line " NR ": implausible times: " $0; exit }
+        rows++; seen[$1] = 1
+    }
+    END {
+        if (!header) { print "no header"; exit }
+        split("git: date: cpu: cc: CFLAGS: OMP_PROC_BIND", need, " ")
+        for (k in need) { found = 0; for (p in prov) if (index(p, need[k]) == 1) found = 1; if (!found) print "no provenance line " need[k] }
+        if (!seen["seq"] || !seen["omp"]) print "no seq or no omp rows"
+    }' "$bench_csv" 2>&1 | head -n 1)
+bench_problem=${bench_problem:-$( [ -s "$bench_csv" ] || echo "no $bench_csv")}
+if [ -z "$bench_problem" ]; then pass "bench.sh --quick CSV well formed"; else fail "bench.sh --quick CSV well formed" "$bench_problem"; fi
+bench_points=$(grep -v -e '^#' -e '^backend,' "$bench_csv" 2>/dev/null | cut -d, -f1-4 | sort -u | wc -l)
+bench_rows=$(grep -v -e '^#' -e '^backend,' "$bench_sum" 2>/dev/null | awk -F, 'NF == 17 && $6 >= 3 && $7 <= $8' | wc -l)
+if [ "$bench_points" -gt 0 ] && [ "$bench_rows" -eq "$bench_points" ]; then
+    pass "bench.sh --quick summary: one row per point"
+else
+    fail "bench.sh --quick summary: one row per point" "$bench_rows good rows for $bench_points points"
+fi
