@@ -476,8 +476,10 @@ static void check_broad_phase(Work *w, int64_t step)
     const Slots *s = &w->s;
     int64_t n = w->p->n;
     PairEvent *mine = io_alloc(w->n_ev, sizeof *mine);
-    memcpy(mine, w->ev, w->n_ev * sizeof *mine);
-    qsort(mine, w->n_ev, sizeof *mine, pair_cmp);
+    if (w->n_ev) {
+        memcpy(mine, w->ev, w->n_ev * sizeof *mine);
+        qsort(mine, w->n_ev, sizeof *mine, pair_cmp);
+    }
     size_t uniq = 0;
     for (size_t e = 0; e < w->n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
@@ -619,7 +621,7 @@ static void finish_sequential(Work *w)
             }
         }
     }
-    qsort(w->fin, len, sizeof *w->fin, seq_event_cmp);
+    if (len) qsort(w->fin, len, sizeof *w->fin, seq_event_cmp);
     uint64_t accepted = 0;
     for (size_t u = 0; u < len; u++) {
         const SeqEvent *e = &w->fin[u];

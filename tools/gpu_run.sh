@@ -74,8 +74,10 @@ do_perf() {
         ./cuda "$DATA/gas_$n.in" > /dev/null 2>&1 # warm-up, discarded
         time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
         time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
+        time_one gas_$n $n ./omp "$DATA/gas_$n.in" --threads "$THREADS" --stats
+        same gas_$n omp
     done
-    # omp beside cuda on a gas small enough for an all-pairs omp
+    # omp beside cuda on a small gas
     tools/gen 20000 --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/gas_20000.in"
     time_one gas_20000 20000 ./omp "$DATA/gas_20000.in" --threads "$THREADS" --stats
     time_one gas_20000 20000 ./cuda "$DATA/gas_20000.in" --stats
@@ -86,6 +88,8 @@ do_perf() {
         printf '%s\n20000\n1\n%s\nperf\n' $n $s > "$DATA/random_$n.in"
         time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
         time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
+        time_one random_$n $n ./omp "$DATA/random_$n.in" --threads "$THREADS" --stats
+        same random_$n omp
     done
     printf '32000\n20000\n1\n10\nperf\n' > "$DATA/random10_32000.in"
     time_one random10_32000 32000 ./omp "$DATA/random10_32000.in" --threads "$THREADS" --stats
