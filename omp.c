@@ -174,6 +174,19 @@ static void slots_free(Slots *s)
 }
 
 /* Copies the slots of this thread's range back to the caller's state, in original order. */
+/* Turns each thread's partial count into the sum of the counts of the threads before it; returns the
+ * total. Called by one thread between barriers. */
+static int64_t scan_partials(Work *w, int nt)
+{
+    int64_t acc = 0;
+    for (int t = 0; t < nt; t++) {
+        int64_t v = w->th[t].partial;
+        w->th[t].partial = acc;
+        acc += v;
+    }
+    return acc;
+}
+
 static void slots_unpermute(Work *w, int tid)
 {
     const Slots *s = &w->s;
@@ -324,15 +337,7 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int mode)
     w->th[tid].partial = sum;
 #pragma omp barrier
 #pragma omp single
-    {
-        int64_t acc = 0;
-        for (int t = 0; t < nt; t++) {
-            int64_t v = w->th[t].partial;
-            w->th[t].partial = acc;
-            acc += v;
-        }
-        w->cell_start[cells] = (int32_t)acc;
-    }
+    w->cell_start[cells] = (int32_t)scan_partials(w, nt);
     int64_t base = w->th[tid].partial;
     for (int64_t c = c0; c < c1; c++) {
         int32_t v = w->cell_start[c];
@@ -563,14 +568,7 @@ static void build_lists(Work *w, int tid)
     th->partial = sum;
 #pragma omp barrier
 #pragma omp single
-    {
-        int64_t acc = 0;
-        for (int t = 0; t < nt; t++) {
-            int64_t v = w->th[t].partial;
-            w->th[t].partial = acc;
-            acc += v;
-        }
-    }
+    scan_partials(w, nt);
     sum = th->partial; /* inclusive prefix: off[q] = end of slot q's list */
     for (int64_t q = from; q < to; q++) {
         sum += w->off[q];
