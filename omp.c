@@ -173,7 +173,6 @@ static void slots_free(Slots *s)
     free(s->wc);
 }
 
-/* Copies the slots of this thread's range back to the caller's state, in original order. */
 /* Turns each thread's partial count into the sum of the counts of the threads before it; returns the
  * total. Called by one thread between barriers. */
 static int64_t scan_partials(Work *w, int nt)
@@ -187,6 +186,7 @@ static int64_t scan_partials(Work *w, int nt)
     return acc;
 }
 
+/* Copies the slots of this thread's range back to the caller's state, in original order. */
 static void slots_unpermute(Work *w, int tid)
 {
     const Slots *s = &w->s;
