@@ -214,6 +214,21 @@ static inline SIM_HD void finish_step(double *x, double *y, double vx, double vy
     }
 }
 
+/* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
+ * finish the step. i is the lower original index. */
+static inline SIM_HD void pair_collide(double *xi, double *yi, double *vxi, double *vyi, double *xj,
+                                       double *yj, double *vxj, double *vyj, double t1, double lo,
+                                       double hi)
+{
+    *xi = *xi + *vxi * t1;
+    *yi = *yi + *vyi * t1;
+    *xj = *xj + *vxj * t1;
+    *yj = *yj + *vyj * t1;
+    pair_bounce(*xi, *yi, vxi, vyi, *xj, *yj, vxj, vyj);
+    finish_step(xi, yi, *vxi, *vyi, t1, lo, hi);
+    finish_step(xj, yj, *vxj, *vyj, t1, lo, hi);
+}
+
 /* Keeps a coordinate in [lo, hi]: only one-ulp rounding ever needs it. */
 static inline SIM_HD double clamp_coord(double c, double lo, double hi)
 {

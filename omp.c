@@ -732,14 +732,8 @@ static void move_range(Work *w, int tid)
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
         } else if (s->id[i] < s->id[j]) {
-            s->x[i] = s->x[i] + s->vx[i] * t;
-            s->y[i] = s->y[i] + s->vy[i] * t;
-            s->x[j] = s->x[j] + s->vx[j] * t;
-            s->y[j] = s->y[j] + s->vy[j] * t;
-            pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j],
-                        &s->vy[j]);
-            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
-            finish_step(&s->x[j], &s->y[j], s->vx[j], s->vy[j], t, lo, hi);
+            pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
+                         &s->vy[j], t, lo, hi);
             s->pc[i]++;
             s->pc[j]++;
             s->x[j] = clamp_coord(s->x[j], lo, hi);

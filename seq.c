@@ -99,13 +99,8 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
             s->wc[i]++;
         } else if (i == e->i) { /* the pair is handled once, from its lower index */
             int64_t j = e->j;
-            s->x[i] = s->x[i] + s->vx[i] * e->t;
-            s->y[i] = s->y[i] + s->vy[i] * e->t;
-            s->x[j] = s->x[j] + s->vx[j] * e->t;
-            s->y[j] = s->y[j] + s->vy[j] * e->t;
-            pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
-            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
-            finish_step(&s->x[j], &s->y[j], s->vx[j], s->vy[j], e->t, lo, hi);
+            pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
+                         &s->vy[j], e->t, lo, hi);
             s->pc[i]++;
             s->pc[j]++;
         }
