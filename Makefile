@@ -2,6 +2,7 @@
 # make            seq and omp (and cuda where nvcc exists)
 # make test       the whole suite (tests/run.sh); ends with "N passed, N failed"
 # make golden     regenerate outputs/ from seq (on purpose only)
+# make PRECISION=float   only the single-precision builds seq_f32, omp_f32 (and cuda_f32)
 
 CC ?= cc
 NVCC ?= nvcc
@@ -14,16 +15,33 @@ SANFLAGS = -std=c99 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-s
 
 HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
 PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
+PROGRAMS_F32 = seq_f32 omp_f32
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
 .PHONY: all test golden bench plots clean tools
-all: $(PROGRAMS) $(TOOLS)
+ifeq ($(PRECISION),float)
+all: $(PROGRAMS_F32)
+else
+all: $(PROGRAMS) $(PROGRAMS_F32) $(TOOLS)
+endif
 ifneq ($(HAVE_NVCC),yes)
 	@echo "cuda skipped: $(NVCC) not found"
 endif
 
 io.o: io.c common.h Makefile
 	$(CC) $(CFLAGS) -c io.c -o $@
+
+io_f32.o: io.c common.h Makefile
+	$(CC) $(CFLAGS) -DSIM_FLOAT -c io.c -o $@
+
+seq_f32: seq.c io_f32.o common.h Makefile
+	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c io_f32.o -o $@ $(LDLIBS)
+
+omp_f32: omp.c io_f32.o common.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c io_f32.o -o $@ $(LDLIBS)
+
+cuda_f32: cuda.cu io_f32.o common.h Makefile
+	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu io_f32.o -o $@ $(LDLIBS)
 
 seq: seq.c io.o common.h Makefile
 	$(CC) $(CFLAGS) seq.c io.o -o $@ $(LDLIBS)
@@ -60,4 +78,4 @@ plots:
 	@bash tools/plot.sh
 
 clean:
-	rm -f seq omp cuda seq_san io.o $(TOOLS)
+	rm -f seq omp cuda seq_san io.o io_f32.o $(PROGRAMS_F32) $(TOOLS)

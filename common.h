@@ -25,32 +25,61 @@
 extern "C" {
 #endif
 
+/* ---- precision ------------------------------------------------------------------------------------ */
+
+/* SPEC.md is double precision. `make PRECISION=float` builds seq_f32, omp_f32 and cuda_f32 with
+ * SIM_FLOAT: the same algorithm in single precision, every operation rounded to float (no literal or
+ * library call may promote an expression to double). They agree with each other byte for byte, not
+ * with the double build. */
+#ifdef SIM_FLOAT
+typedef float real;
+#define SIM_SQRT sqrtf
+#define SIM_FABS fabsf
+#define SIM_EPS 1.1920929e-7 /* FLT_EPSILON */
+#define SIM_PRECISION "float"
+#define SIM_SUFFIX "_f32" /* of program names: seq_f32, omp_f32, cuda_f32 */
+#else
+typedef double real;
+#define SIM_SQRT sqrt
+#define SIM_FABS fabs
+#define SIM_EPS 2.220446049250313e-16 /* DBL_EPSILON */
+#define SIM_PRECISION "double"
+#define SIM_SUFFIX ""
+#endif
+
 /* ---- limits of valid input (SPEC.md section 1) -------------------------------------------------- */
 
 #define SIM_MAX_N 2147483647LL     /* particles */
 #define SIM_MAX_STEPS 2147483647LL /* steps */
-#define SIM_MAX_L 1e50             /* side of the box */
-#define SIM_MIN_R 1e-50            /* radius */
-#define SIM_MAX_V 1e50             /* |vx|, |vy| */
+#ifdef SIM_FLOAT
+/* Squares of products of lengths and speeds must stay finite and normal in float (about 1e38). */
+#define SIM_MAX_L 1e9
+#define SIM_MIN_R 1e-9
+#define SIM_MAX_V 1e9
+#else
+#define SIM_MAX_L 1e50 /* side of the box */
+#define SIM_MIN_R 1e-50 /* radius */
+#define SIM_MAX_V 1e50 /* |vx|, |vy| */
+#endif
 
 /* ---- parameters (read-only during a run) ------------------------------------------------------- */
 
 typedef struct {
     int64_t n;     /* number of disks, 1..SIM_MAX_N */
-    double L;      /* side of the square box, length */
-    double r;      /* radius of every disk, length */
+    real L;        /* side of the square box, length */
+    real r;        /* radius of every disk, length */
     int64_t steps; /* S, number of steps (time units) to simulate */
     int print;     /* 1: print the state after every step; 0: perf, first and last state only */
-    double lo;     /* smallest allowed centre coordinate: r */
-    double hi;     /* largest allowed centre coordinate: L - r */
-    double sigma2; /* squared contact distance: (r + r) * (r + r) */
+    real lo;       /* smallest allowed centre coordinate: r */
+    real hi;       /* largest allowed centre coordinate: L - r */
+    real sigma2;   /* squared contact distance: (r + r) * (r + r) */
 } Params;
 
 /* ---- state: structure of arrays, n entries each -------------------------------------------------- */
 
 typedef struct {
-    double *x, *y;   /* centres, length */
-    double *vx, *vy; /* velocities, length per step */
+    real *x, *y;     /* centres, length */
+    real *vx, *vy;   /* velocities, length per step */
     int32_t *pc;     /* collisions with other disks so far (at most one per step, so <= S fits) */
     int32_t *wc;     /* collisions with walls so far */
 } Sim;
@@ -116,43 +145,43 @@ void io_progress(Output *out, int64_t step);
 
 /* Time until a centre at coordinate c with velocity v reaches lo or hi (3.1): +inf if v == 0, never
  * negative. "<= 0" rather than "< 0" also turns -0.0 into +0.0, so event times are never -0.0. */
-static inline SIM_HD double wall_time(double c, double v, double lo, double hi)
+static inline SIM_HD real wall_time(real c, real v, real lo, real hi)
 {
-    double t = INFINITY;
+    real t = INFINITY;
     if (v > 0) t = (hi - c) / v;
     if (v < 0) t = (lo - c) / v;
     if (t <= 0) t = 0;
     return t;
 }
 
-static inline SIM_HD double min_time(double a, double b)
+static inline SIM_HD real min_time(real a, real b)
 {
     return b < a ? b : a;
 }
 
 /* Time of the pair event of disks i and j (3.2), or -1 when the pair has no event this step. The
- * root form c / (-b + sqrt(D)) never subtracts nearly equal numbers. */
-static inline SIM_HD double pair_time(double xi, double yi, double vxi, double vyi, double xj,
-                                      double yj, double vxj, double vyj, double sigma2)
+ * root form c / (-b + SIM_SQRT(D)) never subtracts nearly equal numbers. */
+static inline SIM_HD real pair_time(real xi, real yi, real vxi, real vyi, real xj,
+                                      real yj, real vxj, real vyj, real sigma2)
 {
-    double dx = xj - xi, dy = yj - yi;
-    double dvx = vxj - vxi, dvy = vyj - vyi;
-    double b = dx * dvx + dy * dvy;
+    real dx = xj - xi, dy = yj - yi;
+    real dvx = vxj - vxi, dvy = vyj - vyi;
+    real b = dx * dvx + dy * dvy;
     if (!(b < 0)) return -1;
-    double dd = dx * dx + dy * dy;
+    real dd = dx * dx + dy * dy;
     if (!(dd > 0)) return -1;
-    double a = dvx * dvx + dvy * dvy;
-    double c = dd - sigma2;
-    double D = b * b - a * c;
+    real a = dvx * dvx + dvy * dvy;
+    real c = dd - sigma2;
+    real D = b * b - a * c;
     if (!(D > 0)) return -1;
-    double t = c / (-b + sqrt(D));
+    real t = c / (-b + SIM_SQRT(D));
     if (t <= 0) t = 0;
     if (!(t <= 1)) return -1;
     return t;
 }
 
 /* The event order of 3.3: (t, kind, i, j) ascending; kind 0 is a wall event (j == i), 1 a pair. */
-static inline SIM_HD int event_before(double ta, int ka, int64_t ia, int64_t ja, double tb, int kb,
+static inline SIM_HD int event_before(real ta, int ka, int64_t ia, int64_t ja, real tb, int kb,
                                       int64_t ib, int64_t jb)
 {
     if (ta != tb) return ta < tb;
@@ -162,10 +191,10 @@ static inline SIM_HD int event_before(double ta, int ka, int64_t ia, int64_t ja,
 }
 
 /* Moves disk i to its wall event at t1 and reflects the axes that hit (3.4). */
-static inline SIM_HD void wall_bounce(double *x, double *y, double *vx, double *vy, double t1,
-                                      double lo, double hi)
+static inline SIM_HD void wall_bounce(real *x, real *y, real *vx, real *vy, real t1,
+                                      real lo, real hi)
 {
-    double tx = wall_time(*x, *vx, lo, hi), ty = wall_time(*y, *vy, lo, hi);
+    real tx = wall_time(*x, *vx, lo, hi), ty = wall_time(*y, *vy, lo, hi);
     if (tx == t1) {
         *x = *vx > 0 ? hi : lo;
         *vx = -*vx;
@@ -182,15 +211,15 @@ static inline SIM_HD void wall_bounce(double *x, double *y, double *vx, double *
 
 /* Elastic response of two equal disks in contact (3.4): the normal components swap, the tangential
  * ones stay. Coincident centres have no normal; their velocities are left alone. */
-static inline SIM_HD void pair_bounce(double xi, double yi, double *vxi, double *vyi, double xj,
-                                      double yj, double *vxj, double *vyj)
+static inline SIM_HD void pair_bounce(real xi, real yi, real *vxi, real *vyi, real xj,
+                                      real yj, real *vxj, real *vyj)
 {
-    double nx = xj - xi, ny = yj - yi;
-    double len = sqrt(nx * nx + ny * ny);
+    real nx = xj - xi, ny = yj - yi;
+    real len = SIM_SQRT(nx * nx + ny * ny);
     if (len == 0) return;
-    double ux = nx / len, uy = ny / len;
-    double vni = ux * *vxi + uy * *vyi, vti = ux * *vyi - uy * *vxi;
-    double vnj = ux * *vxj + uy * *vyj, vtj = ux * *vyj - uy * *vxj;
+    real ux = nx / len, uy = ny / len;
+    real vni = ux * *vxi + uy * *vyi, vti = ux * *vyi - uy * *vxi;
+    real vnj = ux * *vxj + uy * *vyj, vtj = ux * *vyj - uy * *vxj;
     *vxi = vnj * ux - vti * uy;
     *vyi = vnj * uy + vti * ux;
     *vxj = vni * ux - vtj * uy;
@@ -199,12 +228,12 @@ static inline SIM_HD void pair_bounce(double xi, double yi, double *vxi, double 
 
 /* The rest of the step after an event at t1 (3.4): fly on for 1 - t1, or stop touching the first wall
  * on the way, velocity unreflected (that collision happens, and counts, next step). */
-static inline SIM_HD void finish_step(double *x, double *y, double vx, double vy, double t1,
-                                      double lo, double hi)
+static inline SIM_HD void finish_step(real *x, real *y, real vx, real vy, real t1,
+                                      real lo, real hi)
 {
-    double rem = 1 - t1;
-    double tx = wall_time(*x, vx, lo, hi), ty = wall_time(*y, vy, lo, hi);
-    double t2 = min_time(tx, ty);
+    real rem = 1 - t1;
+    real tx = wall_time(*x, vx, lo, hi), ty = wall_time(*y, vy, lo, hi);
+    real t2 = min_time(tx, ty);
     if (t2 <= rem) {
         *x = tx == t2 ? (vx > 0 ? hi : lo) : *x + vx * t2;
         *y = ty == t2 ? (vy > 0 ? hi : lo) : *y + vy * t2;
@@ -216,9 +245,9 @@ static inline SIM_HD void finish_step(double *x, double *y, double vx, double vy
 
 /* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
  * finish the step. i is the lower original index. */
-static inline SIM_HD void pair_collide(double *xi, double *yi, double *vxi, double *vyi, double *xj,
-                                       double *yj, double *vxj, double *vyj, double t1, double lo,
-                                       double hi)
+static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+                                       real *yj, real *vxj, real *vyj, real t1, real lo,
+                                       real hi)
 {
     *xi = *xi + *vxi * t1;
     *yi = *yi + *vyi * t1;
@@ -230,7 +259,7 @@ static inline SIM_HD void pair_collide(double *xi, double *yi, double *vxi, doub
 }
 
 /* Keeps a coordinate in [lo, hi]: only one-ulp rounding ever needs it. */
-static inline SIM_HD double clamp_coord(double c, double lo, double hi)
+static inline SIM_HD real clamp_coord(real c, real lo, real hi)
 {
     return c < lo ? lo : (c > hi ? hi : c);
 }

@@ -55,10 +55,10 @@ int sim_alloc(Sim *sim, int64_t n)
 {
     size_t m = (size_t)n;
     memset(sim, 0, sizeof *sim);
-    sim->x = malloc(m * sizeof(double));
-    sim->y = malloc(m * sizeof(double));
-    sim->vx = malloc(m * sizeof(double));
-    sim->vy = malloc(m * sizeof(double));
+    sim->x = malloc(m * sizeof(real));
+    sim->y = malloc(m * sizeof(real));
+    sim->vx = malloc(m * sizeof(real));
+    sim->vy = malloc(m * sizeof(real));
     sim->pc = calloc(m, sizeof(int32_t));
     sim->wc = calloc(m, sizeof(int32_t));
     if (sim->x && sim->y && sim->vx && sim->vy && sim->pc && sim->wc) return 0;
@@ -412,14 +412,17 @@ static void read_header(Reader *rd, Params *par)
 {
     par->n = header_int(rd, "the number of particles N", 1, SIM_MAX_N);
     rd->n_line = rd->line;
-    par->L = header_real(rd, "the box size L");
-    if (!(par->L > 0 && par->L <= SIM_MAX_L))
-        input_error(rd, rd->line, "the box size L must be > 0 and <= 1e50 (found '%s')", rd->tok[0]);
-    par->r = header_real(rd, "the radius r");
-    if (!(par->r >= SIM_MIN_R))
-        input_error(rd, rd->line, "the radius r must be >= 1e-50 (found '%s')", rd->tok[0]);
+    double L = header_real(rd, "the box size L");
+    if (!(L > 0 && L <= SIM_MAX_L))
+        input_error(rd, rd->line, "the box size L must be > 0 and <= %g (found '%s')", SIM_MAX_L,
+                    rd->tok[0]);
+    par->L = (real)L;
+    double r = header_real(rd, "the radius r");
+    if (!(r >= SIM_MIN_R))
+        input_error(rd, rd->line, "the radius r must be >= %g (found '%s')", SIM_MIN_R, rd->tok[0]);
+    par->r = (real)r;
     if (!(2 * par->r < par->L))
-        input_error(rd, rd->line, "the radius r must satisfy 2r < L = %.17g (found '%s')", par->L,
+        input_error(rd, rd->line, "the radius r must satisfy 2r < L = %.17g (found '%s')", (double)par->L,
                     rd->tok[0]);
     par->steps = header_int(rd, "the number of steps S", 0, SIM_MAX_STEPS);
     const char *mode = header_token(rd, "the mode 'print' or 'perf'");
@@ -469,15 +472,15 @@ static int64_t read_particles(Reader *rd, const Params *par, Sim *sim)
         for (int k = 0; k < 2; k++)
             if (!(v[k] >= par->lo && v[k] <= par->hi))
                 input_error(rd, rd->line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
-                            field_name[k + 1], par->lo, par->hi, rd->tok[k + 1]);
+                            field_name[k + 1], (double)par->lo, (double)par->hi, rd->tok[k + 1]);
         for (int k = 2; k < 4; k++)
             if (!(fabs(v[k]) <= SIM_MAX_V))
-                input_error(rd, rd->line, "|%s| must be <= 1e50 (found '%s')", field_name[k + 1],
+                input_error(rd, rd->line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V,
                             rd->tok[k + 1]);
-        sim->x[idx] = v[0];
-        sim->y[idx] = v[1];
-        sim->vx[idx] = v[2];
-        sim->vy[idx] = v[3];
+        sim->x[idx] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
+        sim->y[idx] = (real)v[1];
+        sim->vx[idx] = (real)v[2];
+        sim->vy[idx] = (real)v[3];
         seen++;
     }
     if (seen > 0 && seen < n) {
@@ -564,8 +567,9 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
                 free(next);
                 return i;
             }
-            x = clamp_coord(lo + span * rng_unit(&g), lo, hi);
-            y = clamp_coord(lo + span * rng_unit(&g), lo, hi);
+            /* rounded to real first, so that the overlap test sees the stored positions */
+            x = clamp_coord((real)(lo + span * rng_unit(&g)), par->lo, par->hi);
+            y = clamp_coord((real)(lo + span * rng_unit(&g)), par->lo, par->hi);
             cx = (int64_t)(x / cell);
             cy = (int64_t)(y / cell);
             if (cx >= cells) cx = cells - 1;
@@ -590,8 +594,8 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
         head[cy * cells + cx] = (int32_t)i;
         double speed = smin + (smax - smin) * rng_unit(&g);
         double angle = two_pi * rng_unit(&g);
-        sim->vx[i] = speed * cos(angle);
-        sim->vy[i] = speed * sin(angle);
+        sim->vx[i] = (real)(speed * cos(angle));
+        sim->vy[i] = (real)(speed * sin(angle));
     }
     free(head);
     free(next);
@@ -615,7 +619,8 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
             input_error(&rd, rd.n_line,
                         "cannot place %lld disks of radius %g without overlap in a box of side %g "
                         "(disk %lld failed %d tries; area fraction %.3f)",
-                        (long long)par->n, par->r, par->L, (long long)failed, PLACE_TRIES,
+                        (long long)par->n, (double)par->r, (double)par->L, (long long)failed,
+                        PLACE_TRIES,
                         (double)par->n * 3.141592653589793 * par->r * par->r / (par->L * par->L));
         if (!opt->quiet)
             fprintf(stderr, "%s: generated %lld disks with seed %llu\n", backend_name,
@@ -661,7 +666,7 @@ static void parse_args(int argc, char **argv, Options *opt)
     memset(opt, 0, sizeof *opt);
     opt->seed = DEFAULT_SEED;
     opt->path = NULL;
-    int own_threads = strcmp(backend_name, "omp") == 0;
+    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0;
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {

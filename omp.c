@@ -25,7 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char backend_name[] = "omp";
+const char backend_name[] = "omp" SIM_SUFFIX;
 const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
@@ -35,6 +35,16 @@ const char backend_options[] =
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
 #define K_MAX 65536      /* most time slices per step */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
+
+/* Relative margins of the broad phase for rounding: of positions and times (REL, about 4.5e6 rounding
+ * units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840 units). */
+#ifdef SIM_FLOAT
+#define REL_MARGIN 1e-5
+#define GRAZE_MARGIN 1e-4
+#else
+#define REL_MARGIN 1e-9
+#define GRAZE_MARGIN 1e-12
+#endif
 
 /* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
  * one cell of one thread's histogram, testing one pair of boxes. */
@@ -46,31 +56,31 @@ const char backend_options[] =
 
 /* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
 typedef struct {
-    double xlo, xhi, ylo, yhi;
+    real xlo, xhi, ylo, yhi;
 } Box;
 
 /* A disk's state at the start of the step, stored in the cell order of the boxes, so that the
  * narrow phase of a slice reads memory next to what its scan streams through. */
 typedef struct {
-    double x, y, vx, vy;
+    real x, y, vx, vy;
     int32_t slot, id; /* slot and original index of the disk */
 } Body;
 
 typedef struct {
-    double t;     /* time of the event, 0..1 */
+    real t;     /* time of the event, 0..1 */
     int32_t i, j; /* original indices, i < j: the event's key */
     int32_t a, b; /* their slots */
 } PairEvent;
 
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
 typedef struct {
-    double *x, *y, *vx, *vy;
+    real *x, *y, *vx, *vy;
     int32_t *id, *pc, *wc;
 } Slots;
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
 typedef struct {
-    double t;
+    real t;
     int kind;     /* 0: wall, 1: pair */
     int32_t i, j; /* original indices */
     int32_t a, b; /* slots */
@@ -95,7 +105,7 @@ typedef struct {
     int64_t partial;  /* this thread's part of a prefix sum */
     size_t ev_off;    /* where this thread's events go in the gathered list */
     uint64_t tests, events;
-    double vmax;
+    real vmax;
     char pad[64];
 } Thread;
 
@@ -116,7 +126,7 @@ typedef struct {
     Body *bodies;     /* n: the disks of those boxes (slices after the first) */
     int32_t *box_slot; /* n: the slots of those boxes (first slice) */
     /* the rest is indexed by slot */
-    double *wall_t;   /* n: wall event time, or -1 */
+    real *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
     size_t n_ev, ev_cap;
     int64_t *off;     /* n + 1: CSR offsets of each disk's events in adj */
@@ -124,9 +134,9 @@ typedef struct {
     size_t adj_cap;
     int32_t *active;  /* n: undecided disks, each thread's in its own range */
     int32_t *best_p;  /* n: partner slot of the smallest remaining event (itself: wall; -1: none) */
-    double *best_t;   /* n: time of that event */
+    real *best_t;   /* n: time of that event */
     int32_t *acc_p;   /* n: partner of the accepted event (itself: wall; -1: none) */
-    double *acc_t;    /* n: time of the accepted event */
+    real *acc_t;    /* n: time of the accepted event */
     unsigned char *taken; /* n: 1 once the disk has an accepted event */
     int64_t undecided;   /* disks left after a round of the choice */
     SeqEvent *fin;    /* events of the sequential finish */
@@ -208,7 +218,7 @@ static void slots_unpermute(Work *w, int tid)
 
 /* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
  * that touch at a time of slice k have boxes that overlap in slice k; the margin m covers, with a
- * factor of at least 1000 to spare, the rounding of positions (about eps * scale) and that of
+ * wide factor to spare (REL_MARGIN, GRAZE_MARGIN), the rounding of positions (about eps * scale) and that of
  * pair_time near a graze, where D > 0 can hold while the exact path misses contact by up to about
  * eps * dd / r. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
  * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
@@ -216,7 +226,7 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
 {
     Plan pl;
     double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
-    double m = 1e-9 * (r + r) + 1e-9 * scale + 1e-12 * (reach / r) * reach;
+    double m = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
     pl.grow = r + m;
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;
@@ -229,7 +239,7 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     pl.g = 1;
     for (int k = 1; k <= K_MAX; k = k < 8 ? k + 1 : k + k / 8) {
         /* centres of two overlapping boxes are at most 2 * grow + (displacement in a slice) apart */
-        double h = (2 * pl.grow + vm / k) * (1 + 1e-9) + 1e-9 * scale;
+        double h = (2 * pl.grow + vm / k) * (1 + REL_MARGIN) + REL_MARGIN * scale;
         double gd = extent / h;
         int64_t g = gd < (double)gcap ? (int64_t)gd : gcap;
         if (g < 1) g = 1;
@@ -246,10 +256,10 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     return pl;
 }
 
-static inline void slice_box(const Slots *s, int64_t q, double ta, double tb, double grow, Box *b)
+static inline void slice_box(const Slots *s, int64_t q, real ta, real tb, real grow, Box *b)
 {
-    double xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
-    double ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
+    real xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
+    real ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
     b->xlo = (xa < xb ? xa : xb) - grow;
     b->xhi = (xa < xb ? xb : xa) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
@@ -283,19 +293,20 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
 enum { BIN_BODIES, BIN_SLOTS, BIN_REORDER };
 
 /* 3.1: the wall event of the disk in slot q, stored for slot dst. Most disks are farther from every
- * wall than they move in a step (with a relative 1e-9 to spare, so the quotient is surely > 1): they
+ * wall than they move in a step (with REL_MARGIN to spare, so the quotient is surely > 1): they
  * need no division. */
 static inline void wall_event(Work *w, int64_t q, int64_t dst)
 {
     const Slots *s = &w->s;
     const Params *p = w->p;
-    double x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
-    double ax = fabs(vx) * (1 + 1e-9), ay = fabs(vy) * (1 + 1e-9);
-    if (x - p->lo > ax && p->hi - x > ax && y - p->lo > ay && p->hi - y > ay) {
+    real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
+    double ax = fabs((double)vx) * (1 + REL_MARGIN), ay = fabs((double)vy) * (1 + REL_MARGIN);
+    if ((double)x - p->lo > ax && p->hi - (double)x > ax && (double)y - p->lo > ay &&
+        p->hi - (double)y > ay) {
         w->wall_t[dst] = -1;
         return;
     }
-    double tw = min_time(wall_time(x, vx, p->lo, p->hi), wall_time(y, vy, p->lo, p->hi));
+    real tw = min_time(wall_time(x, vx, p->lo, p->hi), wall_time(y, vy, p->lo, p->hi));
     w->wall_t[dst] = tw <= 1 ? tw : -1;
 }
 
@@ -303,7 +314,7 @@ static inline void wall_event(Work *w, int64_t q, int64_t dst)
  * over cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell
  * order with their disks' bodies (BIN_BODIES) or slots (BIN_SLOTS); BIN_REORDER moves the disks
  * themselves to the new order (into spare). The first slice finds the wall events (3.1) on the way. */
-static void bin_slice(Work *w, int tid, double ta, double tb, int mode)
+static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
 {
     const Plan *pl = &w->plan;
     const Slots *s = &w->s;
@@ -381,7 +392,7 @@ static void bin_slice(Work *w, int tid, double ta, double tb, int mode)
     }
 }
 
-static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, int32_t b)
+static void push_event(Thread *th, real t, int32_t i, int32_t j, int32_t a, int32_t b)
 {
     th->ev = grow(th->ev, &th->cap, th->len + 1, sizeof *th->ev);
     PairEvent e = {t, i, j, a, b};
@@ -395,13 +406,13 @@ static void push_event(Thread *th, double t, int32_t i, int32_t j, int32_t a, in
  * inside the margin.) The disk with the lower original index is always pair_time's first. */
 static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body *q, int k)
 {
-    double dx = q->x - p->x, dy = q->y - p->y;
-    double dvx = q->vx - p->vx, dvy = q->vy - p->vy;
-    double b = dx * dvx + dy * dvy;
+    real dx = q->x - p->x, dy = q->y - p->y;
+    real dvx = q->vx - p->vx, dvy = q->vy - p->vy;
+    real b = dx * dvx + dy * dvy;
     if (!(b < 0)) return;
     int K = w->plan.k;
     if (K > 1) {
-        double tau = -b / (dvx * dvx + dvy * dvy);
+        real tau = -b / (dvx * dvx + dvy * dvy);
         int ks = tau < 1 ? (int)(tau * K) : K - 1;
         if (ks > K - 1) ks = K - 1;
         if (ks != k) return;
@@ -412,7 +423,7 @@ static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body
         q = t;
     }
     th->tests++;
-    double t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
+    real t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
     if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
 }
 
@@ -495,7 +506,7 @@ static void check_broad_phase(Work *w, int64_t step)
     for (int64_t qa = 0; qa < n; qa++)
         for (int64_t qb = qa + 1; qb < n; qb++) {
             int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
-            double t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
+            real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
                                  s->vy[b], w->p->sigma2);
             if (t < 0) continue;
             PairEvent key = {t, s->id[a], s->id[b], 0, 0};
@@ -647,7 +658,7 @@ static void choose_events(Work *w, int tid)
     for (;;) {
         for (int64_t k = 0; k < na; k++) {
             int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
-            double bt = 0;
+            real bt = 0;
             if (w->wall_t[q] >= 0) {
                 bp = q;
                 bi = bj = id[q];
@@ -706,9 +717,9 @@ static void choose_events(Work *w, int tid)
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
 
-static inline double fastest(double vm, double vx, double vy)
+static inline real fastest(real vm, real vx, real vy)
 {
-    double ax = fabs(vx), ay = fabs(vy);
+    real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
     if (ax > vm) vm = ax;
     return ay > vm ? ay : vm;
 }
@@ -718,12 +729,12 @@ static inline double fastest(double vm, double vx, double vy)
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->s;
-    double lo = w->p->lo, hi = w->p->hi, vm = 0;
+    real lo = w->p->lo, hi = w->p->hi, vm = 0;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
         int64_t j = w->acc_p[i];
-        double t = w->acc_t[i];
+        real t = w->acc_t[i];
         if (j < 0) {
             s->x[i] = s->x[i] + s->vx[i];
             s->y[i] = s->y[i] + s->vy[i];
@@ -784,7 +795,7 @@ static void step_run(Work *w, int tid, int64_t step)
     th->len = 0;
 #pragma omp single
     {
-        double v = 0;
+        real v = 0;
         for (int t = 0; t < w->nt; t++)
             if (w->th[t].vmax > v) v = w->th[t].vmax;
         w->plan = plan_step(p, v, p->n, w->nt, w->max_cells);
@@ -796,7 +807,7 @@ static void step_run(Work *w, int tid, int64_t step)
     bin_slice(w, tid, 0, 1.0 / K, K > 1 || step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
     scan_slice(w, tid, 0);
     for (int k = 1; k < K; k++) {
-        bin_slice(w, tid, (double)k / K, (double)(k + 1) / K, BIN_BODIES);
+        bin_slice(w, tid, (real)k / K, (real)(k + 1) / K, BIN_BODIES);
         scan_slice(w, tid, k);
     }
     build_lists(w, tid);

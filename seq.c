@@ -9,11 +9,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char backend_name[] = "seq";
+const char backend_name[] = "seq" SIM_SUFFIX;
 const char backend_options[] = "";
 
 typedef struct {
-    double t;  /* time of the event within the step, 0..1 */
+    real t;  /* time of the event within the step, 0..1 */
     int kind;  /* 0: wall, 1: pair */
     int64_t i; /* the disk (wall) or the lower index (pair) */
     int64_t j; /* the higher index (pair); i for a wall */
@@ -24,7 +24,7 @@ typedef struct {
     size_t len, cap;
 } EventList;
 
-static void events_push(EventList *l, double t, int kind, int64_t i, int64_t j)
+static void events_push(EventList *l, real t, int kind, int64_t i, int64_t j)
 {
     if (l->len == l->cap) {
         l->cap = l->cap ? 2 * l->cap : 1024;
@@ -48,7 +48,7 @@ static int event_cmp(const void *pa, const void *pb)
 static void detect_walls(const Sim *s, const Params *p, EventList *l)
 {
     for (int64_t i = 0; i < p->n; i++) {
-        double tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
+        real tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
                              wall_time(s->y[i], s->vy[i], p->lo, p->hi));
         if (tw <= 1) events_push(l, tw, 0, i, i);
     }
@@ -59,7 +59,7 @@ static uint64_t detect_pairs(const Sim *s, const Params *p, EventList *l)
 {
     for (int64_t i = 0; i < p->n; i++)
         for (int64_t j = i + 1; j < p->n; j++) {
-            double t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
+            real t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
                                  s->vy[j], p->sigma2);
             if (t >= 0) events_push(l, t, 1, i, j);
         }
@@ -85,7 +85,7 @@ static uint64_t choose_events(EventList *l, int64_t n, int64_t *event_of)
 /* 3.4 and 3.5: move every disk through the step, its accepted event included. */
 static void move(Sim *s, const Params *p, const EventList *l, const int64_t *event_of)
 {
-    double lo = p->lo, hi = p->hi;
+    real lo = p->lo, hi = p->hi;
     for (int64_t i = 0; i < p->n; i++) {
         if (event_of[i] < 0) {
             s->x[i] = s->x[i] + s->vx[i];
