@@ -144,7 +144,9 @@ static inline void exact_apply(ExactDisks *d, const Params *p, const ExactEvent 
     int64_t i = e->i, j = e->j;
     if (i == j) {
         real dt = min_time(wall_time(s->x[i], s->vx[i], lo, hi), wall_time(s->y[i], s->vy[i], lo, hi));
+        real vx0 = s->vx[i], vy0 = s->vy[i];
         wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], dt, lo, hi);
+        if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);
         d->t[i] = e->t;
