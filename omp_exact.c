@@ -54,6 +54,7 @@ typedef struct {
     ExactDisks d;
     const Params *p;
     int nt;
+    int check;            /* --check: all pairs after every window (check_window) */
     XThread *th;
     ExactHeap heap;
     /* the window's grid */
@@ -188,6 +189,27 @@ static inline int window_ends(XWork *w, int64_t i)
            fabs((double)s->vy[i]) > w->vbound;
 }
 
+/* --check: after a window that ended at t1, no disk or pair may have an event before t1 (or at t1,
+ * when the window ran to its planned end): the grid would have missed it. All pairs, so slow. */
+static void check_window(const XWork *w, real t0, real t1, int early)
+{
+    const ExactDisks *d = &w->d;
+    const Params *p = w->p;
+    for (int64_t i = 0; i < p->n; i++) {
+        real t = exact_wall_time(d, p, i);
+        if (t >= 0 && (t < t1 || (!early && t == t1)))
+            io_fail("--check: window [%.17g, %.17g] left the wall event of disk %lld at t = %.17g",
+                    (double)t0, (double)t1, (long long)i, (double)t);
+        for (int64_t j = i + 1; j < p->n; j++) {
+            t = exact_pair_time(d, p, i, j);
+            if (t >= 0 && (t < t1 || (!early && t == t1)))
+                io_fail("--check: window [%.17g, %.17g] missed the event of disks %lld and %lld at "
+                        "t = %.17g",
+                        (double)t0, (double)t1, (long long)i, (long long)j, (double)t);
+        }
+    }
+}
+
 /* Runs the window starting at t0; returns where it ended and sets *done when the step is over. */
 static real run_window(XWork *w, real t0, int *done, RunStats *st)
 {
@@ -247,19 +269,20 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
     st->events += events;
     double len = (double)t1 - (double)t0;
     if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)events / len;
+    if (w->check) check_window(w, t0, t1, early);
     *done = !early && t1 == 1;
     return t1;
 }
 
 int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
-    (void)opt;
     int64_t n = par->n;
     XWork w;
     memset(&w, 0, sizeof w);
     w.p = par;
+    w.check = opt->check;
     w.nt = omp_get_max_threads();
-    exact_alloc(&w.d, sim, n);
+    exact_alloc(&w.d, sim, par);
     w.th = io_alloc((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);

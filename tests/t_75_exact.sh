@@ -4,6 +4,7 @@
 #   overlapping; print and perf) at 1, 2, 3 and 7 threads, in both builds;
 # - the physics: kinetic energy kept to rounding (relative drift < 1e-12 over 300 steps), no overlaps
 #   on non-overlapping starts (tools/check --exact, which must also catch the overlaps of SPEC.md's step);
+# - omp --exact --check (every window against all pairs) on scenes of thousands of disks; seq_san;
 # - option handling: cuda rejects --exact, --exact with --substeps is an error.
 X=$TMP/exact
 mkdir -p "$X"
@@ -38,6 +39,7 @@ overlap_print    300 --fraction 0.5 --overlap --speed 1 --steps 20 --mode print
 overlap_fast     200 --overlap --assignment --L 100 --steps 15 --mode print
 tiny_radius      300 --r 0.001 --fraction 0.1 --speed 2 --steps 20 --mode print
 mid_dense        2000 --fraction 0.4 --speed 1 --steps 4
+overlap_deep     3000 --fraction 3 --overlap --speed 0.3 --steps 3 --mode print
 SCENES
 }
 
@@ -100,6 +102,35 @@ if tools/check --dump17 --exact "$X/dense_print.in" "$X/d17" 2> /dev/null; then
     fail "exact/check sees the overlaps of the default step"
 else
     pass "exact/check sees the overlaps of the default step"
+fi
+
+# omp --exact --check: after every window, all pairs must show no event the grid missed.
+for args in "2000 --fraction 0.4 --speed 1 --steps 3" \
+            "1500 --assignment --L 1500 --steps 2" \
+            "1500 --r 1e-6 --L 1 --speed 1e5 --steps 2" \
+            "1500 --fraction 0.7 --overlap --speed 2 --steps 2"; do
+    # shellcheck disable=SC2086
+    tools/gen $args > "$X/check.in"
+    for prog in omp omp_f32; do
+        if ./$prog "$X/check.in" --exact --check --quiet --threads 2 > /dev/null 2> "$X/err"; then
+            pass "exact/$prog --check: $args"
+        else
+            fail "exact/$prog --check: $args" "$(head -c 300 "$X/err")"
+        fi
+    done
+done
+
+# seq under the address and undefined-behaviour sanitizers (built by make test)
+if [ -x ./seq_san ]; then
+    for f in tests/exact/*.in "$X/overlap_print.in"; do
+        if ./seq_san "$f" --exact --quiet > "$X/out" 2> "$X/err" && ./seq "$f" --exact --quiet | cmp -s - "$X/out"; then
+            pass "exact/sanitizer $(basename "$f" .in)"
+        else
+            fail "exact/sanitizer $(basename "$f" .in)" "$(head -c 300 "$X/err")"
+        fi
+    done
+else
+    skip "exact/sanitizer" "seq_san not built"
 fi
 
 # Options: backends without --exact reject it before any output.
