@@ -20,6 +20,7 @@
 #include "exact.h"
 
 #include <omp.h>
+#include <stdio.h>
 #include <string.h>
 
 /* Relative margins for rounding, as in omp.c: of positions and times (REL; it covers WINDOW_EVENTS
@@ -66,6 +67,8 @@ typedef struct {
     uint32_t *win_events; /* n: events of each disk in the window */
     double vbound;        /* bound on |vx|, |vy| within the window */
     double rate;          /* events per time unit, estimated from the last window */
+    uint64_t windows;     /* for --stats: windows run, */
+    double start_s, loop_s; /* seconds in their starts (parallel) and event loops (sequential) */
 } XWork;
 
 /* Width of cells from which two disks can touch within a window of length h (see the top comment).
@@ -215,7 +218,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
 {
     const Params *p = w->p;
     int64_t n = p->n;
-    double vmax = 0;
+    double vmax = 0, clock0 = io_now();
 #pragma omp parallel for schedule(static) reduction(max : vmax)
     for (int64_t i = 0; i < n; i++) {
         double ax = fabs((double)w->d.sim->vx[i]), ay = fabs((double)w->d.sim->vy[i]);
@@ -246,6 +249,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         w->heap.len += w->th[t].buf.len;
     }
     heap_build(&w->heap);
+    double clock1 = io_now();
 
     /* the events in key order, as seq.c processes them */
     uint64_t events = 0;
@@ -267,6 +271,9 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap);
     }
     st->events += events;
+    w->windows++;
+    w->start_s += clock1 - clock0;
+    w->loop_s += io_now() - clock1;
     double len = (double)t1 - (double)t0;
     if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)events / len;
     if (w->check) check_window(w, t0, t1, early);
@@ -302,6 +309,10 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;
+    if (opt->stats)
+        fprintf(stderr, "%s: --exact: %llu windows; %.6f s in their starts (parallel), %.6f s in "
+                "their event loops (sequential)\n", backend_name, (unsigned long long)w.windows,
+                w.start_s, w.loop_s);
 
     for (int t = 0; t < w.nt; t++) {
         st->pair_tests += w.th[t].tests;
