@@ -72,12 +72,15 @@ typedef struct {
 /* ==== the disks ====================================================================================== */
 
 /* The slack covers the rounding of c = dd - sigma2 at a contact: coordinates up to L carry errors of a
- * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. */
+ * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. It never
+ * exceeds r^2 (centres 1.73 r apart), so that deep overlaps pass through even where L / r is so large
+ * that rounding swamps the radius. */
 static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
 {
     int64_t n = p->n;
     d->sim = sim;
-    d->slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r);
+    real slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r), most = p->r * p->r;
+    d->slack = slack < most ? slack : most;
     d->t = io_alloc((size_t)n, sizeof *d->t);
     d->ver = io_alloc((size_t)n, sizeof *d->ver);
     d->last = io_alloc((size_t)n, sizeof *d->last);

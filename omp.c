@@ -29,8 +29,8 @@
 const char backend_name[] = "omp" SIM_SUFFIX;
 const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
-    "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
-    "               phase missed an event; for testing\n";
+    "  --check      also test every pair each step (with --exact: each time window; O(N^2)) and\n"
+    "               stop with a message if the broad phase missed an event; for testing\n";
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
