@@ -88,6 +88,21 @@ static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
     for (int64_t i = 0; i < n; i++) d->last[i] = -1;
 }
 
+/* Stops the run before its first step if a disk alone would cross the box more often within one step
+ * than EXACT_MAX_STEP_EVENTS allows (as the random placement's speeds up to L/(8r) can when L/r is
+ * huge): such a step could not be run event by event. */
+static inline void exact_check_speeds(const Sim *s, const Params *p)
+{
+    double span = (double)p->hi - (double)p->lo;
+    for (int64_t i = 0; i < p->n; i++) {
+        double crossings = (fabs((double)s->vx[i]) + fabs((double)s->vy[i])) / span;
+        if (crossings > EXACT_MAX_STEP_EVENTS)
+            io_fail("--exact: disk %lld would hit the walls about %.3g times within one step (more than "
+                    "%u events of one disk per step)",
+                    (long long)i, crossings, EXACT_MAX_STEP_EVENTS);
+    }
+}
+
 static inline void exact_free(ExactDisks *d)
 {
     free(d->t);
