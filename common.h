@@ -243,17 +243,26 @@ static inline SIM_HD void finish_step(real *x, real *y, real vx, real vy, real t
     }
 }
 
-/* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
- * finish the step. i is the lower original index. */
-static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
-                                       real *yj, real *vxj, real *vyj, real t1, real lo,
-                                       real hi)
+/* The first half of an accepted pair event at t1 (3.4): both disks fly to contact and swap their
+ * normal velocities. i is the lower original index. Backends where each partner updates only itself
+ * (cuda) call this and then finish_step for their own side. */
+static inline SIM_HD void pair_contact(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+                                       real *yj, real *vxj, real *vyj, real t1)
 {
     *xi = *xi + *vxi * t1;
     *yi = *yi + *vyi * t1;
     *xj = *xj + *vxj * t1;
     *yj = *yj + *vyj * t1;
     pair_bounce(*xi, *yi, vxi, vyi, *xj, *yj, vxj, vyj);
+}
+
+/* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
+ * finish the step. i is the lower original index. */
+static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+                                       real *yj, real *vxj, real *vyj, real t1, real lo,
+                                       real hi)
+{
+    pair_contact(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1);
     finish_step(xi, yi, *vxi, *vyi, t1, lo, hi);
     finish_step(xj, yj, *vxj, *vyj, t1, lo, hi);
 }

@@ -50,16 +50,29 @@ extern "C" const char backend_options[] = "";
 #define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
 #define PHASES 7                  /* phases timed under --stats */
 
+/* Relative margins of the broad phase for rounding, as in omp.c: of positions and times (REL, about
+ * 4.5e6 rounding units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840
+ * units). */
+#ifdef SIM_FLOAT
+#define REL_MARGIN 1e-5
+#define GRAZE_MARGIN 1e-4
+#else
+#define REL_MARGIN 1e-9
+#define GRAZE_MARGIN 1e-12
+#endif
+
 /* ==== device state ======================================================================================= */
 
 /* One copy of the disks in slot order; id maps a slot to the disk's original index. */
 typedef struct {
-    double *x, *y, *vx, *vy;
+    real *x, *y, *vx, *vy;
     int32_t *pc, *wc, *id;
 } DevState;
 
 /* A pair event: hi = (t bits << 1) | 1 (kind 1), lo = (i << 31) | j with i < j original indices;
- * a is i's slot, b is j's. Wall events are kept per disk, hi = t bits << 1 (kind 0). */
+ * a is i's slot, b is j's. Wall events are kept per disk, hi = t bits << 1 (kind 0). Event times are
+ * never negative nor -0 (wall_time, pair_time), and the bits of non-negative IEEE numbers, double or
+ * float, order like their values: comparing (hi, lo) as integers is event_before. */
 typedef struct {
     uint64_t hi, lo;
     int32_t a, b;
@@ -92,14 +105,35 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
     return g.shfl(base, 0) + g.thread_rank();
 }
 
-static __device__ __forceinline__ uint64_t time_key(double t)
+#ifdef SIM_FLOAT
+static __device__ __forceinline__ uint64_t time_key(real t)
+{
+    return (uint64_t)__float_as_uint(t) << 1;
+}
+
+static __device__ __forceinline__ real key_time(uint64_t hi)
+{
+    return __uint_as_float((unsigned)(hi >> 1));
+}
+#else
+static __device__ __forceinline__ uint64_t time_key(real t)
 {
     return (uint64_t)__double_as_longlong(t) << 1;
 }
 
-static __device__ __forceinline__ double key_time(uint64_t hi)
+static __device__ __forceinline__ real key_time(uint64_t hi)
 {
     return __longlong_as_double((long long)(hi >> 1));
+}
+#endif
+
+/* The slice of an event time t (0 <= t <= 1), K slices. bin_kernel and detect_kernel both use this
+ * rounding of t K, which is monotone in t: an event before a disk's wall event is never in a later
+ * slice than the wall event. */
+static __device__ __forceinline__ int64_t slice_of(real t, int K)
+{
+    int64_t k = (int64_t)(t * (real)K);
+    return k < K - 1 ? k : K - 1;
 }
 
 /* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours. */
@@ -111,10 +145,9 @@ static __device__ __forceinline__ int64_t cell_of(double c, double cs, int64_t g
     return (int64_t)q;
 }
 
-static __device__ __forceinline__ uint64_t wall_key(double x, double y, double vx, double vy, double lo,
-                                                    double hi)
+static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, real vy, real lo, real hi)
 {
-    double tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
+    real tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
 
@@ -124,7 +157,8 @@ static __device__ __forceinline__ uint64_t wall_key(double x, double y, double v
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
  * disk's wall time get no entry (key gr.cells): disks flying through a wall would otherwise pile up in
- * the border cells. fl(t K) <= fl(tw K) for t < tw, so the slice test is exact. The rank of an entry
+ * the border cells. slice_of(t) <= slice_of(tw) for t < tw, so the slice test is exact. Midpoints are
+ * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
 __global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, uint32_t *rank,
@@ -133,16 +167,16 @@ __global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= gr.m) return;
     int64_t k = e / n, s = e - k * n;
-    double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
+    real x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
     if (k > 0) {
-        double tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
-        if (tw <= 1 && (double)k > floor(tw * gr.K)) {
+        real tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
+        if (tw <= 1 && k > slice_of(tw, gr.K)) {
             keys[e] = (uint32_t)gr.cells;
             return;
         }
     }
     double f = (double)(2 * k + 1) / (double)(2 * gr.K);
-    double mx = x + vx * f, my = y + vy * f;
+    double mx = (double)x + (double)vx * f, my = (double)y + (double)vy * f;
     int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
     uint32_t key = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
     keys[e] = key;
@@ -180,7 +214,7 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) return;
     uint32_t s = order[p];
-    double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
+    real x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
     out.x[p] = x;
     out.y[p] = y;
     out.vx[p] = vx;
@@ -193,7 +227,7 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 
 /* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
 typedef struct {
-    double *x, *y, *vx, *vy;
+    real *x, *y, *vx, *vy;
     int32_t *id, *slot;
     uint64_t *wall;
 } Entries;
@@ -227,7 +261,7 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
 
 /* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own: three
  * rows, each one contiguous run of entries. en.slot == NULL means entry == slot (K = 1). */
-__global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *start, Grid gr, double sigma2,
+__global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *start, Grid gr, real sigma2,
                               PairEvent *ev, int64_t cap, StepInfo *info, uint64_t *best_hi)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
@@ -236,7 +270,7 @@ __global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *
         uint32_t key = keys[p], g = (uint32_t)gr.g;
         uint32_t k = key / gr.ncell, c = key - k * gr.ncell;
         int64_t cy = c / g, cx = c - (uint32_t)cy * g;
-        double x = en.x[p], y = en.y[p], vx = en.vx[p], vy = en.vy[p];
+        real x = en.x[p], y = en.y[p], vx = en.vx[p], vy = en.vy[p];
         int32_t id = en.id[p];
         uint64_t wall = en.wall[p];
         int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < gr.g ? cx + 1 : gr.g - 1;
@@ -245,19 +279,15 @@ __global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *
             int64_t row = (int64_t)k * gr.ncell + ny * gr.g;
             int64_t q0 = start[row + x0], q1 = start[row + x1 + 1];
             for (int64_t q = q0 > p + 1 ? q0 : p + 1; q < q1; q++) {
-                double x2 = en.x[q], y2 = en.y[q], vx2 = en.vx[q], vy2 = en.vy[q];
+                real x2 = en.x[q], y2 = en.y[q], vx2 = en.vx[q], vy2 = en.vy[q];
                 int32_t id2 = en.id[q];
                 tests++;
                 /* the arguments are chosen first, so the warp runs one pair_time, not two branches */
                 bool first = id < id2;
-                double t = pair_time(first ? x : x2, first ? y : y2, first ? vx : vx2, first ? vy : vy2,
+                real t = pair_time(first ? x : x2, first ? y : y2, first ? vx : vx2, first ? vy : vy2,
                                      first ? x2 : x, first ? y2 : y, first ? vx2 : vx, first ? vy2 : vy, sigma2);
                 if (t < 0) continue;
-                if (gr.K > 1) {
-                    int64_t kt = (int64_t)(t * gr.K);
-                    if (kt > gr.K - 1) kt = gr.K - 1;
-                    if (kt != (int64_t)k) continue;
-                }
+                if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)k) continue;
                 PairEvent e;
                 e.hi = time_key(t) | 1;
                 if (!(e.hi < wall && e.hi < en.wall[q])) continue; /* a wall event comes first */
@@ -402,11 +432,11 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                             const uint64_t *wall_hi, const uint64_t *best_hi, StepInfo *info)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    double vabs = 0;
+    real vabs = 0;
     unsigned long long accepted = 0;
     if (s < n) {
-        double lo = par.lo, hi = par.hi;
-        double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
+        real lo = par.lo, hi = par.hi;
+        real x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
         int32_t pc = in.pc[s], wc = in.wc[s], id = in.id[s];
         int32_t o = partner[s];
         if (o < 0 && wall_hi[s] != NO_EVENT) o = (int32_t)s;
@@ -414,31 +444,25 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             x = x + vx;
             y = y + vy;
         } else if (o == s) {
-            double t1 = key_time(wall_hi[s]);
+            real t1 = key_time(wall_hi[s]);
             wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
             finish_step(&x, &y, vx, vy, t1, lo, hi);
             wc++;
             accepted = 1;
         } else {
-            double t1 = key_time(best_hi[s]);
-            double x2 = in.x[o], y2 = in.y[o], vx2 = in.vx[o], vy2 = in.vy[o];
+            /* both partners compute the contact with the lower original index as i, then each
+             * finishes its own side: the arithmetic of pair_collide */
+            real t1 = key_time(best_hi[s]);
+            real x2 = in.x[o], y2 = in.y[o], vx2 = in.vx[o], vy2 = in.vy[o];
             int mine_first = id < in.id[o];
-            double xi = mine_first ? x : x2, yi = mine_first ? y : y2;
-            double vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
-            double xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
-            double vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
-            xi = xi + vxi * t1;
-            yi = yi + vyi * t1;
-            xj = xj + vxj * t1;
-            yj = yj + vyj * t1;
-            pair_bounce(xi, yi, &vxi, &vyi, xj, yj, &vxj, &vyj);
-            if (mine_first) {
-                finish_step(&xi, &yi, vxi, vyi, t1, lo, hi);
-                x = xi, y = yi, vx = vxi, vy = vyi;
-            } else {
-                finish_step(&xj, &yj, vxj, vyj, t1, lo, hi);
-                x = xj, y = yj, vx = vxj, vy = vyj;
-            }
+            real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
+            real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
+            real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
+            real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
+            pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
+            x = mine_first ? xi : xj, y = mine_first ? yi : yj;
+            vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
+            finish_step(&x, &y, vx, vy, t1, lo, hi);
             pc++;
             accepted = mine_first;
         }
@@ -449,22 +473,23 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         out.pc[s] = pc;
         out.wc[s] = wc;
         out.id[s] = id;
-        vabs = fmax(fabs(vx), fabs(vy));
+        real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+        vabs = ax < ay ? ay : ax;
     }
-    typedef cub::BlockReduce<double, THREADS> ReduceD;
+    typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;
-    __shared__ typename ReduceD::TempStorage tmp_d;
+    __shared__ typename ReduceR::TempStorage tmp_r;
     __shared__ typename ReduceU::TempStorage tmp_u;
-    double m = ReduceD(tmp_d).Reduce(vabs, cuda::maximum<>());
+    real m = ReduceR(tmp_r).Reduce(vabs, cuda::maximum<>());
     unsigned long long a = ReduceU(tmp_u).Sum(accepted);
     if (threadIdx.x == 0) {
-        atomicMax(&info->vmax, (unsigned long long)__double_as_longlong(m));
+        atomicMax(&info->vmax, (unsigned long long)__double_as_longlong((double)m));
         if (a) atomicAdd(&info->events, a);
     }
 }
 
 /* Print mode: the state back in original index order, for the copy to the host. */
-__global__ void unpermute_kernel(DevState st, int64_t n, double *x, double *y, double *vx, double *vy)
+__global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real *vx, real *vy)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
@@ -497,8 +522,8 @@ typedef struct {
     int64_t ev_cap;
     unsigned long long *counts; /* list lengths of the parallel rounds */
     StepInfo *info, *info_host; /* device record and its pinned copy */
-    double *out_dev;     /* print mode: 4n doubles in original order */
-    double *out_host;    /* its pinned copy */
+    real *out_dev;       /* print mode: 4n reals in original order */
+    real *out_host;      /* its pinned copy */
     cudaEvent_t copied;  /* the copy into out_host is complete */
     cudaStream_t stream;
     int sms;
@@ -538,11 +563,11 @@ static void *dev_alloc(size_t bytes, const char *what)
 
 static void state_alloc(DevState *d, int64_t n)
 {
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
-    d->x = (double *)dev_alloc(nd, "the state");
-    d->y = (double *)dev_alloc(nd, "the state");
-    d->vx = (double *)dev_alloc(nd, "the state");
-    d->vy = (double *)dev_alloc(nd, "the state");
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
+    d->x = (real *)dev_alloc(nd, "the state");
+    d->y = (real *)dev_alloc(nd, "the state");
+    d->vx = (real *)dev_alloc(nd, "the state");
+    d->vy = (real *)dev_alloc(nd, "the state");
     d->pc = (int32_t *)dev_alloc(ni, "the state");
     d->wc = (int32_t *)dev_alloc(ni, "the state");
     d->id = (int32_t *)dev_alloc(ni, "the state");
@@ -603,10 +628,10 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
     c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
     if (c->max_slices > 1) {
-        c->en.x = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.y = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.vx = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.vy = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.x = (real *)dev_alloc(ne * sizeof(real), "the entry copies");
+        c->en.y = (real *)dev_alloc(ne * sizeof(real), "the entry copies");
+        c->en.vx = (real *)dev_alloc(ne * sizeof(real), "the entry copies");
+        c->en.vy = (real *)dev_alloc(ne * sizeof(real), "the entry copies");
         c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
@@ -620,13 +645,13 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&c->info_host, sizeof(StepInfo)));
     if (par->print && par->steps > 1) {
-        c->out_dev = (double *)dev_alloc((size_t)n * 4 * sizeof(double), "the print buffer");
-        CUDA_CHECK(cudaMallocHost((void **)&c->out_host, (size_t)n * 4 * sizeof(double)));
+        c->out_dev = (real *)dev_alloc((size_t)n * 4 * sizeof(real), "the print buffer");
+        CUDA_CHECK(cudaMallocHost((void **)&c->out_host, (size_t)n * 4 * sizeof(real)));
         CUDA_CHECK(cudaEventCreateWithFlags(&c->copied, cudaEventDisableTiming));
     }
 
     DevState *d = &c->st[0];
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
     CUDA_CHECK(cudaMemcpy(d->x, sim->x, nd, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(d->y, sim->y, nd, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(d->vx, sim->vx, nd, cudaMemcpyHostToDevice));
@@ -701,7 +726,10 @@ static void phase_report(const Cuda *c)
 /* The binning of a step whose largest velocity component is vmax. A pair with an event at t in slice
  * k is, at t, at most 2r apart per axis (plus rounding, covered by the margin), and each midpoint of
  * slice k is within |v| / (2K) of the disk at t, so midpoints are at most 2r + vmax / K + margin apart:
- * with cells at least that wide the pair is in neighbouring cells. K trades binning work (n K entries)
+ * with cells at least that wide the pair is in neighbouring cells. The margin is omp's: the rounding of
+ * positions and times (REL_MARGIN of the coordinates' scale), and pair_time near a graze, where D > 0
+ * can hold while the exact paths miss contact by up to about eps dd / r, with dd <= reach^2 for a
+ * pair with an event. K trades binning work (n K entries)
  * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice). */
 static Grid grid_choose(const Cuda *c, double vmax)
 {
@@ -712,8 +740,9 @@ static Grid grid_choose(const Cuda *c, double vmax)
     Grid gr;
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
-    double margin = 1e-6 * (2 * r + 4 * vmax) + 1e-9 * (L + 2 * vmax);
-    double cell_min = 2 * r + vmax / gr.K + margin;
+    double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
+    double margin = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
+    double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + REL_MARGIN) + REL_MARGIN * scale;
     double gmax = floor(sqrt((double)c->cell_cap / gr.K));
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;
@@ -815,8 +844,8 @@ static double host_vmax(const Sim *sim, int64_t n)
 {
     double m = 0;
     for (int64_t i = 0; i < n; i++) {
-        m = fmax(m, fabs(sim->vx[i]));
-        m = fmax(m, fabs(sim->vy[i]));
+        m = fmax(m, fabs((double)sim->vx[i]));
+        m = fmax(m, fabs((double)sim->vy[i]));
     }
     return m;
 }
@@ -863,10 +892,10 @@ static void print_state(Cuda *c, Output *out, int64_t step)
 static void print_enqueue(Cuda *c)
 {
     int64_t n = c->n;
-    double *d = c->out_dev;
+    real *d = c->out_dev;
     unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, d, d + n, d + 2 * n, d + 3 * n);
     CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(c->out_host, d, (size_t)n * 4 * sizeof(double), cudaMemcpyDeviceToHost,
+    CUDA_CHECK(cudaMemcpyAsync(c->out_host, d, (size_t)n * 4 * sizeof(real), cudaMemcpyDeviceToHost,
                                c->stream));
     CUDA_CHECK(cudaEventRecord(c->copied, c->stream));
 }
@@ -875,7 +904,7 @@ static void state_download(Cuda *c, Sim *sim)
 {
     int64_t n = c->n;
     DevState *d = &c->st[c->cur];
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
     Sim tmp;
     if (sim_alloc(&tmp, n)) io_fail("out of memory for %lld disks", (long long)n);
     int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
