@@ -73,6 +73,7 @@ typedef struct {
     real lo;       /* smallest allowed centre coordinate: r */
     real hi;       /* largest allowed centre coordinate: L - r */
     real sigma2;   /* squared contact distance: (r + r) * (r + r) */
+    int64_t substeps; /* K: sub-steps per step (--substeps), a power of two; 1 is SPEC.md */
 } Params;
 
 /* ---- state: structure of arrays, n entries each -------------------------------------------------- */
@@ -82,6 +83,7 @@ typedef struct {
     real *vx, *vy;   /* velocities, length per step */
     int32_t *pc;     /* collisions with other disks so far (at most one per step, so <= S fits) */
     int32_t *wc;     /* collisions with walls so far */
+    double *wi;      /* --pressure: wall impulse received so far (unit mass x velocity); else NULL */
 } Sim;
 
 /* ---- command-line options ------------------------------------------------------------------------ */
@@ -96,6 +98,8 @@ typedef struct {
     int quiet;         /* 1: no timing line on stderr */
     int stats;         /* 1: print event and pair-test counts on stderr */
     int check;         /* omp: check the broad phase against all pairs every step */
+    int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
+    int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
 } Options;
 
 /* What a backend reports about its run, printed on stderr by the driver. */
@@ -111,8 +115,13 @@ typedef struct Output Output;
 
 extern const char backend_name[];    /* program name used in messages: "seq", "omp", "cuda" */
 extern const char backend_options[]; /* backend-specific lines for --help ("" if none) */
-/* Runs par->steps steps on sim. In print mode it hands the state after steps 1..S-1 to io_write_state.
- * On return sim holds the state after the last step, counts included. Returns 0, or non-zero after
+extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the backend supports */
+#define SIM_FEATURE_SUBSTEPS 1u
+#define SIM_FEATURE_PRESSURE 2u
+/* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
+ * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
+ * 1..S-1 (sub-steps K, 2K, ...) to io_write_state. When sim->wi is set, every wall reflection adds
+ * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included. Returns 0, or non-zero after
  * printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
 
@@ -265,6 +274,17 @@ static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi,
     pair_contact(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1);
     finish_step(xi, yi, *vxi, *vyi, t1, lo, hi);
     finish_step(xj, yj, *vxj, *vyj, t1, lo, hi);
+}
+
+/* The impulse (unit mass) that wall_bounce gave a disk whose velocity went from (vx0, vy0) to
+ * (vx1, vy1): 2 |v| for each reflected axis. Summed per disk in its own time order for --pressure,
+ * so every backend adds the same numbers in the same order. */
+static inline SIM_HD double wall_impulse(real vx0, real vy0, real vx1, real vy1)
+{
+    double p = 0;
+    if (vx1 != vx0) p += 2 * fabs((double)vx0);
+    if (vy1 != vy0) p += 2 * fabs((double)vy0);
+    return p;
 }
 
 /* Keeps a coordinate in [lo, hi]: only one-ulp rounding ever needs it. */

@@ -32,6 +32,7 @@
 #include <vector>
 
 extern "C" const char backend_name[] = "cuda";
+extern "C" const unsigned backend_features = 0; /* no --substeps, no --pressure */
 extern "C" const char backend_options[] = "";
 
 #define CUDA_CHECK(call)                                                                             \

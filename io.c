@@ -74,6 +74,7 @@ void sim_free(Sim *sim)
     free(sim->vy);
     free(sim->pc);
     free(sim->wc);
+    free(sim->wi);
     memset(sim, 0, sizeof *sim);
 }
 
@@ -184,6 +185,10 @@ static char *put_fixed8(char *p, double v)
     return p + sprintf(p, "%.8f", v);
 }
 
+/* --substeps K: the backends run with velocities divided by K; lines show them times K (both exact, K
+ * being a power of two). 1 otherwise. */
+static real v_unscale = 1;
+
 static char *put_real(char *p, double v, int dump17)
 {
     if (dump17) return p + sprintf(p, "%.17g", v);
@@ -200,9 +205,9 @@ size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int wi
     *p++ = ' ';
     p = put_real(p, sim->y[i], dump17);
     *p++ = ' ';
-    p = put_real(p, sim->vx[i], dump17);
+    p = put_real(p, sim->vx[i] * v_unscale, dump17);
     *p++ = ' ';
-    p = put_real(p, sim->vy[i], dump17);
+    p = put_real(p, sim->vy[i] * v_unscale, dump17);
     if (with_counts) {
         *p++ = ' ';
         p = put_int(p, sim->pc[i]);
@@ -644,6 +649,10 @@ static void usage(FILE *f)
             "  --seed N     seed of the random placement when the input lists no disks (default %u)\n"
             "  --dump17     print reals with %%.17g (round-trip precision) instead of %%.8f\n"
             "  --stats      print event and pair-test counts on stderr\n"
+            "  --substeps K split each step into K sub-steps of length 1/K (K a power of two up to\n"
+            "               1024; up to K collisions per disk per step); 1 is SPEC.md\n"
+            "  --pressure   add up the impulse the walls give the disks and print the pressure on\n"
+            "               stderr\n"
             "  --quiet      no timing line on stderr\n"
             "  --help       this text\n"
             "%s",
@@ -665,6 +674,7 @@ static void parse_args(int argc, char **argv, Options *opt)
 {
     memset(opt, 0, sizeof *opt);
     opt->seed = DEFAULT_SEED;
+    opt->substeps = 1;
     opt->path = NULL;
     int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0;
     for (int k = 1; k < argc; k++) {
@@ -683,6 +693,17 @@ static void parse_args(int argc, char **argv, Options *opt)
             opt->stats = 1;
         } else if (strcmp(a, "--quiet") == 0) {
             opt->quiet = 1;
+        } else if (strcmp(a, "--substeps") == 0) {
+            opt->substeps = (int)option_value(argc, argv, &k, 1, 1024);
+            if (opt->substeps & (opt->substeps - 1))
+                io_fail("--substeps must be a power of two, so that velocities scale exactly (found "
+                        "%d)", opt->substeps);
+            if (opt->substeps > 1 && !(backend_features & SIM_FEATURE_SUBSTEPS))
+                io_fail("--substeps is not supported by %s", backend_name);
+        } else if (strcmp(a, "--pressure") == 0) {
+            opt->pressure = 1;
+            if (!(backend_features & SIM_FEATURE_PRESSURE))
+                io_fail("--pressure is not supported by %s", backend_name);
         } else if (own_threads && strcmp(a, "--threads") == 0) {
             opt->threads = (int)option_value(argc, argv, &k, 1, 4096);
         } else if (own_threads && strcmp(a, "--check") == 0) {
@@ -716,12 +737,27 @@ int io_main(int argc, char **argv)
     out.steps = par.steps;
     io_write_state(&out, 0, &sim, 0, par.n, 0);
 
+    /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
+    par.substeps = opt.substeps;
+    real k = (real)opt.substeps;
+    for (int64_t i = 0; i < par.n && opt.substeps > 1; i++) {
+        sim.vx[i] = sim.vx[i] / k;
+        sim.vy[i] = sim.vy[i] / k;
+    }
+    v_unscale = k;
+    if (opt.pressure) sim.wi = io_alloc((size_t)par.n, sizeof *sim.wi);
+
     RunStats st;
     memset(&st, 0, sizeof st);
     out.start = io_now();
     out.next_show = out.start + 2.0;
     if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
     if (out.shown) fputc('\n', stderr);
+    for (int64_t i = 0; i < par.n && opt.substeps > 1; i++) {
+        sim.vx[i] = sim.vx[i] * k;
+        sim.vy[i] = sim.vy[i] * k;
+    }
+    v_unscale = 1;
 
     io_write_state(&out, par.steps, &sim, 0, par.n, 1);
     out_flush(&out);
@@ -736,6 +772,17 @@ int io_main(int argc, char **argv)
                 (unsigned long long)st.pair_tests,
                 par.steps ? (double)st.pair_tests / ((double)par.n * (double)par.steps) : 0.0,
                 (unsigned long long)st.events);
+    if (opt.pressure) {
+        double impulse = 0; /* in index order: the same sum in every backend */
+        for (int64_t i = 0; i < par.n; i++) impulse += sim.wi[i];
+        impulse *= (double)k; /* the run's velocities were v / K */
+        double span = (double)par.steps * 4 * (double)par.L;
+        fprintf(stderr,
+                "%s: pressure: wall impulse %.17g over %lld time units on 4 walls of length %.17g: "
+                "P = %.17g\n",
+                backend_name, impulse, (long long)par.steps, (double)par.L,
+                span > 0 ? impulse / span : 0.0);
+    }
     free(out.buf);
     sim_free(&sim);
     return 0;

@@ -30,6 +30,7 @@ const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
     "               phase missed an event; for testing\n";
+const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
@@ -76,6 +77,7 @@ typedef struct {
 typedef struct {
     real *x, *y, *vx, *vy;
     int32_t *id, *pc, *wc;
+    double *wi; /* --pressure only, else NULL */
 } Slots;
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
@@ -161,8 +163,9 @@ static void *grow(void *ptr, size_t *cap, size_t need, size_t size)
 }
 
 /* ==== broad phase ==================================================================================== */
-static void slots_alloc(Slots *s, int64_t n)
+static void slots_alloc(Slots *s, int64_t n, int with_wi)
 {
+    s->wi = with_wi ? io_alloc((size_t)n, sizeof *s->wi) : NULL;
     s->x = io_alloc((size_t)n, sizeof *s->x);
     s->y = io_alloc((size_t)n, sizeof *s->y);
     s->vx = io_alloc((size_t)n, sizeof *s->vx);
@@ -181,6 +184,7 @@ static void slots_free(Slots *s)
     free(s->id);
     free(s->pc);
     free(s->wc);
+    free(s->wi);
 }
 
 /* Turns each thread's partial count into the sum of the counts of the threads before it; returns the
@@ -211,6 +215,7 @@ static void slots_unpermute(Work *w, int tid)
         sim->vy[i] = s->vy[q];
         sim->pc[i] = s->pc[q];
         sim->wc[i] = s->wc[q];
+        if (s->wi) sim->wi[i] = s->wi[q];
     }
 }
 
@@ -371,6 +376,7 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
             d->id[pos] = s->id[q];
             d->pc[pos] = s->pc[q];
             d->wc[pos] = s->wc[q];
+            if (s->wi) d->wi[pos] = s->wi[q];
         }
     } else {
         for (int64_t q = from; q < to; q++) {
@@ -739,7 +745,9 @@ static void move_range(Work *w, int tid)
             s->x[i] = s->x[i] + s->vx[i];
             s->y[i] = s->y[i] + s->vy[i];
         } else if (j == i) {
+            real vx0 = s->vx[i], vy0 = s->vy[i];
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
+            if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
         } else if (s->id[i] < s->id[j]) {
@@ -786,6 +794,7 @@ static void print_state(Work *w, int tid, int64_t step)
 
 /* ==== one step =========================================================================================== */
 
+/* One sub-step (a whole step unless --substeps). */
 static void step_run(Work *w, int tid, int64_t step)
 {
     const Params *p = w->p;
@@ -819,9 +828,11 @@ static void step_run(Work *w, int tid, int64_t step)
 #pragma omp barrier
     move_range(w, tid);
 #pragma omp barrier
-    if (p->print && step < p->steps) print_state(w, tid, step);
+    int64_t k = p->substeps;
+    if (step % k) return;
+    if (p->print && step < p->steps * k) print_state(w, tid, step / k);
 #pragma omp single
-    io_progress(w->out, step);
+    io_progress(w->out, step / k);
 }
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
@@ -839,8 +850,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     /* at most n cells, and per-thread histograms of at most 8n counts in all */
     w.max_cells = nt_max <= 8 ? n : 8 * n / nt_max;
     if (w.max_cells < 1) w.max_cells = 1;
-    slots_alloc(&w.s, n);
-    slots_alloc(&w.spare, n);
+    slots_alloc(&w.s, n, sim->wi != NULL);
+    slots_alloc(&w.spare, n, sim->wi != NULL);
     for (int64_t i = 0; i < n; i++) {
         w.s.x[i] = sim->x[i];
         w.s.y[i] = sim->y[i];
@@ -849,6 +860,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         w.s.id[i] = (int32_t)i;
         w.s.pc[i] = sim->pc[i];
         w.s.wc[i] = sim->wc[i];
+        if (sim->wi) w.s.wi[i] = sim->wi[i];
     }
     w.th = io_alloc((size_t)nt_max, sizeof *w.th);
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
@@ -873,7 +885,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 #pragma omp single
         w.nt = omp_get_num_threads();
         int tid = omp_get_thread_num();
-        for (int64_t step = 1; step <= par->steps; step++) step_run(&w, tid, step);
+        for (int64_t step = 1; step <= par->steps * par->substeps; step++) step_run(&w, tid, step);
         slots_unpermute(&w, tid);
     }
     st->seconds = io_now() - t0;

@@ -11,6 +11,7 @@
 
 const char backend_name[] = "seq" SIM_SUFFIX;
 const char backend_options[] = "";
+const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE;
 
 typedef struct {
     real t;  /* time of the event within the step, 0..1 */
@@ -94,7 +95,9 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
         }
         const Event *e = &l->ev[event_of[i]];
         if (e->kind == 0) {
+            real vx0 = s->vx[i], vy0 = s->vy[i];
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], e->t, lo, hi);
+            if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
             s->wc[i]++;
         } else if (i == e->i) { /* the pair is handled once, from its lower index */
@@ -116,15 +119,17 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     (void)opt;
     EventList events = {NULL, 0, 0};
     int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
+    int64_t k = par->substeps, last = par->steps * k;
     double t0 = io_now();
-    for (int64_t step = 1; step <= par->steps; step++) {
+    for (int64_t sub = 1; sub <= last; sub++) {
         events.len = 0;
         detect_walls(sim, par, &events);
         st->pair_tests += detect_pairs(sim, par, &events);
         st->events += choose_events(&events, par->n, event_of);
         move(sim, par, &events, event_of);
-        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, par->n, 0);
-        io_progress(out, step);
+        if (sub % k) continue;
+        if (par->print && sub < last) io_write_state(out, sub / k, sim, 0, par->n, 0);
+        io_progress(out, sub / k);
     }
     st->seconds = io_now() - t0;
     free(events.ev);
