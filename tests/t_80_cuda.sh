@@ -41,3 +41,30 @@ while read -r name cmd; do
         done
     done
 done <<< "$(cuda_scenes)"
+
+# --substeps K: cuda runs the K sub-steps of each step and hands out whole steps, like seq
+for name in slow fast walls random; do
+    for k in 2 4; do
+        if ! have_gpu; then
+            skip "cuda/$name --substeps $k" "no GPU"
+            continue
+        fi
+        in=$TMP/cuda_${name}_print.in
+        ./seq "$in" --quiet --substeps $k > "$TMP/cuda_${name}_sub$k.expected"
+        same_bytes "cuda/$name print --substeps $k" "$TMP/cuda_${name}_sub$k.expected" \
+            ./cuda "$in" --quiet --substeps $k
+    done
+done
+
+# --pressure is not offered by cuda: one line on stderr, nothing on stdout, non-zero exit
+if [ -x ./cuda ]; then
+    if ./cuda inputs/$(ls inputs | head -1) --pressure > "$TMP/out" 2> "$TMP/err"; then
+        fail "cuda --pressure rejected" "exit 0"
+    elif [ -s "$TMP/out" ] || [ "$(wc -l < "$TMP/err")" != 1 ] || ! grep -q -- '--pressure' "$TMP/err"; then
+        fail "cuda --pressure rejected" "stdout $(wc -c < "$TMP/out") bytes, stderr: $(head -c 200 "$TMP/err")"
+    else
+        pass "cuda --pressure rejected with one line"
+    fi
+else
+    skip "cuda --pressure rejected" "./cuda not built"
+fi
