@@ -124,6 +124,9 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
  * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included. Returns 0, or non-zero after
  * printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+/* Writes the lines of a whole state: step 0 before backend_run, the final state (with counts) after.
+ * seq calls io_write_state; omp and cuda format on several threads (1e8 lines take minutes on one). */
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
 
 /* ---- io.c: everything untimed ---------------------------------------------------------------------- */
 

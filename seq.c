@@ -114,6 +114,11 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
     }
 }
 
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    io_write_state(out, step, sim, 0, n, with_counts);
+}
+
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
     (void)opt;
