@@ -6,8 +6,9 @@
 #   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
 #                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs
 #   tools/gpu_run.sh host    the host-side work around the steps at N = 1e8 (random placement, writing
-#                            step 0 and the final state), timed stage by stage; BASE=DIR: DIR/cuda too
-#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated and parsed on the host: ~8 minutes)
+#                            step 0 and the final state), timed stage by stage, seq (one thread) and cuda
+#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
+#                            about 110 s, nearly all of it parsing the input)
 #   tools/gpu_run.sh profile device time per phase (cuda --stats)
 #   tools/gpu_run.sh all     check, then perf
 set -euo pipefail
