@@ -170,6 +170,11 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     return 0;
 }
 
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    io_write_state(out, step, sim, 0, n, with_counts);
+}
+
 /* ==== the step of SPEC.md ============================================================================ */
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
