@@ -47,6 +47,17 @@ typedef double real;
 #define SIM_SUFFIX ""
 #endif
 
+/* Relative margins the broad phases (omp, cuda) add for rounding: of positions and times (REL, about
+ * 4.5e6 rounding units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840
+ * units). Wider margins only cost pair tests; narrower ones could miss an event. */
+#ifdef SIM_FLOAT
+#define SIM_REL_MARGIN 1e-5
+#define SIM_GRAZE_MARGIN 1e-4
+#else
+#define SIM_REL_MARGIN 1e-9
+#define SIM_GRAZE_MARGIN 1e-12
+#endif
+
 /* ---- limits of valid input (SPEC.md section 1) -------------------------------------------------- */
 
 #define SIM_MAX_N 2147483647LL     /* particles */

@@ -52,16 +52,6 @@ extern "C" const char backend_options[] = "";
 #define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
 #define PHASES 7                  /* phases timed under --stats */
 
-/* Relative margins of the broad phase for rounding, as in omp.c: of positions and times (REL, about
- * 4.5e6 rounding units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840
- * units). */
-#ifdef SIM_FLOAT
-#define REL_MARGIN 1e-5
-#define GRAZE_MARGIN 1e-4
-#else
-#define REL_MARGIN 1e-9
-#define GRAZE_MARGIN 1e-12
-#endif
 
 /* ==== device state ======================================================================================= */
 
@@ -755,7 +745,7 @@ static void phase_report(const Cuda *c)
  * k is, at t, at most 2r apart per axis (plus rounding, covered by the margin), and each midpoint of
  * slice k is within |v| / (2K) of the disk at t, so midpoints are at most 2r + vmax / K + margin apart:
  * with cells at least that wide the pair is in neighbouring cells. The margin is omp's: the rounding of
- * positions and times (REL_MARGIN of the coordinates' scale), and pair_time near a graze, where D > 0
+ * positions and times (SIM_REL_MARGIN of the coordinates' scale), and pair_time near a graze, where D > 0
  * can hold while the exact paths miss contact by up to about eps dd / r, with dd <= reach^2 for a
  * pair with an event. K trades binning work (n K entries)
  * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice). */
@@ -769,8 +759,8 @@ static Grid grid_choose(const Cuda *c, double vmax)
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
     double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
-    double margin = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
-    double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + REL_MARGIN) + REL_MARGIN * scale;
+    double margin = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale + SIM_GRAZE_MARGIN * (reach / r) * reach;
+    double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
     double gmax = floor(sqrt((double)c->cell_cap / gr.K));
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;

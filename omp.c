@@ -38,15 +38,6 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 #define K_MAX 65536      /* most time slices per step */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
-/* Relative margins of the broad phase for rounding: of positions and times (REL, about 4.5e6 rounding
- * units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840 units). */
-#ifdef SIM_FLOAT
-#define REL_MARGIN 1e-5
-#define GRAZE_MARGIN 1e-4
-#else
-#define REL_MARGIN 1e-9
-#define GRAZE_MARGIN 1e-12
-#endif
 
 /* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
  * one cell of one thread's histogram, testing one pair of boxes. */
@@ -224,7 +215,7 @@ static void slots_unpermute(Work *w, int tid)
 
 /* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
  * that touch at a time of slice k have boxes that overlap in slice k; the margin m covers, with a
- * wide factor to spare (REL_MARGIN, GRAZE_MARGIN), the rounding of positions (about eps * scale) and that of
+ * wide factor to spare (SIM_REL_MARGIN, SIM_GRAZE_MARGIN), the rounding of positions (about eps * scale) and that of
  * pair_time near a graze, where D > 0 can hold while the exact path misses contact by up to about
  * eps * dd / r. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
  * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
@@ -232,7 +223,7 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
 {
     Plan pl;
     double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
-    double m = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
+    double m = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale + SIM_GRAZE_MARGIN * (reach / r) * reach;
     pl.grow = r + m;
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;
@@ -245,7 +236,7 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     pl.g = 1;
     for (int k = 1; k <= K_MAX; k = k < 8 ? k + 1 : k + k / 8) {
         /* centres of two overlapping boxes are at most 2 * grow + (displacement in a slice) apart */
-        double h = (2 * pl.grow + vm / k) * (1 + REL_MARGIN) + REL_MARGIN * scale;
+        double h = (2 * pl.grow + vm / k) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
         double gd = extent / h;
         int64_t g = gd < (double)gcap ? (int64_t)gd : gcap;
         if (g < 1) g = 1;
@@ -299,14 +290,14 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
 enum { BIN_BODIES, BIN_SLOTS, BIN_REORDER };
 
 /* 3.1: the wall event of the disk in slot q, stored for slot dst. Most disks are farther from every
- * wall than they move in a step (with REL_MARGIN to spare, so the quotient is surely > 1): they
+ * wall than they move in a step (with SIM_REL_MARGIN to spare, so the quotient is surely > 1): they
  * need no division. */
 static inline void wall_event(Work *w, int64_t q, int64_t dst)
 {
     const Slots *s = &w->s;
     const Params *p = w->p;
     real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
-    double ax = fabs((double)vx) * (1 + REL_MARGIN), ay = fabs((double)vy) * (1 + REL_MARGIN);
+    double ax = fabs((double)vx) * (1 + SIM_REL_MARGIN), ay = fabs((double)vy) * (1 + SIM_REL_MARGIN);
     if ((double)x - p->lo > ax && p->hi - (double)x > ax && (double)y - p->lo > ay &&
         p->hi - (double)y > ay) {
         w->wall_t[dst] = -1;

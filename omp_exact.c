@@ -27,14 +27,13 @@
  * events' worth of rounding of one disk, a few rounding units each) and of pair_time near a graze
  * (GRAZE). */
 #ifdef SIM_FLOAT
-#define REL_MARGIN 1e-4
-#define GRAZE_MARGIN 1e-4
+#define REL_MARGIN 1e-4 /* ten times common.h's: 64 events of rounding per window */
 #define WINDOW_EVENTS 64
 #else
-#define REL_MARGIN 1e-9
-#define GRAZE_MARGIN 1e-12
+#define REL_MARGIN SIM_REL_MARGIN
 #define WINDOW_EVENTS 4096
 #endif
+#define GRAZE_MARGIN SIM_GRAZE_MARGIN
 
 #define VBOUND_FACTOR 1.5 /* vbound over the fastest component at the window's start */
 #define WINDOW_CHOICES 24 /* window lengths tried: the rest of the step over 1, 2, 4, ... */
