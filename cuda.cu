@@ -759,7 +759,8 @@ static Grid grid_choose(const Cuda *c, double vmax)
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
     double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
-    double margin = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale + SIM_GRAZE_MARGIN * (reach / r) * reach;
+    double margin = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale +
+                    SIM_GRAZE_MARGIN * (reach / r) * reach;
     double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
     double gmax = floor(sqrt((double)c->cell_cap / gr.K));
     double gf = floor(L / cell_min);

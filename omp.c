@@ -215,7 +215,8 @@ static void slots_unpermute(Work *w, int tid)
 
 /* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
  * that touch at a time of slice k have boxes that overlap in slice k; the margin m covers, with a
- * wide factor to spare (SIM_REL_MARGIN, SIM_GRAZE_MARGIN), the rounding of positions (about eps * scale) and that of
+ * wide factor to spare (SIM_REL_MARGIN, SIM_GRAZE_MARGIN), the rounding of positions (about
+ * eps * scale) and that of
  * pair_time near a graze, where D > 0 can hold while the exact path misses contact by up to about
  * eps * dd / r. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
  * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
@@ -223,7 +224,8 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
 {
     Plan pl;
     double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
-    double m = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale + SIM_GRAZE_MARGIN * (reach / r) * reach;
+    double m = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale +
+               SIM_GRAZE_MARGIN * (reach / r) * reach;
     pl.grow = r + m;
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;
@@ -297,7 +299,8 @@ static inline void wall_event(Work *w, int64_t q, int64_t dst)
     const Slots *s = &w->s;
     const Params *p = w->p;
     real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
-    double ax = fabs((double)vx) * (1 + SIM_REL_MARGIN), ay = fabs((double)vy) * (1 + SIM_REL_MARGIN);
+    double ax = fabs((double)vx) * (1 + SIM_REL_MARGIN);
+    double ay = fabs((double)vy) * (1 + SIM_REL_MARGIN);
     if ((double)x - p->lo > ax && p->hi - (double)x > ax && (double)y - p->lo > ay &&
         p->hi - (double)y > ay) {
         w->wall_t[dst] = -1;
