@@ -135,8 +135,7 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
  * 1..S-1 (sub-steps K, 2K, ...) to io_write_state. When sim->wi is set, every wall reflection adds
  * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included.
- * Returns 0, or non-zero after
- * printing its own error message. */
+ * Returns 0, or non-zero after printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
 /* Writes the lines of a whole state: step 0 before backend_run, the final state (with counts) after.
  * seq calls io_write_state; omp and cuda format on several threads (1e8 lines take minutes on one). */
