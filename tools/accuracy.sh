@@ -1,0 +1,288 @@
+#!/usr/bin/env bash
+# tools/accuracy.sh: what accuracy costs in time. Runs the accuracy ladder (rungs: the SPEC.md step,
+# --substeps 2, 4, 8, --exact, the float build) on closed boxes of hard disks at several area fractions,
+# measures the pressure through the walls (--pressure) and compares the compressibility factor
+# Z = P A / (N kT) with Henderson's hard-disk equation of state; tools/measure adds overlaps, energy
+# drift and collision rates. Writes one CSV row per (rung, scene) with a provenance header, a markdown
+# table on stdout and, where gnuplot is installed, the figure "error against time" beside the CSV.
+# REPORT.md ("What accuracy costs in time") discusses the results.
+set -euo pipefail
+export LC_ALL=C
+cd "$(dirname "$0")/.."
+
+# ---- knobs (environment variables of the same name override them; options override both) ----------
+N=${N:-10000}                           # disks per scene
+FRACTIONS=${FRACTIONS:-"0.1 0.2 0.3 0.4"} # area fractions eta = N pi r^2 / L^2 of the scenes
+# Speeds uniform in [0, SPEED * r] per step: a disk moves a fraction of r per step, so the SPEC.md step
+# (one collision per disk per step) is a fair, not a hopeless, approximation, the broad phase stays
+# cheap, and --substeps K has something to converge to. Hard disks have no energy scale: Z does not
+# depend on the speeds, which only set how many steps a collision takes.
+SPEED=${SPEED:-0.5}
+RUNGS=${RUNGS:-"k1 k2 k4 k8 exact f32"} # kK: omp --substeps K (k1: no option); exact: omp --exact;
+                                        # f32: omp_f32 (float build, SPEC.md step)
+EQ_STEPS=${EQ_STEPS:-300}       # equilibration of each rung from the generated scene, not measured
+BLOCKS=${BLOCKS:-5}             # measured runs, each continuing the last; their spread gives Z's error
+BLOCK_STEPS=${BLOCK_STEPS:-400} # steps (time units) of one measured run
+PRINT_STEPS=${PRINT_STEPS:-100} # print-mode run (%.8f) from the equilibrated state, for the overlaps
+DEPTH=${DEPTH:-1e-6}            # overlaps shallower than DEPTH * r are not counted (%.8f resolves 1e-8)
+THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)} # omp threads: all cores
+SEED=${SEED:-1}
+RUN_TIMEOUT=${RUN_TIMEOUT:-600} # seconds before one run counts as hung
+OUTPUT=${OUTPUT:-bench/accuracy.csv}
+TMP_DIR=${TMP_DIR:-bench/tmp/accuracy}
+export OMP_PROC_BIND=${OMP_PROC_BIND:-close}
+export OMP_PLACES=${OMP_PLACES:-cores}
+
+usage() {
+    cat <<EOF
+usage: tools/accuracy.sh [options]
+For each area fraction eta and each rung: tools/gen N --fraction eta --speed $SPEED, EQ_STEPS steps of
+equilibration, BLOCKS measured runs of BLOCK_STEPS steps with --pressure (each continuing the last
+one's final state, --dump17 so nothing is lost), and a print-mode run of PRINT_STEPS steps for
+tools/measure. Writes OUTPUT (default $OUTPUT), its figure OUTPUT minus .csv plus .png (needs gnuplot),
+and the table on stdout.
+
+options (lists are space- or comma-separated):
+  --quick            CI-sized study, under 30 s on 2 cores: N = 1000, eta 0.2 and 0.4, short runs,
+                     output bench/tmp/accuracy-quick.csv unless -o is given
+  --rungs LIST       from: k1 k2 k4 ... k1024 exact f32 (default: $RUNGS)
+  --fractions LIST   area fractions (default: $FRACTIONS)
+  --n N              disks per scene (default $N)
+  --blocks B         measured runs per point (default $BLOCKS)
+  --block-steps S    steps per measured run (default $BLOCK_STEPS)
+  -o, --output FILE  CSV (default $OUTPUT)
+  --plot FILE        only draw the figure of an existing CSV
+  --help             this text
+Knobs at the top of this file can also be set as environment variables (EQ_STEPS, PRINT_STEPS, SPEED,
+DEPTH, THREADS, SEED, ...).
+EOF
+}
+
+die() { echo "accuracy.sh: $*" >&2; exit 1; }
+words() { echo "${1//,/ }"; }
+integer() {
+    awk -v s="$1" 'BEGIN { if (s !~ /^[0-9.]+([eE][0-9]+)?$/ || s + 0 < 1) exit 1; printf "%.0f\n", s }' ||
+        die "not a positive integer: '$1'"
+}
+
+# ---- the figure -------------------------------------------------------------------------------------
+# plot CSV: |Z deviation| against ns per particle-step (the best of a point's measured runs: the machine
+# is shared, and the least disturbed run is the closest to the cost itself), one point per rung and
+# scene, a line per scene through its rungs in order of cost.
+plot() {
+    local csv=$1 png=${1%.csv}.png work where plots="" eta k=0 terminal=pngcairo
+    command -v gnuplot >/dev/null 2>&1 || { echo "accuracy.sh: no figure (gnuplot not found)" >&2; return 0; }
+    gnuplot -e "set terminal pngcairo" >/dev/null 2>&1 || terminal=png
+    work=$(mktemp -d)
+    grep -v '^#' "$csv" | awk -F, -v dir="$work" '
+        NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
+        { d = $col["deviation_pct"]; if (d < 0) d = -d; if (d < 0.01) d = 0.01
+          print $col["min_ns_per_particle_step"], d, $col["rung"] > (dir "/eta" $col["eta"]) }'
+    where=$(sed -n 's/^# cpu: \(.*\); cores: \(.*\)/\1, \2 cores/p' "$csv" | head -n 1)
+    for f in "$work"/eta*; do
+        [ -e "$f" ] || continue
+        k=$((k + 1))
+        eta=${f##*/eta}
+        sort -g "$f" -o "$f"
+        plots="$plots${plots:+, }'$f' using 1:2 with linespoints linetype $k pointtype 7 title 'eta = $eta'"
+        plots="$plots, '$f' using 1:2:3 with labels offset 0.6,0.6 left font ',8' textcolor lt $k notitle"
+    done
+    [ -n "$plots" ] || { rm -rf "$work"; die "$csv has no rows to plot"; }
+    gnuplot <<EOF
+set terminal $terminal size 900,600 font ',10'
+set output '$png'
+set logscale xy; set grid; set key top right; set yrange [*:5<*]
+set xlabel 'ns per particle-step (one time unit), best of the measured runs'
+set arrow from graph 0, first 2 to graph 1, first 2 nohead dashtype 2 linecolor 'gray'
+set label '2%' at graph 0.01, first 2.15 textcolor 'gray'
+set ylabel '|Z - Z_{Henderson}| / Z_{Henderson} (%)'
+set title "Error of the pressure against time per particle-step ($where)"
+plot $plots
+EOF
+    rm -rf "$work"
+    echo "accuracy.sh: figure $png" >&2
+}
+
+# ---- options --------------------------------------------------------------------------------------
+QUICK=0 OUTPUT_GIVEN=0
+COMMAND_LINE="tools/accuracy.sh $*"
+while [ $# -gt 0 ]; do
+    case $1 in
+        --help | -h) usage; exit 0 ;;
+        --quick) QUICK=1 ;;
+        --rungs) RUNGS=$(words "${2?--rungs needs a list}"); shift ;;
+        --fractions) FRACTIONS=$(words "${2?--fractions needs a list}"); shift ;;
+        --n) N=$(integer "${2?--n needs a number}"); shift ;;
+        --blocks) BLOCKS=$(integer "${2?--blocks needs a number}"); shift ;;
+        --block-steps) BLOCK_STEPS=$(integer "${2?--block-steps needs a number}"); shift ;;
+        -o | --output) OUTPUT=${2?-o needs a file}; OUTPUT_GIVEN=1; shift ;;
+        --plot) plot "${2?--plot needs a CSV}"; exit 0 ;;
+        *) usage >&2; die "unknown option '$1'" ;;
+    esac
+    shift
+done
+if [ "$QUICK" = 1 ]; then
+    N=1000 FRACTIONS="0.2 0.4" EQ_STEPS=50 BLOCKS=2 BLOCK_STEPS=50 PRINT_STEPS=20
+    [ "$OUTPUT_GIVEN" = 1 ] || OUTPUT=bench/tmp/accuracy-quick.csv
+fi
+[ "$BLOCKS" -ge 2 ] || die "--blocks must be at least 2 (their spread is the error of Z)"
+[ -x tools/gen ] && [ -x tools/measure ] || die "tools/gen or tools/measure not built (run make)"
+make -q all >/dev/null 2>&1 || echo "accuracy.sh: warning: binaries older than their sources (run make)" >&2
+mkdir -p "$TMP_DIR" "$(dirname "$OUTPUT")"
+
+# ---- rungs ----------------------------------------------------------------------------------------
+# rung_command NAME: sets PROG and OPTS (the program and its accuracy options) for a rung.
+rung_command() {
+    case $1 in
+        k1) PROG=./omp OPTS=() ;;
+        k[0-9]*) PROG=./omp OPTS=(--substeps "${1#k}") ;;
+        exact) PROG=./omp OPTS=(--exact) ;;
+        f32) PROG=./omp_f32 OPTS=() ;;
+        *) die "unknown rung '$1'" ;;
+    esac
+}
+# every rung must run before the study starts, not fail after minutes
+printf '2\n10\n1\n1\nperf\n0 2 2 1 0\n1 8 2 -1 0\n' > "$TMP_DIR/probe.in"
+for rung in $RUNGS; do
+    rung_command "$rung"
+    [ -x "$PROG" ] || die "rung $rung: $PROG not built (run make)"
+    "$PROG" "$TMP_DIR/probe.in" "${OPTS[@]}" --pressure --quiet --threads 1 > /dev/null 2> "$TMP_DIR/probe.err" ||
+        die "rung $rung: $PROG ${OPTS[*]} --pressure does not run: $(head -n 1 "$TMP_DIR/probe.err")"
+done
+
+# ---- running --------------------------------------------------------------------------------------
+# with_header INPUT STEPS MODE: the input with its steps and mode records replaced (files written by
+# tools/gen and by state_input have the five header records on lines 1-5).
+with_header() {
+    { head -n 3 "$1"; echo "$2"; echo "$3"; tail -n +6 "$1"; }
+}
+# state_input OUTPUT BASE: an input (BASE's N, L, r; 1 step, perf) whose disks are OUTPUT's final state,
+# exactly when OUTPUT was written with --dump17.
+state_input() {
+    head -n 3 "$2"
+    printf '1\nperf\n'
+    tail -n "$N" "$1" | awk '{ print $2, $3, $4, $5, $6 }'
+}
+# run_prog IN OUT ERR ARGS...: the rung's program on IN; fails the study with its message.
+run_prog() {
+    local in=$1 out=$2 err=$3
+    shift 3
+    if ! timeout "$RUN_TIMEOUT" "$PROG" "$in" "${OPTS[@]}" --threads "$THREADS" "$@" > "$out" 2> "$err"; then
+        die "$PROG $in ${OPTS[*]} $* failed: $(tail -n 2 "$err")"
+    fi
+}
+# value KEY LINE: a value of tools/measure's key=value line.
+value() { echo "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
+
+# ---- provenance -----------------------------------------------------------------------------------
+make_var() { make -s --no-print-directory --eval='accuracy-print-%: ; @echo $($*)' "accuracy-print-$1" 2>/dev/null; }
+provenance() {
+    local hash dirty cc
+    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
+        dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
+    else
+        hash="unknown" dirty="not a git checkout"
+    fi
+    cc=$(make_var CC)
+    echo "# tools/accuracy.sh results (REPORT.md, What accuracy costs in time, explains the columns)"
+    echo "# command: $COMMAND_LINE"
+    echo "# git: $hash ($dirty)"
+    echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+    echo "# host: $(uname -n); kernel: $(uname -srm)"
+    echo "# load average at start (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
+    echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $(nproc 2>/dev/null)"
+    echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
+    echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
+    echo "# OMP_PROC_BIND=$OMP_PROC_BIND OMP_PLACES=$OMP_PLACES; omp threads: $THREADS"
+    echo "# scenes: tools/gen $N --fraction ETA --speed $SPEED --seed $SEED for ETA in $FRACTIONS; rungs: $RUNGS"
+    echo "# per point: $EQ_STEPS steps of equilibration, $BLOCKS x $BLOCK_STEPS measured steps" \
+        "(--pressure --dump17, perf), $PRINT_STEPS print-mode steps for overlaps deeper than $DEPTH r"
+    echo "# Z = P L^2 / (N kT), kT = <v^2>/2 per measured run; Z_henderson = (1 + eta^2/8) / (1 - eta)^2;" \
+        "enskog rate = 2 (2r) n g sqrt(pi kT), g = (Z_henderson - 1) / (2 eta)"
+}
+
+COLUMNS="rung,program,eta,n,L,r,threads,steps,ns_per_particle_step,min_ns_per_particle_step,kT,P"
+COLUMNS+=",z,z_stderr,z_henderson,deviation_pct,deviation_stderr_pct,pair_collisions_per_time"
+COLUMNS+=",wall_collisions_per_time,pair_collisions_per_disk_time,enskog_pair_collisions_per_disk_time"
+COLUMNS+=",energy_drift,overlap_state_fraction,overlap_pairs_per_state,mean_penetration_over_r"
+COLUMNS+=",max_penetration_over_r"
+{ provenance; echo "$COLUMNS"; } > "$OUTPUT.part"
+
+# ---- the study ------------------------------------------------------------------------------------
+START=$EPOCHREALTIME
+for eta in $FRACTIONS; do
+    base=$TMP_DIR/eta$eta.in
+    tools/gen "$N" --fraction "$eta" --speed "$SPEED" --steps 1 --seed "$SEED" > "$base" ||
+        die "cannot generate the scene at eta = $eta"
+    for rung in $RUNGS; do
+        rung_command "$rung"
+        tag=$TMP_DIR/eta$eta-$rung
+        # equilibration, from the generated scene, with the rung's own dynamics
+        with_header "$base" "$EQ_STEPS" perf > "$tag.in"
+        run_prog "$tag.in" "$tag.out" "$tag.err" --dump17 --quiet
+        state_input "$tag.out" "$base" > "$tag.eq.in"
+        # the overlaps of the equilibrated dynamics, every step, as the program prints them
+        with_header "$tag.eq.in" "$PRINT_STEPS" print > "$tag.in"
+        run_prog "$tag.in" "$tag.out" "$tag.err" --quiet
+        overlaps=$(tools/measure --depth "$DEPTH" "$tag.in" "$tag.out") || die "tools/measure failed on $tag.out"
+        # the measured runs, each from the last one's final state
+        cp "$tag.eq.in" "$tag.next.in"
+        rows=""
+        for ((b = 1; b <= BLOCKS; b++)); do
+            with_header "$tag.next.in" "$BLOCK_STEPS" perf > "$tag.in"
+            run_prog "$tag.in" "$tag.out" "$tag.err" --dump17 --pressure
+            m=$(tools/measure "$tag.in" "$tag.out") || die "tools/measure failed on $tag.out"
+            seconds=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$tag.err" | tail -n 1)
+            pressure=$(sed -n 's/.*: pressure: .* P = \([0-9.e+-]*\)$/\1/p' "$tag.err" | tail -n 1)
+            [ -n "$seconds" ] && [ -n "$pressure" ] || die "$PROG: no timing or pressure line: $(tail -n 2 "$tag.err")"
+            rows+="$seconds $pressure $(value energy_first "$m") $(value energy_last "$m")"
+            rows+=" $(value pair_collisions "$m") $(value wall_collisions "$m") $(value L "$m") $(value r "$m")"$'\n'
+            state_input "$tag.out" "$base" > "$tag.next.in"
+        done
+        printf '%s' "$rows" | awk -v OFS=, -v rung="$rung" -v prog="$(echo $PROG ${OPTS[*]})" -v n="$N" \
+            -v threads="$THREADS" -v s="$BLOCK_STEPS" -v ov="$overlaps" '
+            function median(a, k,   h) { h = int((k + 1) / 2); return k % 2 ? a[h] : (a[h] + a[h + 1]) / 2 }
+            function sorted(a, k,   i, j, v) {
+                for (i = 2; i <= k; i++) { v = a[i]; for (j = i - 1; j >= 1 && a[j] > v; j--) a[j + 1] = a[j]; a[j + 1] = v }
+            }
+            function key(name,   m, k) { m = split(ov, f, " "); for (k = 1; k <= m; k++) if (index(f[k], name "=") == 1) return substr(f[k], length(name) + 2); return "nan" }
+            {
+                b++; ns[b] = $1 * 1e9 / (n * s); L = $7; r = $8
+                if (b == 1) e0 = $3
+                kt = ($3 + $4) / (2 * n); z[b] = $2 * L * L / (n * kt)
+                zs += z[b]; ps += $2; kts += kt; pc += $5; wc += $6
+                d = ($4 - e0) / e0; if (d < 0) d = -d; if (d > drift) drift = d
+            }
+            END {
+                zm = zs / b
+                for (k = 1; k <= b; k++) var += (z[k] - zm) ^ 2
+                se = sqrt(var / (b - 1) / b)
+                eta = n * 3.141592653589793 * r * r / (L * L)
+                zh = (1 + eta * eta / 8) / ((1 - eta) ^ 2)
+                g = (zh - 1) / (2 * eta); kt = kts / b
+                enskog = 2 * (2 * r) * (n / (L * L)) * g * sqrt(3.141592653589793 * kt)
+                sorted(ns, b)
+                t = b * s
+                printf "%s,%s,%.6g,%d,%.10g,%.10g,%d,%d,%.4g,%.4g,%.6g,%.6g,%.5f,%.5f,%.5f,%.3f,%.3f,%.6g,%.6g,%.6g,%.6g,%.3g,%s,%s,%.4g,%.4g\n",
+                    rung, prog, eta, n, L, r, threads, t, median(ns, b), ns[1], kt, ps / b,
+                    zm, se, zh, 100 * (zm - zh) / zh, 100 * se / zh, pc / t, wc / t, pc / t / n * 2, enskog,
+                    drift, key("overlap_state_fraction"), key("overlap_pairs_per_state"),
+                    key("mean_penetration") / r, key("max_penetration") / r
+            }' >> "$OUTPUT.part"
+        tail -n 1 "$OUTPUT.part" | awk -F, '{ printf "accuracy.sh: eta %s %-6s Z = %s +- %s (Henderson %s, %+.2f%%), %s ns per particle-step\n", $3, $1, $13, $14, $15, $16, $9 }' >&2
+    done
+done
+mv "$OUTPUT.part" "$OUTPUT"
+echo "accuracy.sh: $OUTPUT written in $(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s" >&2
+
+# ---- the table (REPORT.md) and the figure ---------------------------------------------------------
+grep -v '^#' "$OUTPUT" | awk -F, '
+    NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k
+              print "| rung | eta | Z measured | Z Henderson | deviation % | overlap fraction | max penetration / r | energy drift | pair collisions per disk per time unit (Enskog) | wall collisions per time unit | ns per particle-step |"
+              print "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"; next }
+    { printf "| %s | %s | %.3f +- %.3f | %.3f | %+.2f +- %.2f | %.3g | %.3g | %.2g | %.4f (%.4f) | %.4g | %.4g |\n",
+        $col["rung"], $col["eta"], $col["z"], $col["z_stderr"], $col["z_henderson"], $col["deviation_pct"],
+        $col["deviation_stderr_pct"], $col["overlap_state_fraction"], $col["max_penetration_over_r"],
+        $col["energy_drift"], $col["pair_collisions_per_disk_time"], $col["enskog_pair_collisions_per_disk_time"],
+        $col["wall_collisions_per_time"], $col["min_ns_per_particle_step"] }'
+[ "$QUICK" = 1 ] || plot "$OUTPUT"
