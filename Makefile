@@ -34,26 +34,26 @@ io.o: io.c common.h Makefile
 io_f32.o: io.c common.h Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT -c io.c -o $@
 
-seq_f32: seq.c io_f32.o common.h Makefile
+seq_f32: seq.c io_f32.o common.h exact.h Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c io_f32.o -o $@ $(LDLIBS)
 
-omp_f32: omp.c io_f32.o common.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c io_f32.o -o $@ $(LDLIBS)
+omp_f32: omp.c omp_exact.c io_f32.o common.h exact.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_exact.c io_f32.o -o $@ $(LDLIBS)
 
 cuda_f32: cuda.cu io_f32.o common.h Makefile
 	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu io_f32.o -o $@ $(LDLIBS)
 
-seq: seq.c io.o common.h Makefile
+seq: seq.c io.o common.h exact.h Makefile
 	$(CC) $(CFLAGS) seq.c io.o -o $@ $(LDLIBS)
 
-omp: omp.c io.o common.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c io.o -o $@ $(LDLIBS)
+omp: omp.c omp_exact.c io.o common.h exact.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_exact.c io.o -o $@ $(LDLIBS)
 
 cuda: cuda.cu io.o common.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu io.o -o $@ $(LDLIBS)
 
 # seq with address and undefined-behaviour checks, for the hard cases
-seq_san: seq.c io.c common.h Makefile
+seq_san: seq.c io.c common.h exact.h Makefile
 	$(CC) $(SANFLAGS) seq.c io.c -o $@ $(LDLIBS)
 
 tools/%: tools/%.c common.h Makefile

@@ -100,6 +100,7 @@ typedef struct {
     int check;         /* omp: check the broad phase against all pairs every step */
     int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
     int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
+    int exact;         /* seq, omp: event-driven steps, every collision in time order (exact.h) */
 } Options;
 
 /* What a backend reports about its run, printed on stderr by the driver. */
@@ -168,10 +169,11 @@ static inline SIM_HD real min_time(real a, real b)
     return b < a ? b : a;
 }
 
-/* Time of the pair event of disks i and j (3.2), or -1 when the pair has no event this step. The
- * root form c / (-b + SIM_SQRT(D)) never subtracts nearly equal numbers. */
-static inline SIM_HD real pair_time(real xi, real yi, real vxi, real vyi, real xj,
-                                      real yj, real vxj, real vyj, real sigma2)
+/* Time until disks i and j touch (3.2), or -1 when they do not within `limit` time units: 1 for the
+ * step of SPEC.md, the rest of the step for --exact. The root form c / (-b + SIM_SQRT(D)) never
+ * subtracts nearly equal numbers. */
+static inline SIM_HD real pair_time_within(real xi, real yi, real vxi, real vyi, real xj,
+                                           real yj, real vxj, real vyj, real sigma2, real limit)
 {
     real dx = xj - xi, dy = yj - yi;
     real dvx = vxj - vxi, dvy = vyj - vyi;
@@ -185,8 +187,15 @@ static inline SIM_HD real pair_time(real xi, real yi, real vxi, real vyi, real x
     if (!(D > 0)) return -1;
     real t = c / (-b + SIM_SQRT(D));
     if (t <= 0) t = 0;
-    if (!(t <= 1)) return -1;
+    if (!(t <= limit)) return -1;
     return t;
+}
+
+/* Time of the pair event of disks i and j (3.2), or -1 when the pair has no event this step. */
+static inline SIM_HD real pair_time(real xi, real yi, real vxi, real vyi, real xj,
+                                      real yj, real vxj, real vyj, real sigma2)
+{
+    return pair_time_within(xi, yi, vxi, vyi, xj, yj, vxj, vyj, sigma2, 1);
 }
 
 /* The event order of 3.3: (t, kind, i, j) ascending; kind 0 is a wall event (j == i), 1 a pair. */

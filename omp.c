@@ -19,6 +19,7 @@
  * All buffers are allocated once (event buffers grow geometrically when a step needs more).
  */
 #include "common.h"
+#include "exact.h"
 
 #include <omp.h>
 #include <stdio.h>
@@ -839,6 +840,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 {
     if (opt->threads > 0) omp_set_num_threads(opt->threads);
     omp_set_dynamic(0);
+    if (opt->exact) return omp_exact_run(sim, par, opt, out, st);
     int nt_max = omp_get_max_threads();
     int64_t n = par->n;
     Work w;

@@ -5,6 +5,7 @@
  * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly.
  */
 #include "common.h"
+#include "exact.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -114,9 +115,65 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
     }
 }
 
+/* ==== --exact (exact.h): the next event among all pairs ============================================ */
+
+/* Pushes disk i's wall event and its pair events with every disk but i and skip. */
+static uint64_t exact_predict(const ExactDisks *d, const Params *p, int64_t i, int64_t skip,
+                              ExactHeap *h)
+{
+    real t = exact_wall_time(d, p, i);
+    if (t >= 0) heap_push(h, d, t, i, i);
+    for (int64_t k = 0; k < p->n; k++) {
+        if (k == i || k == skip) continue;
+        int64_t a = k < i ? k : i, b = k < i ? i : k;
+        t = exact_pair_time(d, p, a, b);
+        if (t >= 0) heap_push(h, d, t, a, b);
+    }
+    return (uint64_t)p->n - 1;
+}
+
+static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
+{
+    ExactDisks d;
+    ExactHeap h = {NULL, 0, 0};
+    exact_alloc(&d, sim, par->n);
+    double t0 = io_now();
+    for (int64_t step = 1; step <= par->steps; step++) {
+        /* every event of the step's start, then the smallest valid one until none is left */
+        h.len = 0;
+        for (int64_t i = 0; i < par->n; i++) {
+            real t = exact_wall_time(&d, par, i);
+            if (t >= 0) heap_push(&h, &d, t, i, i);
+            for (int64_t j = i + 1; j < par->n; j++) {
+                t = exact_pair_time(&d, par, i, j);
+                if (t >= 0) heap_push(&h, &d, t, i, j);
+            }
+        }
+        st->pair_tests += (uint64_t)par->n * (uint64_t)(par->n - 1) / 2;
+        while (h.len) {
+            ExactEvent e;
+            heap_pop(&h, &e);
+            if (!exact_valid(&d, &e)) continue;
+            exact_apply(&d, par, &e);
+            st->events++;
+            st->pair_tests += exact_predict(&d, par, e.i, e.j, &h);
+            if (e.j != e.i) st->pair_tests += exact_predict(&d, par, e.j, e.i, &h);
+        }
+        for (int64_t i = 0; i < par->n; i++) exact_finish(&d, par, i);
+        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, par->n, 0);
+        io_progress(out, step);
+    }
+    st->seconds = io_now() - t0;
+    free(h.e);
+    exact_free(&d);
+    return 0;
+}
+
+/* ==== the step of SPEC.md ============================================================================ */
+
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
-    (void)opt;
+    if (opt->exact) return exact_run(sim, par, out, st);
     EventList events = {NULL, 0, 0};
     int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
     int64_t k = par->substeps, last = par->steps * k;

@@ -1,7 +1,8 @@
 # The accuracy study's parts: tools/measure on hand-made outputs whose answers are worked out below;
 # --substeps 1 is the SPEC.md step byte for byte; --substeps K > 1 and --pressure give the same bytes
-# (stdout and the pressure line) in seq and omp at any thread count; the pressure of a disk bouncing
-# between two walls, by hand; tools/accuracy.sh --quick writes a well-formed CSV.
+# (stdout and the pressure line) in seq and omp at any thread count, and so does --exact --pressure;
+# the pressure of a disk bouncing off a wall, by hand; tools/accuracy.sh --quick writes a well-formed
+# CSV with every rung, --exact included.
 A=$TMP/accuracy
 mkdir -p "$A"
 
@@ -139,24 +140,48 @@ for scene in dense fast; do
     done
 done
 
+# --exact --pressure: the event loop runs in time order in both, so the impulses add up alike
+if ./seq "$A/dense.in" --dump17 --exact --pressure > "$A/dense.exact" 2> "$A/dense.exact.err"; then
+    want=$(sed -n 's/^seq: pressure: /pressure: /p' "$A/dense.exact.err")
+    bad=""
+    [ -n "$want" ] || bad=" seq:no pressure line"
+    for t in 1 2 3 7; do
+        ./omp "$A/dense.in" --dump17 --exact --pressure --threads "$t" > "$A/out" 2> "$A/err" ||
+            { bad="$bad $t:exit($(head -c 200 "$A/err"))"; continue; }
+        cmp -s "$A/out" "$A/dense.exact" || bad="$bad $t:stdout"
+        [ "$(sed -n 's/^omp: pressure: /pressure: /p' "$A/err")" = "$want" ] || bad="$bad $t:pressure"
+    done
+    if [ -z "$bad" ]; then pass "pressure/dense --exact: omp = seq at 1, 2, 3, 7 threads (stdout and pressure)"
+    else fail "pressure/dense --exact: omp = seq" "$bad"; fi
+else
+    fail "pressure/dense --exact: seq" "$(head -c 300 "$A/dense.exact.err")"
+fi
+if ./omp "$A/dense.in" --exact --substeps 2 > "$A/out" 2> "$A/err" || [ -s "$A/out" ]; then
+    fail "--exact with --substeps is refused"
+else
+    pass "--exact with --substeps is refused"
+fi
+
 # One disk from x = 5 at speed 1 in a box of side 10, r = 1: it meets the wall x = 9 at the end of
 # step 4 (an event at t = 1), comes back to x = 5 at step 8. One reflection, impulse 2 |vx| = 2;
-# P = 2 / (4 walls x 10 x 8 time units) = 0.00625, whatever K.
+# P = 2 / (4 walls x 10 x 8 time units) = 0.00625, whatever K, and with --exact.
 printf '1\n10\n1\n8\nperf\n0 5 5 1 0\n' > "$A/bounce.in"
 for prog in seq omp; do
-    for k in 1 4; do
-        line=$(./$prog "$A/bounce.in" --pressure --substeps "$k" 2>&1 >/dev/null | grep ': pressure: ' || true)
+    for k in 1 4 exact; do
+        opts=(--substeps "$k")
+        [ "$k" != exact ] || opts=(--exact)
+        line=$(./$prog "$A/bounce.in" --pressure "${opts[@]}" 2>&1 >/dev/null | grep ': pressure: ' || true)
         if [ "$line" = "$prog: pressure: wall impulse 2 over 8 time units on 4 walls of length 10: P = 0.0062500000000000003" ]; then
-            pass "pressure/bounce $prog K = $k: by hand"
+            pass "pressure/bounce $prog ${opts[*]}: by hand"
         else
-            fail "pressure/bounce $prog K = $k: by hand" "got '$line'"
+            fail "pressure/bounce $prog ${opts[*]}: by hand" "got '$line'"
         fi
     done
 done
 
 # ---- tools/accuracy.sh --quick --------------------------------------------------------------------
 acc_csv=$A/accuracy-quick.csv
-acc_rungs=${ACC_RUNGS_TEST:-"k1 k2 k4 k8 exact f32"}
+acc_rungs="k1 k2 k4 k8 exact f32"
 if RUNGS=$acc_rungs tools/accuracy.sh --quick -o "$acc_csv" > "$A/accuracy.log" 2>&1; then
     pass "accuracy.sh --quick runs"
 else

@@ -21,8 +21,8 @@ SPEED=${SPEED:-0.5}
 RUNGS=${RUNGS:-"k1 k2 k4 k8 exact f32"} # kK: omp --substeps K (k1: no option); exact: omp --exact;
                                         # f32: omp_f32 (float build, SPEC.md step)
 EQ_STEPS=${EQ_STEPS:-300}       # equilibration of each rung from the generated scene, not measured
-BLOCKS=${BLOCKS:-5}             # measured runs, each continuing the last; their spread gives Z's error
-BLOCK_STEPS=${BLOCK_STEPS:-400} # steps (time units) of one measured run
+BLOCKS=${BLOCKS:-8}             # measured runs, each continuing the last; their spread gives Z's error
+BLOCK_STEPS=${BLOCK_STEPS:-500} # steps (time units) of one measured run
 PRINT_STEPS=${PRINT_STEPS:-100} # print-mode run (%.8f) from the equilibrated state, for the overlaps
 DEPTH=${DEPTH:-1e-6}            # overlaps shallower than DEPTH * r are not counted (%.8f resolves 1e-8)
 THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)} # omp threads: all cores
@@ -269,7 +269,7 @@ for eta in $FRACTIONS; do
                     drift, key("overlap_state_fraction"), key("overlap_pairs_per_state"),
                     key("mean_penetration") / r, key("max_penetration") / r
             }' >> "$OUTPUT.part"
-        tail -n 1 "$OUTPUT.part" | awk -F, '{ printf "accuracy.sh: eta %s %-6s Z = %s +- %s (Henderson %s, %+.2f%%), %s ns per particle-step\n", $3, $1, $13, $14, $15, $16, $9 }' >&2
+        tail -n 1 "$OUTPUT.part" | awk -F, '{ printf "accuracy.sh: eta %s %-6s Z = %s +- %s (Henderson %s, %+.2f%%), %s ns per particle-step (best run)\n", $3, $1, $13, $14, $15, $16, $10 }' >&2
     done
 done
 mv "$OUTPUT.part" "$OUTPUT"

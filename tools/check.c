@@ -1,6 +1,6 @@
 /* tools/check.c: checks the invariants of one simulator output against its input.
  *
- * usage: tools/check [--dump17] INPUT OUTPUT
+ * usage: tools/check [--dump17] [--exact] INPUT OUTPUT
  *
  * - shape: step 0, then (print mode) steps 1..S-1, then step S with counts; each line "t i x y vx vy"
  *   (+ " p w" on the last step), i = 0..N-1 in order, one space between fields, '\n' after every line;
@@ -11,6 +11,9 @@
  *   pair collision (walls only negate components, which is exact); and between consecutive printed
  *   steps, a disk whose velocity stayed the same and whose centre moved to exactly clamp(x + vx, y + vy)
  *   had no event, so each disk's count of steps that were not such a plain move is at most its p + w.
+ * --exact (output of --exact, any number of events per step): instead of p + w <= S and the plain-move
+ * count, with --dump17, no two disks overlap in a printed step (by more than rounding) unless two did
+ * at step 0.
  * Prints nothing and exits 0 when all hold; otherwise one line "check: OUTPUT:line: problem", exit 1.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -80,6 +83,30 @@ static double clamp(double c, double lo, double hi)
     return c < lo ? lo : (c > hi ? hi : c);
 }
 
+static const double *sort_x; /* x, y pairs that by_x sorts indices by */
+
+static int by_x(const void *a, const void *b)
+{
+    double xa = sort_x[2 * *(const long long *)a], xb = sort_x[2 * *(const long long *)b];
+    return (xa > xb) - (xa < xb);
+}
+
+/* Returns 1 if two of the n centres xy (x, y pairs) are closer than 2r, less a relative 1e-9 and the
+ * rounding of coordinates up to L: a sweep over the centres sorted by x. */
+static int overlapping(const double *xy, long long n, double r, double L, long long *order)
+{
+    double d = 2 * r * (1 - 1e-9) - 64 * DBL_EPSILON * L, d2 = d * d;
+    for (long long i = 0; i < n; i++) order[i] = i;
+    sort_x = xy;
+    qsort(order, (size_t)n, sizeof *order, by_x);
+    for (long long a = 0; a < n; a++)
+        for (long long b = a + 1; b < n && xy[2 * order[b]] - xy[2 * order[a]] < d; b++) {
+            double dx = xy[2 * order[b]] - xy[2 * order[a]], dy = xy[2 * order[b] + 1] - xy[2 * order[a] + 1];
+            if (dx * dx + dy * dy < d2) return 1;
+        }
+    return 0;
+}
+
 static long long parse_count(const char *s, size_t len, const char *what)
 {
     if (len == 0 || len > 18 || (len > 1 && s[0] == '0')) die("%s is not a plain integer", what);
@@ -93,10 +120,14 @@ static long long parse_count(const char *s, size_t len, const char *what)
 
 int main(int argc, char **argv)
 {
-    int dump17 = 0, a = 1;
-    if (a < argc && strcmp(argv[a], "--dump17") == 0) dump17 = 1, a++;
+    int dump17 = 0, exact = 0, a = 1;
+    for (; a < argc && argv[a][0] == '-' && argv[a][1] == '-'; a++) {
+        if (strcmp(argv[a], "--dump17") == 0) dump17 = 1;
+        else if (strcmp(argv[a], "--exact") == 0) exact = 1;
+        else break;
+    }
     if (argc - a != 2) {
-        fprintf(stderr, "usage: tools/check [--dump17] INPUT OUTPUT\n");
+        fprintf(stderr, "usage: tools/check [--dump17] [--exact] INPUT OUTPUT\n");
         return 2;
     }
     FILE *in = fopen(argv[a], "r");
@@ -132,7 +163,10 @@ int main(int argc, char **argv)
     double *prev = calloc((size_t)n * 4 + 1, sizeof *prev);  /* x, y, vx, vy in the last block */
     long long *moved = calloc((size_t)n + 1, sizeof *moved); /* steps that were not a plain move */
     long long prev_step = -2; /* no block before step 0 */
-    if (!prev || !moved) die("out of memory");
+    double *xy = calloc((size_t)n * 2 + 1, sizeof *xy); /* centres of the block (--exact) */
+    long long *order = calloc((size_t)n + 1, sizeof *order);
+    int start_overlaps = 0;
+    if (!prev || !moved || !xy || !order) die("out of memory");
     while ((len = getline(&line, &cap, out)) > 0) {
         out_line++;
         if (block == blocks) die("more lines than the %lld expected", blocks * n);
@@ -176,15 +210,23 @@ int main(int argc, char **argv)
               v[1] == clamp(q[1] + q[3], lo, hi)))
             moved[i]++;
         memcpy(q, v, sizeof v);
+        xy[2 * i] = v[0];
+        xy[2 * i + 1] = v[1];
         if (last) {
             long long p = parse_count(f[6], fl[6], "p"), w = parse_count(f[7], fl[7], "w");
-            if (p + w > steps) die("p + w = %lld exceeds S = %lld (one event per step)", p + w, steps);
-            if (moved[i] > p + w)
+            if (!exact && p + w > steps)
+                die("p + w = %lld exceeds S = %lld (one event per step)", p + w, steps);
+            if (!exact && moved[i] > p + w)
                 die("disk %lld had %lld steps that were not a plain move, but p + w = %lld", i,
                     moved[i], p + w);
             psum += p;
         }
         if (++i == n) {
+            if (exact && dump17) {
+                int o = overlapping(xy, n, r, L, order);
+                if (block == 0) start_overlaps = o;
+                else if (o && !start_overlaps) die("two disks overlap at step %lld", step_of_block);
+            }
             if (block == 0) e0 = e;
             long double d = fabsl(e - e0);
             if (d > worst) worst = d;
@@ -197,6 +239,8 @@ int main(int argc, char **argv)
     free(line);
     free(prev);
     free(moved);
+    free(xy);
+    free(order);
     fclose(out);
     out_line++;
     if (block != blocks || i != 0) die("output ends early: expected %lld lines", blocks * n);

@@ -1,0 +1,258 @@
+/* exact.h: the event-driven model of --exact, shared by seq.c (all pairs) and omp_exact.c (grid).
+ *
+ * SPEC.md's step lets each disk collide at most once and stops it at the next wall. --exact instead
+ * runs the elastic dynamics exactly, up to rounding: within each unit step every collision happens, in
+ * time order, as many per disk as there are.
+ *
+ * - Every disk carries a local clock t in [0, 1]: its state (x, y, vx, vy) is its state at time t of
+ *   the step. A step starts with every clock at 0 and ends by flying every disk on to 1 (x += vx *
+ *   (1 - t), then clamp_coord), which is the state printed.
+ * - Events, each a pure function of the states of its disks:
+ *   wall i:     te = t + min(tx, ty) from 3.1's wall_time; the axes that hit are set exactly to the wall
+ *               and their velocity reflected (wall_bounce), the other axis flies; a corner is one event.
+ *   pair i < j: both states are brought to the common clock tc = max(ti, tj) by flight, pair_time_within
+ *               solves 3.2 from there for the rest of the step (1 - tc), te = tc + dt; both fly dt to
+ *               contact and swap normal components (pair_bounce).
+ *   An event exists if te <= 1 (events at exactly t = 1 belong to the step, as in SPEC.md). After
+ *   each event the moved coordinates are clamped into [lo, hi].
+ * - Order: the smallest event by the key (t, kind, i, j) of SPEC.md 3.3 is processed, then the events
+ *   of its disks are predicted again from their new states; repeated until no event has te <= 1. Ties
+ *   are thereby settled by kind (wall first), then indices; a disk in two tied events takes the first,
+ *   and the second is predicted again from its new state (it happens if the disks still approach).
+ * - Two disks whose last events were with each other do not collide again: after an elastic
+ *   collision they separate, and in free flight they cannot meet until one of them has another event.
+ *   (Without this rule, rounding could make a grazing pair "approach" again at the same instant.)
+ * - Every processed event updates the per-disk counters: p (pair) and w (wall) as in SPEC.md 3.5, now
+ *   any number per step, and a version that marks the disk's older predictions stale.
+ *
+ * Because each event's arithmetic reads only its own disks' states, any algorithm that processes the
+ * same events in the same order prints the same bytes: seq finds the next event among all pairs, omp
+ * among grid neighbours, and both take the same smallest key.
+ */
+#ifndef EXACT_H
+#define EXACT_H
+
+#include "common.h"
+
+#include <stdlib.h>
+
+/* Events of one disk within one step beyond which the run stops: only a cascade that no longer
+ * advances in time (possible from overlapping starts) gets there in practice. */
+#define EXACT_MAX_STEP_EVENTS (1u << 20)
+
+/* The disks with the per-disk state that --exact adds to Sim, all in original index order. */
+typedef struct {
+    Sim *sim;
+    real *t;              /* local clock: the time of the step the state refers to */
+    uint32_t *ver;        /* events of the disk so far, modulo 2^32: the version of its state */
+    int32_t *last;        /* partner of the disk's last event; -1 after a wall event or none */
+    uint32_t *step_events; /* events of the disk in this step, for EXACT_MAX_STEP_EVENTS */
+} ExactDisks;
+
+/* A predicted event: the key (t, kind, i, j) with kind 0 (wall) when i == j, and the versions of the
+ * disks it was predicted from. */
+typedef struct {
+    real t;
+    int32_t i, j;
+    uint32_t vi, vj;
+} ExactEvent;
+
+/* A binary min-heap of events in key order. Stale events stay until they surface and are dropped. */
+typedef struct {
+    ExactEvent *e;
+    size_t len, cap;
+} ExactHeap;
+
+/* ==== the disks ====================================================================================== */
+
+static inline void exact_alloc(ExactDisks *d, Sim *sim, int64_t n)
+{
+    d->sim = sim;
+    d->t = io_alloc((size_t)n, sizeof *d->t);
+    d->ver = io_alloc((size_t)n, sizeof *d->ver);
+    d->last = io_alloc((size_t)n, sizeof *d->last);
+    d->step_events = io_alloc((size_t)n, sizeof *d->step_events);
+    for (int64_t i = 0; i < n; i++) d->last[i] = -1;
+}
+
+static inline void exact_free(ExactDisks *d)
+{
+    free(d->t);
+    free(d->ver);
+    free(d->last);
+    free(d->step_events);
+}
+
+/* Time of disk i's next wall event, or -1 if none comes by the end of the step. */
+static inline real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i)
+{
+    const Sim *s = d->sim;
+    real dt = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
+                       wall_time(s->y[i], s->vy[i], p->lo, p->hi));
+    real te = d->t[i] + dt;
+    return te <= 1 ? te : -1;
+}
+
+/* Where disks i < j stand at their common clock tc, and the flight dt from there to contact. */
+typedef struct {
+    real tc, dt;
+    real xi, yi, xj, yj;
+} ExactMeet;
+
+/* Returns 1 and fills m if disks i < j touch by the end of the step. */
+static inline int exact_meet(const ExactDisks *d, const Params *p, int64_t i, int64_t j, ExactMeet *m)
+{
+    const Sim *s = d->sim;
+    if (d->last[i] == j && d->last[j] == i) return 0;
+    real ti = d->t[i], tj = d->t[j];
+    real tc = ti < tj ? tj : ti;
+    m->tc = tc;
+    m->xi = s->x[i] + s->vx[i] * (tc - ti);
+    m->yi = s->y[i] + s->vy[i] * (tc - ti);
+    m->xj = s->x[j] + s->vx[j] * (tc - tj);
+    m->yj = s->y[j] + s->vy[j] * (tc - tj);
+    m->dt = pair_time_within(m->xi, m->yi, s->vx[i], s->vy[i], m->xj, m->yj, s->vx[j], s->vy[j],
+                             p->sigma2, 1 - tc);
+    return m->dt >= 0 && tc + m->dt <= 1;
+}
+
+/* Time of the pair event of disks i < j, or -1 if none comes by the end of the step. */
+static inline real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j)
+{
+    ExactMeet m;
+    return exact_meet(d, p, i, j, &m) ? m.tc + m.dt : -1;
+}
+
+/* One more event of disk i: its version, its step budget and the count c (p or w). */
+static inline void exact_count(ExactDisks *d, int64_t i, int32_t *c)
+{
+    d->ver[i]++;
+    if (++d->step_events[i] > EXACT_MAX_STEP_EVENTS)
+        io_fail("--exact: disk %lld collided more than %u times within one step (a cascade that "
+                "does not advance in time); stopping",
+                (long long)i, EXACT_MAX_STEP_EVENTS);
+    if (*c == INT32_MAX)
+        io_fail("--exact: the collision count of disk %lld exceeds %d", (long long)i, INT32_MAX);
+    ++*c;
+}
+
+/* Processes event e (valid: predicted from the disks' current versions). */
+static inline void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
+{
+    Sim *s = d->sim;
+    real lo = p->lo, hi = p->hi;
+    int64_t i = e->i, j = e->j;
+    if (i == j) {
+        real dt = min_time(wall_time(s->x[i], s->vx[i], lo, hi), wall_time(s->y[i], s->vy[i], lo, hi));
+        real vx0 = s->vx[i], vy0 = s->vy[i];
+        wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], dt, lo, hi);
+        /* --pressure: events run in time order in seq and omp alike, so each wi sums in one order */
+        if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
+        s->x[i] = clamp_coord(s->x[i], lo, hi);
+        s->y[i] = clamp_coord(s->y[i], lo, hi);
+        d->t[i] = e->t;
+        d->last[i] = -1;
+        exact_count(d, i, &s->wc[i]);
+        return;
+    }
+    ExactMeet m;
+    exact_meet(d, p, i, j, &m);
+    s->x[i] = m.xi + s->vx[i] * m.dt;
+    s->y[i] = m.yi + s->vy[i] * m.dt;
+    s->x[j] = m.xj + s->vx[j] * m.dt;
+    s->y[j] = m.yj + s->vy[j] * m.dt;
+    pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
+    s->x[i] = clamp_coord(s->x[i], lo, hi);
+    s->y[i] = clamp_coord(s->y[i], lo, hi);
+    s->x[j] = clamp_coord(s->x[j], lo, hi);
+    s->y[j] = clamp_coord(s->y[j], lo, hi);
+    d->t[i] = d->t[j] = e->t;
+    d->last[i] = (int32_t)j;
+    d->last[j] = (int32_t)i;
+    exact_count(d, i, &s->pc[i]);
+    exact_count(d, j, &s->pc[j]);
+}
+
+/* The end of the step for disk i: flight to t = 1, clocks back to 0 for the next step. */
+static inline void exact_finish(ExactDisks *d, const Params *p, int64_t i)
+{
+    Sim *s = d->sim;
+    real rest = 1 - d->t[i];
+    s->x[i] = clamp_coord(s->x[i] + s->vx[i] * rest, p->lo, p->hi);
+    s->y[i] = clamp_coord(s->y[i] + s->vy[i] * rest, p->lo, p->hi);
+    d->t[i] = 0;
+    d->step_events[i] = 0;
+}
+
+/* ==== the event heap ================================================================================ */
+
+static inline int exact_before(const ExactEvent *a, const ExactEvent *b)
+{
+    return event_before(a->t, a->i != a->j, a->i, a->j, b->t, b->i != b->j, b->i, b->j);
+}
+
+static inline int exact_valid(const ExactDisks *d, const ExactEvent *e)
+{
+    return d->ver[e->i] == e->vi && d->ver[e->j] == e->vj;
+}
+
+static inline void heap_reserve(ExactHeap *h, size_t need)
+{
+    if (need <= h->cap) return;
+    size_t c = h->cap ? h->cap : 1024;
+    while (c < need) c *= 2;
+    ExactEvent *grown = realloc(h->e, c * sizeof *grown);
+    if (!grown) io_fail("out of memory for %zu events", c);
+    h->e = grown;
+    h->cap = c;
+}
+
+static inline void heap_sift_down(ExactHeap *h, size_t k)
+{
+    ExactEvent x = h->e[k];
+    for (;;) {
+        size_t c = 2 * k + 1;
+        if (c >= h->len) break;
+        if (c + 1 < h->len && exact_before(&h->e[c + 1], &h->e[c])) c++;
+        if (!exact_before(&h->e[c], &x)) break;
+        h->e[k] = h->e[c];
+        k = c;
+    }
+    h->e[k] = x;
+}
+
+/* Restores the heap order of an array filled in any order. */
+static inline void heap_build(ExactHeap *h)
+{
+    for (size_t k = h->len / 2; k-- > 0;) heap_sift_down(h, k);
+}
+
+/* Adds the event (t, i, j) predicted from the disks' current versions (j == i: wall). */
+static inline void heap_push(ExactHeap *h, const ExactDisks *d, real t, int64_t i, int64_t j)
+{
+    heap_reserve(h, h->len + 1);
+    ExactEvent x = {t, (int32_t)i, (int32_t)j, d->ver[i], d->ver[j]};
+    size_t k = h->len++;
+    while (k > 0) {
+        size_t up = (k - 1) / 2;
+        if (!exact_before(&x, &h->e[up])) break;
+        h->e[k] = h->e[up];
+        k = up;
+    }
+    h->e[k] = x;
+}
+
+/* Removes the smallest event into *e. */
+static inline void heap_pop(ExactHeap *h, ExactEvent *e)
+{
+    *e = h->e[0];
+    h->e[0] = h->e[--h->len];
+    if (h->len) heap_sift_down(h, 0);
+}
+
+/* ---- omp_exact.c ---------------------------------------------------------------------------------- */
+
+/* omp's --exact engine: what backend_run does with --exact. */
+int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st);
+
+#endif /* EXACT_H */
