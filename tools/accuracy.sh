@@ -24,6 +24,8 @@ EQ_STEPS=${EQ_STEPS:-300}       # equilibration of each rung from the generated 
 BLOCKS=${BLOCKS:-8}             # measured runs, each continuing the last; their spread gives Z's error
 BLOCK_STEPS=${BLOCK_STEPS:-500} # steps (time units) of one measured run
 PRINT_STEPS=${PRINT_STEPS:-100} # print-mode run (%.8f) from the equilibrated state, for the overlaps
+TIME_ROUNDS=${TIME_ROUNDS:-5}   # timing runs of every rung in turn, after the measured runs of a scene
+TIME_STEPS=${TIME_STEPS:-100}   # steps of one timing run
 DEPTH=${DEPTH:-1e-6}            # overlaps shallower than DEPTH * r are not counted (%.8f resolves 1e-8)
 THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)} # omp threads: all cores
 SEED=${SEED:-1}
@@ -68,24 +70,28 @@ integer() {
 # ---- the figure -------------------------------------------------------------------------------------
 # plot CSV: |Z deviation| against ns per particle-step (the best of a point's measured runs: the machine
 # is shared, and the least disturbed run is the closest to the cost itself), one point per rung and
-# scene, a line per scene through its rungs in order of cost.
+# scene, a colour per scene; a line joins the sub-step rungs (K = 1, 2, 4, 8) of a scene in order of K.
 plot() {
-    local csv=$1 png=${1%.csv}.png work where plots="" eta k=0 terminal=pngcairo
+    local csv=$1 png=${1%.csv}.png work where plots="" eta f k=0 terminal=pngcairo
     command -v gnuplot >/dev/null 2>&1 || { echo "accuracy.sh: no figure (gnuplot not found)" >&2; return 0; }
     gnuplot -e "set terminal pngcairo" >/dev/null 2>&1 || terminal=png
     work=$(mktemp -d)
     grep -v '^#' "$csv" | awk -F, -v dir="$work" '
         NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
         { d = $col["deviation_pct"]; if (d < 0) d = -d; if (d < 0.01) d = 0.01
-          print $col["min_ns_per_particle_step"], d, $col["rung"] > (dir "/eta" $col["eta"]) }'
+          f = dir "/eta" $col["eta"] ($col["rung"] ~ /^k[0-9]+$/ ? ".substeps" : ".other")
+          print $col["min_ns_per_particle_step"], d, $col["rung"] > f }'
     where=$(sed -n 's/^# cpu: \(.*\); cores: \(.*\)/\1, \2 cores/p' "$csv" | head -n 1)
-    for f in "$work"/eta*; do
-        [ -e "$f" ] || continue
+    for eta in $(ls "$work" | sed 's/^eta//; s/\.[a-z]*$//' | sort -g -u); do
         k=$((k + 1))
-        eta=${f##*/eta}
-        sort -g "$f" -o "$f"
-        plots="$plots${plots:+, }'$f' using 1:2 with linespoints linetype $k pointtype 7 title 'eta = $eta'"
-        plots="$plots, '$f' using 1:2:3 with labels offset 0.6,0.6 left font ',8' textcolor lt $k notitle"
+        for f in "$work/eta$eta.substeps" "$work/eta$eta.other"; do
+            [ -e "$f" ] || continue
+            case $f in
+                *.substeps) plots="$plots${plots:+, }'$f' using 1:2 with linespoints linetype $k pointtype 7 title 'eta = $eta'" ;;
+                *) plots="$plots${plots:+, }'$f' using 1:2 with points linetype $k pointtype 5 pointsize 1.3 notitle" ;;
+            esac
+            plots="$plots, '$f' using 1:2:3 with labels offset 0.7,0.6 left font ',8' textcolor lt $k notitle"
+        done
     done
     [ -n "$plots" ] || { rm -rf "$work"; die "$csv has no rows to plot"; }
     gnuplot <<EOF
@@ -93,10 +99,10 @@ set terminal $terminal size 900,600 font ',10'
 set output '$png'
 set logscale xy; set grid; set key top right; set yrange [*:5<*]
 set xlabel 'ns per particle-step (one time unit), best of the measured runs'
+set ylabel '|Z - Z_{Henderson}| / Z_{Henderson} (%)'
 set arrow from graph 0, first 2 to graph 1, first 2 nohead dashtype 2 linecolor 'gray'
 set label '2%' at graph 0.01, first 2.15 textcolor 'gray'
-set ylabel '|Z - Z_{Henderson}| / Z_{Henderson} (%)'
-set title "Error of the pressure against time per particle-step ($where)"
+set title "Error of the pressure against time per particle-step ($where)\nlines: --substeps K = 1, 2, 4, 8 in order of K; squares: --exact and the float build"
 plot $plots
 EOF
     rm -rf "$work"
@@ -122,7 +128,7 @@ while [ $# -gt 0 ]; do
     shift
 done
 if [ "$QUICK" = 1 ]; then
-    N=1000 FRACTIONS="0.2 0.4" EQ_STEPS=50 BLOCKS=2 BLOCK_STEPS=50 PRINT_STEPS=20
+    N=1000 FRACTIONS="0.2 0.4" EQ_STEPS=50 BLOCKS=2 BLOCK_STEPS=50 PRINT_STEPS=20 TIME_ROUNDS=1 TIME_STEPS=20
     [ "$OUTPUT_GIVEN" = 1 ] || OUTPUT=bench/tmp/accuracy-quick.csv
 fi
 [ "$BLOCKS" -ge 2 ] || die "--blocks must be at least 2 (their spread is the error of Z)"
@@ -189,27 +195,34 @@ provenance() {
     echo "# git: $hash ($dirty)"
     echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
     echo "# host: $(uname -n); kernel: $(uname -srm)"
-    echo "# load average at start (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
+    echo "# load average at start (1, 5, 15 min): $LOAD_START"
     echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $(nproc 2>/dev/null)"
     echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
     echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
     echo "# OMP_PROC_BIND=$OMP_PROC_BIND OMP_PLACES=$OMP_PLACES; omp threads: $THREADS"
     echo "# scenes: tools/gen $N --fraction ETA --speed $SPEED --seed $SEED for ETA in $FRACTIONS; rungs: $RUNGS"
     echo "# per point: $EQ_STEPS steps of equilibration, $BLOCKS x $BLOCK_STEPS measured steps" \
-        "(--pressure --dump17, perf), $PRINT_STEPS print-mode steps for overlaps deeper than $DEPTH r"
+        "(--pressure --dump17, perf), $PRINT_STEPS print-mode steps for overlaps deeper than $DEPTH r," \
+        "$TIME_ROUNDS timing runs of $TIME_STEPS steps (every rung in turn)"
     echo "# Z = P L^2 / (N kT), kT = <v^2>/2 per measured run; Z_henderson = (1 + eta^2/8) / (1 - eta)^2;" \
         "enskog rate = 2 (2r) n g sqrt(pi kT), g = (Z_henderson - 1) / (2 eta)"
 }
 
-COLUMNS="rung,program,eta,n,L,r,threads,steps,ns_per_particle_step,min_ns_per_particle_step,kT,P"
+COLUMNS="rung,program,eta,n,L,r,threads,steps,timed_runs,min_ns_per_particle_step,median_ns_per_particle_step"
+COLUMNS+=",time_over_k1,kT,P"
 COLUMNS+=",z,z_stderr,z_henderson,deviation_pct,deviation_stderr_pct,pair_collisions_per_time"
 COLUMNS+=",wall_collisions_per_time,pair_collisions_per_disk_time,enskog_pair_collisions_per_disk_time"
 COLUMNS+=",energy_drift,overlap_state_fraction,overlap_pairs_per_state,mean_penetration_over_r"
 COLUMNS+=",max_penetration_over_r"
-{ provenance; echo "$COLUMNS"; } > "$OUTPUT.part"
 
 # ---- the study ------------------------------------------------------------------------------------
+# For each scene: first the physics of every rung (equilibration, overlaps, measured runs); then the
+# timing rounds, every rung once per round, so that all rungs of a scene meet the same load on a shared
+# machine; then one CSV row per rung. Times are the step loop as the program reports it, per disk and
+# time unit (K sub-steps count as one step), the best of the measured and timing runs.
+LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo unknown)
 START=$EPOCHREALTIME
+: > "$OUTPUT.rows"
 for eta in $FRACTIONS; do
     base=$TMP_DIR/eta$eta.in
     tools/gen "$N" --fraction "$eta" --speed "$SPEED" --steps 1 --seed "$SEED" > "$base" ||
@@ -224,10 +237,12 @@ for eta in $FRACTIONS; do
         # the overlaps of the equilibrated dynamics, every step, as the program prints them
         with_header "$tag.eq.in" "$PRINT_STEPS" print > "$tag.in"
         run_prog "$tag.in" "$tag.out" "$tag.err" --quiet
-        overlaps=$(tools/measure --depth "$DEPTH" "$tag.in" "$tag.out") || die "tools/measure failed on $tag.out"
+        tools/measure --depth "$DEPTH" "$tag.in" "$tag.out" > "$tag.overlaps" ||
+            die "tools/measure failed on $tag.out"
         # the measured runs, each from the last one's final state
         cp "$tag.eq.in" "$tag.next.in"
-        rows=""
+        : > "$tag.rows"
+        : > "$tag.times"
         for ((b = 1; b <= BLOCKS; b++)); do
             with_header "$tag.next.in" "$BLOCK_STEPS" perf > "$tag.in"
             run_prog "$tag.in" "$tag.out" "$tag.err" --dump17 --pressure
@@ -235,23 +250,38 @@ for eta in $FRACTIONS; do
             seconds=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$tag.err" | tail -n 1)
             pressure=$(sed -n 's/.*: pressure: .* P = \([0-9.e+-]*\)$/\1/p' "$tag.err" | tail -n 1)
             [ -n "$seconds" ] && [ -n "$pressure" ] || die "$PROG: no timing or pressure line: $(tail -n 2 "$tag.err")"
-            rows+="$seconds $pressure $(value energy_first "$m") $(value energy_last "$m")"
-            rows+=" $(value pair_collisions "$m") $(value wall_collisions "$m") $(value L "$m") $(value r "$m")"$'\n'
+            echo "$pressure $(value energy_first "$m") $(value energy_last "$m") $(value pair_collisions "$m")" \
+                "$(value wall_collisions "$m") $(value L "$m") $(value r "$m")" >> "$tag.rows"
+            awk -v x="$seconds" -v n="$N" -v s="$BLOCK_STEPS" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }' >> "$tag.times"
             state_input "$tag.out" "$base" > "$tag.next.in"
         done
-        printf '%s' "$rows" | awk -v OFS=, -v rung="$rung" -v prog="$(echo $PROG ${OPTS[*]})" -v n="$N" \
-            -v threads="$THREADS" -v s="$BLOCK_STEPS" -v ov="$overlaps" '
-            function median(a, k,   h) { h = int((k + 1) / 2); return k % 2 ? a[h] : (a[h] + a[h + 1]) / 2 }
-            function sorted(a, k,   i, j, v) {
-                for (i = 2; i <= k; i++) { v = a[i]; for (j = i - 1; j >= 1 && a[j] > v; j--) a[j + 1] = a[j]; a[j + 1] = v }
-            }
+    done
+    for ((k = 1; k <= TIME_ROUNDS; k++)); do
+        for rung in $RUNGS; do
+            rung_command "$rung"
+            tag=$TMP_DIR/eta$eta-$rung
+            with_header "$tag.eq.in" "$TIME_STEPS" perf > "$tag.in"
+            run_prog "$tag.in" /dev/null "$tag.err" --pressure
+            seconds=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$tag.err" | tail -n 1)
+            [ -n "$seconds" ] || die "$PROG: no timing line: $(tail -n 2 "$tag.err")"
+            awk -v x="$seconds" -v n="$N" -v s="$TIME_STEPS" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }' >> "$tag.times"
+        done
+    done
+    k1_ns=nan
+    [ ! -s "$TMP_DIR/eta$eta-k1.times" ] || k1_ns=$(sort -g "$TMP_DIR/eta$eta-k1.times" | head -n 1)
+    for rung in $RUNGS; do
+        rung_command "$rung"
+        tag=$TMP_DIR/eta$eta-$rung
+        awk -v OFS=, -v rung="$rung" -v prog="$(echo $PROG ${OPTS[*]})" -v n="$N" -v threads="$THREADS" \
+            -v s="$BLOCK_STEPS" -v ov="$(cat "$tag.overlaps")" -v times="$(sort -g "$tag.times" | tr '\n' ' ')" \
+            -v k1="$k1_ns" '
             function key(name,   m, k) { m = split(ov, f, " "); for (k = 1; k <= m; k++) if (index(f[k], name "=") == 1) return substr(f[k], length(name) + 2); return "nan" }
             {
-                b++; ns[b] = $1 * 1e9 / (n * s); L = $7; r = $8
-                if (b == 1) e0 = $3
-                kt = ($3 + $4) / (2 * n); z[b] = $2 * L * L / (n * kt)
-                zs += z[b]; ps += $2; kts += kt; pc += $5; wc += $6
-                d = ($4 - e0) / e0; if (d < 0) d = -d; if (d > drift) drift = d
+                b++; L = $6; r = $7
+                if (b == 1) e0 = $2
+                kt = ($2 + $3) / (2 * n); z[b] = $1 * L * L / (n * kt)
+                zs += z[b]; ps += $1; kts += kt; pc += $4; wc += $5
+                d = ($3 - e0) / e0; if (d < 0) d = -d; if (d > drift) drift = d
             }
             END {
                 zm = zs / b
@@ -261,28 +291,37 @@ for eta in $FRACTIONS; do
                 zh = (1 + eta * eta / 8) / ((1 - eta) ^ 2)
                 g = (zh - 1) / (2 * eta); kt = kts / b
                 enskog = 2 * (2 * r) * (n / (L * L)) * g * sqrt(3.141592653589793 * kt)
-                sorted(ns, b)
+                m = split(times, ns, " "); h = int((m + 1) / 2)
+                med = m % 2 ? ns[h] : (ns[h] + ns[h + 1]) / 2
                 t = b * s
-                printf "%s,%s,%.6g,%d,%.10g,%.10g,%d,%d,%.4g,%.4g,%.6g,%.6g,%.5f,%.5f,%.5f,%.3f,%.3f,%.6g,%.6g,%.6g,%.6g,%.3g,%s,%s,%.4g,%.4g\n",
-                    rung, prog, eta, n, L, r, threads, t, median(ns, b), ns[1], kt, ps / b,
+                printf "%s,%s,%.6g,%d,%.10g,%.10g,%d,%d,%d,%.4g,%.4g,%.4g,%.6g,%.6g,%.5f,%.5f,%.5f,%.3f,%.3f,%.6g,%.6g,%.6g,%.6g,%.3g,%s,%s,%.4g,%.4g\n",
+                    rung, prog, eta, n, L, r, threads, t, m, ns[1], med, k1 == "nan" ? -1 : ns[1] / k1, kt, ps / b,
                     zm, se, zh, 100 * (zm - zh) / zh, 100 * se / zh, pc / t, wc / t, pc / t / n * 2, enskog,
                     drift, key("overlap_state_fraction"), key("overlap_pairs_per_state"),
                     key("mean_penetration") / r, key("max_penetration") / r
-            }' >> "$OUTPUT.part"
-        tail -n 1 "$OUTPUT.part" | awk -F, '{ printf "accuracy.sh: eta %s %-6s Z = %s +- %s (Henderson %s, %+.2f%%), %s ns per particle-step (best run)\n", $3, $1, $13, $14, $15, $16, $10 }' >&2
+            }' "$tag.rows" >> "$OUTPUT.rows"
+        tail -n 1 "$OUTPUT.rows" | awk -F, '{ printf "accuracy.sh: eta %s %-6s Z = %s +- %s (Henderson %s, %+.2f%%), %s ns per particle-step (best of %s runs)\n", $3, $1, $15, $16, $17, $18, $10, $9 }' >&2
     done
 done
+{
+    provenance
+    echo "# load average at end (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
+    echo "$COLUMNS"
+    cat "$OUTPUT.rows"
+} > "$OUTPUT.part"
+rm -f "$OUTPUT.rows"
 mv "$OUTPUT.part" "$OUTPUT"
 echo "accuracy.sh: $OUTPUT written in $(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s" >&2
 
 # ---- the table (REPORT.md) and the figure ---------------------------------------------------------
 grep -v '^#' "$OUTPUT" | awk -F, '
     NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k
-              print "| rung | eta | Z measured | Z Henderson | deviation % | overlap fraction | max penetration / r | energy drift | pair collisions per disk per time unit (Enskog) | wall collisions per time unit | ns per particle-step |"
-              print "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"; next }
-    { printf "| %s | %s | %.3f +- %.3f | %.3f | %+.2f +- %.2f | %.3g | %.3g | %.2g | %.4f (%.4f) | %.4g | %.4g |\n",
+              print "| rung | eta | Z measured | Z Henderson | deviation % | overlap fraction | overlapping pairs per state | max penetration / r | energy drift | pair collisions per disk per time unit (Enskog) | wall collisions per time unit | ns per particle-step | time / K = 1 |"
+              print "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"; next }
+    { printf "| %s | %s | %.3f +- %.3f | %.3f | %+.2f +- %.2f | %.3g | %.4g | %.3g | %.2g | %.4f (%.4f) | %.4g | %.4g | %.2f |\n",
         $col["rung"], $col["eta"], $col["z"], $col["z_stderr"], $col["z_henderson"], $col["deviation_pct"],
-        $col["deviation_stderr_pct"], $col["overlap_state_fraction"], $col["max_penetration_over_r"],
-        $col["energy_drift"], $col["pair_collisions_per_disk_time"], $col["enskog_pair_collisions_per_disk_time"],
-        $col["wall_collisions_per_time"], $col["min_ns_per_particle_step"] }'
+        $col["deviation_stderr_pct"], $col["overlap_state_fraction"], $col["overlap_pairs_per_state"],
+        $col["max_penetration_over_r"], $col["energy_drift"], $col["pair_collisions_per_disk_time"],
+        $col["enskog_pair_collisions_per_disk_time"], $col["wall_collisions_per_time"],
+        $col["min_ns_per_particle_step"], $col["time_over_k1"] }'
 [ "$QUICK" = 1 ] || plot "$OUTPUT"
