@@ -100,7 +100,7 @@ typedef struct {
     int check;         /* omp: check the broad phase against all pairs every step */
     int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
     int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
-    int exact;         /* seq, omp: event-driven steps, every collision in time order (exact.h) */
+    int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
 } Options;
 
 /* What a backend reports about its run, printed on stderr by the driver. */
@@ -119,6 +119,7 @@ extern const char backend_options[]; /* backend-specific lines for --help ("" if
 extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the backend supports */
 #define SIM_FEATURE_SUBSTEPS 1u
 #define SIM_FEATURE_PRESSURE 2u
+#define SIM_FEATURE_EXACT 4u
 /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
  * 1..S-1 (sub-steps K, 2K, ...) to io_write_state. When sim->wi is set, every wall reflection adds

@@ -22,6 +22,11 @@
  * - Two disks whose last events were with each other do not collide again: after an elastic
  *   collision they separate, and in free flight they cannot meet until one of them has another event.
  *   (Without this rule, rounding could make a grazing pair "approach" again at the same instant.)
+ * - Hard disks never overlap, so a pair that overlaps by more than rounding at tc (c < -slack, see
+ *   exact_alloc; only overlapping starts get there) does not collide: it passes through until it has
+ *   separated, and meets normally from then on. (SPEC.md's rule, an overlapped approaching pair
+ *   collides at t = 0, would here collide again and again at one instant inside a cluster of
+ *   overlapping disks.) Pairs that touch within rounding do collide.
  * - Every processed event updates the per-disk counters: p (pair) and w (wall) as in SPEC.md 3.5, now
  *   any number per step, and a version that marks the disk's older predictions stale.
  *
@@ -47,6 +52,7 @@ typedef struct {
     uint32_t *ver;        /* events of the disk so far, modulo 2^32: the version of its state */
     int32_t *last;        /* partner of the disk's last event; -1 after a wall event or none */
     uint32_t *step_events; /* events of the disk in this step, for EXACT_MAX_STEP_EVENTS */
+    real slack;           /* overlap (-c) that still counts as touching: rounding, not an overlap */
 } ExactDisks;
 
 /* A predicted event: the key (t, kind, i, j) with kind 0 (wall) when i == j, and the versions of the
@@ -65,9 +71,13 @@ typedef struct {
 
 /* ==== the disks ====================================================================================== */
 
-static inline void exact_alloc(ExactDisks *d, Sim *sim, int64_t n)
+/* The slack covers the rounding of c = dd - sigma2 at a contact: coordinates up to L carry errors of a
+ * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. */
+static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
 {
+    int64_t n = p->n;
     d->sim = sim;
+    d->slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r);
     d->t = io_alloc((size_t)n, sizeof *d->t);
     d->ver = io_alloc((size_t)n, sizeof *d->ver);
     d->last = io_alloc((size_t)n, sizeof *d->last);
@@ -111,6 +121,8 @@ static inline int exact_meet(const ExactDisks *d, const Params *p, int64_t i, in
     m->yi = s->y[i] + s->vy[i] * (tc - ti);
     m->xj = s->x[j] + s->vx[j] * (tc - tj);
     m->yj = s->y[j] + s->vy[j] * (tc - tj);
+    real dx = m->xj - m->xi, dy = m->yj - m->yi;
+    if (dx * dx + dy * dy - p->sigma2 < -d->slack) return 0;
     m->dt = pair_time_within(m->xi, m->yi, s->vx[i], s->vy[i], m->xj, m->yj, s->vx[j], s->vy[j],
                              p->sigma2, 1 - tc);
     return m->dt >= 0 && tc + m->dt <= 1;
@@ -146,7 +158,6 @@ static inline void exact_apply(ExactDisks *d, const Params *p, const ExactEvent 
         real dt = min_time(wall_time(s->x[i], s->vx[i], lo, hi), wall_time(s->y[i], s->vy[i], lo, hi));
         real vx0 = s->vx[i], vy0 = s->vy[i];
         wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], dt, lo, hi);
-        /* --pressure: events run in time order in seq and omp alike, so each wi sums in one order */
         if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);

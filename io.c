@@ -655,35 +655,10 @@ static void usage(FILE *f)
             "               stderr\n"
             "  --quiet      no timing line on stderr\n"
             "  --exact      event-driven: every collision in time order, any number per disk and step\n"
-            "               (the exact elastic dynamics up to rounding; seq and omp only)\n"
+            "               (the exact elastic dynamics up to rounding); not with --substeps\n"
             "  --help       this text\n"
             "%s",
             backend_name, DEFAULT_SEED, backend_options);
-}
-
-/* Options that not every backend implements, and the backends that do (by name, without the
- * precision suffix). The others reject them with one message, before reading the input. */
-static const struct {
-    const char *option;
-    const char *backends; /* space-separated names */
-} backend_support[] = {
-    {"--exact", "seq omp"},
-};
-
-static void require_support(const char *option)
-{
-    size_t base = strlen(backend_name) - strlen(SIM_SUFFIX);
-    for (size_t k = 0; k < sizeof backend_support / sizeof backend_support[0]; k++) {
-        if (strcmp(backend_support[k].option, option) != 0) continue;
-        for (const char *b = backend_support[k].backends; *b;) {
-            size_t len = strcspn(b, " ");
-            if (len == base && strncmp(b, backend_name, len) == 0) return;
-            b += len;
-            b += strspn(b, " ");
-        }
-        io_fail("%s is not available in %s (only in: %s)", option, backend_name,
-                backend_support[k].backends);
-    }
 }
 
 static long long option_value(int argc, char **argv, int *k, long long lo, long long hi)
@@ -703,7 +678,7 @@ static void parse_args(int argc, char **argv, Options *opt)
     opt->seed = DEFAULT_SEED;
     opt->substeps = 1;
     opt->path = NULL;
-    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0;
+    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0, substeps_given = 0;
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -722,6 +697,7 @@ static void parse_args(int argc, char **argv, Options *opt)
             opt->quiet = 1;
         } else if (strcmp(a, "--substeps") == 0) {
             opt->substeps = (int)option_value(argc, argv, &k, 1, 1024);
+            substeps_given = 1;
             if (opt->substeps & (opt->substeps - 1))
                 io_fail("--substeps must be a power of two, so that velocities scale exactly (found "
                         "%d)", opt->substeps);
@@ -732,8 +708,9 @@ static void parse_args(int argc, char **argv, Options *opt)
             if (!(backend_features & SIM_FEATURE_PRESSURE))
                 io_fail("--pressure is not supported by %s", backend_name);
         } else if (strcmp(a, "--exact") == 0) {
-            require_support(a);
             opt->exact = 1;
+            if (!(backend_features & SIM_FEATURE_EXACT))
+                io_fail("--exact is not supported by %s", backend_name);
         } else if (own_threads && strcmp(a, "--threads") == 0) {
             opt->threads = (int)option_value(argc, argv, &k, 1, 4096);
         } else if (own_threads && strcmp(a, "--check") == 0) {
@@ -746,8 +723,8 @@ static void parse_args(int argc, char **argv, Options *opt)
             opt->path = a;
         }
     }
-    if (opt->exact && opt->substeps > 1)
-        io_fail("--exact and --substeps exclude each other (--exact has no step limit to split)");
+    /* --exact already has every collision: sub-steps would only cut its steps into more windows */
+    if (opt->exact && substeps_given) io_fail("--exact and --substeps exclude each other");
     if (!opt->path) opt->path = "-";
     opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
 }

@@ -31,7 +31,7 @@ const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
     "               phase missed an event; for testing\n";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE;
+const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */

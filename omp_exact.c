@@ -20,6 +20,7 @@
 #include "exact.h"
 
 #include <omp.h>
+#include <stdio.h>
 #include <string.h>
 
 /* Relative margins for rounding, as in omp.c: of positions and times (REL; it covers WINDOW_EVENTS
@@ -54,6 +55,7 @@ typedef struct {
     ExactDisks d;
     const Params *p;
     int nt;
+    int check;            /* --check: all pairs after every window (check_window) */
     XThread *th;
     ExactHeap heap;
     /* the window's grid */
@@ -65,6 +67,8 @@ typedef struct {
     uint32_t *win_events; /* n: events of each disk in the window */
     double vbound;        /* bound on |vx|, |vy| within the window */
     double rate;          /* events per time unit, estimated from the last window */
+    uint64_t windows;     /* for --stats: windows run, */
+    double start_s, loop_s; /* seconds in their starts (parallel) and event loops (sequential) */
 } XWork;
 
 /* Width of cells from which two disks can touch within a window of length h (see the top comment).
@@ -188,12 +192,33 @@ static inline int window_ends(XWork *w, int64_t i)
            fabs((double)s->vy[i]) > w->vbound;
 }
 
+/* --check: after a window that ended at t1, no disk or pair may have an event before t1 (or at t1,
+ * when the window ran to its planned end): the grid would have missed it. All pairs, so slow. */
+static void check_window(const XWork *w, real t0, real t1, int early)
+{
+    const ExactDisks *d = &w->d;
+    const Params *p = w->p;
+    for (int64_t i = 0; i < p->n; i++) {
+        real t = exact_wall_time(d, p, i);
+        if (t >= 0 && (t < t1 || (!early && t == t1)))
+            io_fail("--check: window [%.17g, %.17g] left the wall event of disk %lld at t = %.17g",
+                    (double)t0, (double)t1, (long long)i, (double)t);
+        for (int64_t j = i + 1; j < p->n; j++) {
+            t = exact_pair_time(d, p, i, j);
+            if (t >= 0 && (t < t1 || (!early && t == t1)))
+                io_fail("--check: window [%.17g, %.17g] missed the event of disks %lld and %lld at "
+                        "t = %.17g",
+                        (double)t0, (double)t1, (long long)i, (long long)j, (double)t);
+        }
+    }
+}
+
 /* Runs the window starting at t0; returns where it ended and sets *done when the step is over. */
 static real run_window(XWork *w, real t0, int *done, RunStats *st)
 {
     const Params *p = w->p;
     int64_t n = p->n;
-    double vmax = 0;
+    double vmax = 0, clock0 = io_now();
 #pragma omp parallel for schedule(static) reduction(max : vmax)
     for (int64_t i = 0; i < n; i++) {
         double ax = fabs((double)w->d.sim->vx[i]), ay = fabs((double)w->d.sim->vy[i]);
@@ -224,6 +249,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         w->heap.len += w->th[t].buf.len;
     }
     heap_build(&w->heap);
+    double clock1 = io_now();
 
     /* the events in key order, as seq.c processes them */
     uint64_t events = 0;
@@ -245,21 +271,25 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap);
     }
     st->events += events;
+    w->windows++;
+    w->start_s += clock1 - clock0;
+    w->loop_s += io_now() - clock1;
     double len = (double)t1 - (double)t0;
     if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)events / len;
+    if (w->check) check_window(w, t0, t1, early);
     *done = !early && t1 == 1;
     return t1;
 }
 
 int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
-    (void)opt;
     int64_t n = par->n;
     XWork w;
     memset(&w, 0, sizeof w);
     w.p = par;
+    w.check = opt->check;
     w.nt = omp_get_max_threads();
-    exact_alloc(&w.d, sim, n);
+    exact_alloc(&w.d, sim, par);
     w.th = io_alloc((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
@@ -279,6 +309,10 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;
+    if (opt->stats)
+        fprintf(stderr, "%s: --exact: %llu windows; %.6f s in their starts (parallel), %.6f s in "
+                "their event loops (sequential)\n", backend_name, (unsigned long long)w.windows,
+                w.start_s, w.loop_s);
 
     for (int t = 0; t < w.nt; t++) {
         st->pair_tests += w.th[t].tests;

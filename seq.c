@@ -12,7 +12,7 @@
 
 const char backend_name[] = "seq" SIM_SUFFIX;
 const char backend_options[] = "";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE;
+const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 typedef struct {
     real t;  /* time of the event within the step, 0..1 */
@@ -136,7 +136,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
 {
     ExactDisks d;
     ExactHeap h = {NULL, 0, 0};
-    exact_alloc(&d, sim, par->n);
+    exact_alloc(&d, sim, par);
     double t0 = io_now();
     for (int64_t step = 1; step <= par->steps; step++) {
         /* every event of the step's start, then the smallest valid one until none is left */

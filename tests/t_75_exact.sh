@@ -4,12 +4,14 @@
 #   overlapping; print and perf) at 1, 2, 3 and 7 threads, in both builds;
 # - the physics: kinetic energy kept to rounding (relative drift < 1e-12 over 300 steps), no overlaps
 #   on non-overlapping starts (tools/check --exact, which must also catch the overlaps of SPEC.md's step);
+# - omp --exact --check (every window against all pairs) on scenes of thousands of disks; seq_san;
 # - option handling: cuda rejects --exact, --exact with --substeps is an error.
 X=$TMP/exact
 mkdir -p "$X"
 
-for f in tests/exact/*.in; do
-    b=$(basename "$f" .in)
+for f in tests/exact/*.out; do
+    b=$(basename "$f" .out)
+    f=${f%.out}.in
     on_backends_exact() {
         local prog t
         for prog in seq seq_f32; do
@@ -25,6 +27,31 @@ for f in tests/exact/*.in; do
     on_backends_exact
 done
 
+# A lone disk with speeds unrelated to the box, 50 steps, 37 wall collisions: against the closed form
+# (unfold each axis: u = (c0 - lo) + v t, fold with period 2 (hi - lo)), positions within 1e-9,
+# velocity signs and the wall count exact.
+closed_form() { # prints: worst position error, velocity mismatches, expected w, printed w
+    awk 'function floor(a,   f) { f = int(a); return f > a ? f - 1 : f }
+         function fold(c0, v, t,   u, m) { u = (c0 - 1) + v * t; m = u - 16 * floor(u / 16)
+                                           pos = 1 + (m <= 8 ? m : 16 - m); vel = m < 8 ? v : -v }
+         function err(a, b) { return a > b ? a - b : b - a }
+         BEGIN { vx = 3.14159265; vy = -2.71828183 }
+         { fold(5, vx, $1); if (err($3, pos) > worst) worst = err($3, pos); bad += sprintf("%.8f", vel) != $5
+           fold(5, vy, $1); if (err($4, pos) > worst) worst = err($4, pos); bad += sprintf("%.8f", vel) != $6
+           if (NF == 8) { w = floor((4 + vx * 50) / 8) - floor((4 + vy * 50) / 8); got = $8 } }
+         END { printf "%g %d %d %d\n", worst, bad, w, got }' "$1"
+}
+for prog in seq "omp --threads 2"; do
+    # shellcheck disable=SC2086
+    ./$prog tests/exact/closed_form.in --exact --quiet > "$X/closed.out" 2> "$X/err"
+    read -r worst bad w got < <(closed_form "$X/closed.out")
+    if [ "$bad" = 0 ] && [ "$w" = 37 ] && [ "$got" = 37 ] && awk -v e="$worst" 'BEGIN { exit !(e < 1e-9) }'; then
+        pass "exact/closed_form $prog: 50 steps within $worst of the closed form, w = 37"
+    else
+        fail "exact/closed_form $prog" "error $worst, $bad velocity mismatches, w = $got (expected $w)"
+    fi
+done
+
 # name and tools/gen arguments, one scene a line
 exact_scenes() {
     cat <<'SCENES'
@@ -38,6 +65,7 @@ overlap_print    300 --fraction 0.5 --overlap --speed 1 --steps 20 --mode print
 overlap_fast     200 --overlap --assignment --L 100 --steps 15 --mode print
 tiny_radius      300 --r 0.001 --fraction 0.1 --speed 2 --steps 20 --mode print
 mid_dense        2000 --fraction 0.4 --speed 1 --steps 4
+overlap_deep     3000 --fraction 3 --overlap --speed 0.3 --steps 3 --mode print
 SCENES
 }
 
@@ -102,11 +130,41 @@ else
     pass "exact/check sees the overlaps of the default step"
 fi
 
+# omp --exact --check: after every window, all pairs must show no event the grid missed.
+for args in "2000 --fraction 0.4 --speed 1 --steps 3" \
+            "1500 --assignment --L 1500 --steps 2" \
+            "1500 --r 1e-6 --L 1 --speed 1e5 --steps 2" \
+            "1500 --fraction 0.7 --overlap --speed 2 --steps 2"; do
+    # shellcheck disable=SC2086
+    tools/gen $args > "$X/check.in"
+    for prog in omp omp_f32; do
+        if ./$prog "$X/check.in" --exact --check --quiet --threads 2 > /dev/null 2> "$X/err"; then
+            pass "exact/$prog --check: $args"
+        else
+            fail "exact/$prog --check: $args" "$(head -c 300 "$X/err")"
+        fi
+    done
+done
+
+# seq under the address and undefined-behaviour sanitizers (built by make test)
+if [ -x ./seq_san ]; then
+    for f in tests/exact/*.in "$X/overlap_print.in"; do
+        [ -f "$f" ] || continue
+        if ./seq_san "$f" --exact --quiet > "$X/out" 2> "$X/err" && ./seq "$f" --exact --quiet | cmp -s - "$X/out"; then
+            pass "exact/sanitizer $(basename "$f" .in)"
+        else
+            fail "exact/sanitizer $(basename "$f" .in)" "$(head -c 300 "$X/err")"
+        fi
+    done
+else
+    skip "exact/sanitizer" "seq_san not built"
+fi
+
 # Options: backends without --exact reject it before any output.
 if [ -x ./cuda ]; then
     if ./cuda tests/exact/walls.in --exact > "$X/out" 2> "$X/err"; then
         fail "exact/cuda rejects --exact" "exit 0"
-    elif [ -s "$X/out" ] || ! grep -q -- "--exact is not available" "$X/err"; then
+    elif [ -s "$X/out" ] || ! grep -q -- "--exact is not supported" "$X/err"; then
         fail "exact/cuda rejects --exact" "$(head -c 300 "$X/err")"
     else
         pass "exact/cuda rejects --exact"
@@ -114,3 +172,38 @@ if [ -x ./cuda ]; then
 else
     skip "exact/cuda rejects --exact" "cuda not built"
 fi
+for prog in seq omp seq_f32 omp_f32; do
+    if ./$prog tests/exact/walls.in --exact --substeps 2 > "$X/out" 2> "$X/err"; then
+        fail "exact/$prog rejects --exact --substeps" "exit 0"
+    elif [ -s "$X/out" ] || [ "$(wc -l < "$X/err")" -ne 1 ] || ! grep -q "exclude each other" "$X/err"; then
+        fail "exact/$prog rejects --exact --substeps" "$(head -c 300 "$X/err")"
+    else
+        pass "exact/$prog rejects --exact --substeps"
+    fi
+done
+
+# --pressure: the walls case has 12 reflections of |vx| = 32 and one of |vy| = 2, so the impulse is
+# 12 * 64 + 4 = 772 over 3 time units on 4 walls of length 10: P = 772 / 120. omp adds the same per-disk
+# sums in the same order as seq on a generated scene.
+for prog in seq "omp --threads 3" seq_f32 "omp_f32 --threads 2"; do
+    # shellcheck disable=SC2086
+    if ./$prog tests/exact/walls.in --exact --pressure --quiet > /dev/null 2> "$X/err" &&
+        grep -q "wall impulse 772 over 3 time units on 4 walls of length 10: P = 6.43333333333333" "$X/err"; then
+        pass "exact/walls $prog --pressure"
+    else
+        fail "exact/walls $prog --pressure" "$(head -c 300 "$X/err")"
+    fi
+done
+for suf in "" _f32; do
+    ./seq$suf "$X/dense_fast.in" --exact --pressure --quiet > /dev/null 2> "$X/p.ref"
+    bad=""
+    for t in 1 2 3 7; do
+        ./omp$suf "$X/dense_fast.in" --exact --pressure --quiet --threads $t > /dev/null 2> "$X/p.out"
+        sed "s/^omp/seq/" "$X/p.out" | cmp -s - "$X/p.ref" || bad="$bad $t"
+    done
+    if [ -z "$bad" ] && grep -q "pressure: wall impulse" "$X/p.ref"; then
+        pass "exact/dense_fast omp$suf --pressure same as seq$suf at 1 2 3 7 threads"
+    else
+        fail "exact/dense_fast omp$suf --pressure" "differs at$bad: $(head -c 200 "$X/p.ref")"
+    fi
+done
