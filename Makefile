@@ -15,7 +15,7 @@ SANFLAGS = -std=c99 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-s
 
 HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
 PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
-PROGRAMS_F32 = seq_f32 omp_f32
+PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
 .PHONY: all test golden bench accuracy plots clean tools

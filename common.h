@@ -126,6 +126,9 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
  * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included. Returns 0, or non-zero after
  * printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+/* Writes the lines of a whole state: step 0 before backend_run, the final state (with counts) after.
+ * seq calls io_write_state; omp and cuda format on several threads (1e8 lines take minutes on one). */
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
 
 /* ---- io.c: everything untimed ---------------------------------------------------------------------- */
 
@@ -262,17 +265,26 @@ static inline SIM_HD void finish_step(real *x, real *y, real vx, real vy, real t
     }
 }
 
-/* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
- * finish the step. i is the lower original index. */
-static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
-                                       real *yj, real *vxj, real *vyj, real t1, real lo,
-                                       real hi)
+/* The first half of an accepted pair event at t1 (3.4): both disks fly to contact and swap their
+ * normal velocities. i is the lower original index. Backends where each partner updates only itself
+ * (cuda) call this and then finish_step for their own side. */
+static inline SIM_HD void pair_contact(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+                                       real *yj, real *vxj, real *vyj, real t1)
 {
     *xi = *xi + *vxi * t1;
     *yi = *yi + *vyi * t1;
     *xj = *xj + *vxj * t1;
     *yj = *yj + *vyj * t1;
     pair_bounce(*xi, *yi, vxi, vyi, *xj, *yj, vxj, vyj);
+}
+
+/* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
+ * finish the step. i is the lower original index. */
+static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+                                       real *yj, real *vxj, real *vyj, real t1, real lo,
+                                       real hi)
+{
+    pair_contact(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1);
     finish_step(xi, yi, *vxi, *vyi, t1, lo, hi);
     finish_step(xj, yj, *vxj, *vyj, t1, lo, hi);
 }

@@ -32,7 +32,8 @@
 #include <vector>
 
 extern "C" const char backend_name[] = "cuda";
-extern "C" const unsigned backend_features = 0; /* no --substeps, no --pressure */
+/* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
+extern "C" const unsigned backend_features = SIM_FEATURE_SUBSTEPS;
 extern "C" const char backend_options[] = "";
 
 #define CUDA_CHECK(call)                                                                             \
@@ -46,21 +47,41 @@ extern "C" const char backend_options[] = "";
 #define THREADS 256
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
-#define ENTRY_CAP (1LL << 26)     /* (slice, disk) entries a step may bin, unless N alone is more */
+#define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
 #define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
 #define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
 #define PHASES 7                  /* phases timed under --stats */
 
+/* Relative margins of the broad phase for rounding, as in omp.c: of positions and times (REL, about
+ * 4.5e6 rounding units of double, 84 of float) and of pair_time near a graze (GRAZE, about 4500 and 840
+ * units). */
+#ifdef SIM_FLOAT
+#define REL_MARGIN 1e-5
+#define GRAZE_MARGIN 1e-4
+#else
+#define REL_MARGIN 1e-9
+#define GRAZE_MARGIN 1e-12
+#endif
+
 /* ==== device state ======================================================================================= */
+
+/* A position (x, y) or a velocity (vx, vy) as one vector: one 16-byte load (8 in float) instead of two. */
+#ifdef SIM_FLOAT
+typedef float2 real2;
+#else
+typedef double2 real2;
+#endif
 
 /* One copy of the disks in slot order; id maps a slot to the disk's original index. */
 typedef struct {
-    double *x, *y, *vx, *vy;
+    real2 *pos, *vel; /* (x, y) and (vx, vy) */
     int32_t *pc, *wc, *id;
 } DevState;
 
 /* A pair event: hi = (t bits << 1) | 1 (kind 1), lo = (i << 31) | j with i < j original indices;
- * a is i's slot, b is j's. Wall events are kept per disk, hi = t bits << 1 (kind 0). */
+ * a is i's slot, b is j's. Wall events are kept per disk, hi = t bits << 1 (kind 0). Event times are
+ * never negative nor -0 (wall_time, pair_time), and the bits of non-negative IEEE numbers, double or
+ * float, order like their values: comparing (hi, lo) as integers is event_before. */
 typedef struct {
     uint64_t hi, lo;
     int32_t a, b;
@@ -93,14 +114,35 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
     return g.shfl(base, 0) + g.thread_rank();
 }
 
-static __device__ __forceinline__ uint64_t time_key(double t)
+#ifdef SIM_FLOAT
+static __device__ __forceinline__ uint64_t time_key(real t)
+{
+    return (uint64_t)__float_as_uint(t) << 1;
+}
+
+static __device__ __forceinline__ real key_time(uint64_t hi)
+{
+    return __uint_as_float((unsigned)(hi >> 1));
+}
+#else
+static __device__ __forceinline__ uint64_t time_key(real t)
 {
     return (uint64_t)__double_as_longlong(t) << 1;
 }
 
-static __device__ __forceinline__ double key_time(uint64_t hi)
+static __device__ __forceinline__ real key_time(uint64_t hi)
 {
     return __longlong_as_double((long long)(hi >> 1));
+}
+#endif
+
+/* The slice of an event time t (0 <= t <= 1), K slices. bin_kernel and detect_kernel both use this
+ * rounding of t K, which is monotone in t: an event before a disk's wall event is never in a later
+ * slice than the wall event. */
+static __device__ __forceinline__ int64_t slice_of(real t, int K)
+{
+    int64_t k = (int64_t)(t * (real)K);
+    return k < K - 1 ? k : K - 1;
 }
 
 /* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours. */
@@ -112,10 +154,9 @@ static __device__ __forceinline__ int64_t cell_of(double c, double cs, int64_t g
     return (int64_t)q;
 }
 
-static __device__ __forceinline__ uint64_t wall_key(double x, double y, double vx, double vy, double lo,
-                                                    double hi)
+static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, real vy, real lo, real hi)
 {
-    double tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
+    real tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
 
@@ -125,7 +166,8 @@ static __device__ __forceinline__ uint64_t wall_key(double x, double y, double v
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
  * disk's wall time get no entry (key gr.cells): disks flying through a wall would otherwise pile up in
- * the border cells. fl(t K) <= fl(tw K) for t < tw, so the slice test is exact. The rank of an entry
+ * the border cells. slice_of(t) <= slice_of(tw) for t < tw, so the slice test is exact. Midpoints are
+ * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
 __global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, uint32_t *rank,
@@ -134,16 +176,17 @@ __global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= gr.m) return;
     int64_t k = e / n, s = e - k * n;
-    double x = st.x[s], y = st.y[s], vx = st.vx[s], vy = st.vy[s];
+    real2 pos = st.pos[s], vel = st.vel[s];
+    real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
     if (k > 0) {
-        double tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
-        if (tw <= 1 && (double)k > floor(tw * gr.K)) {
+        real tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
+        if (tw <= 1 && k > slice_of(tw, gr.K)) {
             keys[e] = (uint32_t)gr.cells;
             return;
         }
     }
     double f = (double)(2 * k + 1) / (double)(2 * gr.K);
-    double mx = x + vx * f, my = y + vy * f;
+    double mx = (double)x + (double)vx * f, my = (double)y + (double)vy * f;
     int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
     uint32_t key = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
     keys[e] = key;
@@ -181,20 +224,18 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) return;
     uint32_t s = order[p];
-    double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
-    out.x[p] = x;
-    out.y[p] = y;
-    out.vx[p] = vx;
-    out.vy[p] = vy;
+    real2 pos = in.pos[s], vel = in.vel[s];
+    out.pos[p] = pos;
+    out.vel[p] = vel;
     out.pc[p] = in.pc[s];
     out.wc[p] = in.wc[s];
     out.id[p] = in.id[s];
-    slot_init(p, wall_key(x, y, vx, vy, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
+    slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
 }
 
 /* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
 typedef struct {
-    double *x, *y, *vx, *vy;
+    real2 *pos, *vel;
     int32_t *id, *slot;
     uint64_t *wall;
 } Entries;
@@ -206,10 +247,8 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, const uint32_t *or
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= (int64_t)start[cells]) return;
     int64_t s = (int64_t)(order[p] % (uint64_t)n);
-    en.x[p] = st.x[s];
-    en.y[p] = st.y[s];
-    en.vx[p] = st.vx[s];
-    en.vy[p] = st.vy[s];
+    en.pos[p] = st.pos[s];
+    en.vel[p] = st.vel[s];
     en.id[p] = st.id[s];
     en.slot[p] = (int32_t)s;
     en.wall[p] = wall_hi[s];
@@ -220,57 +259,61 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
-    slot_init(s, wall_key(st.x[s], st.y[s], st.vx[s], st.vy[s], par.lo, par.hi), wall_hi, best_hi, best_lo,
-              partner);
+    real2 pos = st.pos[s], vel = st.vel[s];
+    slot_init(s, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
 }
 
 /* ==== detect ============================================================================================= */
 
-/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own: three
- * rows, each one contiguous run of entries. en.slot == NULL means entry == slot (K = 1). */
-__global__ void detect_kernel(Entries en, const uint32_t *keys, const uint32_t *start, Grid gr, double sigma2,
-                              PairEvent *ev, int64_t cap, StepInfo *info, uint64_t *best_hi)
+/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own. Cell
+ * order is row by row, so the row above lies wholly before p: what is left is the rest of p's own row
+ * (from p + 1 to the end of the cell to its right) and the three cells of the row below, two contiguous
+ * runs of entries, walked as one loop. en.slot == NULL means entry == slot (K = 1). Entry and cell
+ * indices fit in 32 bits (entry_cap, cell_cap). */
+__global__ void detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
+                              Grid gr, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
+                              uint64_t *best_hi)
 {
-    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
     unsigned long long tests = 0;
-    if (p < (int64_t)start[gr.cells]) {
-        uint32_t key = keys[p], g = (uint32_t)gr.g;
+    if (p < __ldg(&start[gr.cells])) {
+        uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
         uint32_t k = key / gr.ncell, c = key - k * gr.ncell;
-        int64_t cy = c / g, cx = c - (uint32_t)cy * g;
-        double x = en.x[p], y = en.y[p], vx = en.vx[p], vy = en.vy[p];
-        int32_t id = en.id[p];
-        uint64_t wall = en.wall[p];
-        int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < gr.g ? cx + 1 : gr.g - 1;
-        for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
-            if (ny < 0 || ny >= gr.g) continue;
-            int64_t row = (int64_t)k * gr.ncell + ny * gr.g;
-            int64_t q0 = start[row + x0], q1 = start[row + x1 + 1];
-            for (int64_t q = q0 > p + 1 ? q0 : p + 1; q < q1; q++) {
-                double x2 = en.x[q], y2 = en.y[q], vx2 = en.vx[q], vy2 = en.vy[q];
-                int32_t id2 = en.id[q];
-                tests++;
-                /* the arguments are chosen first, so the warp runs one pair_time, not two branches */
-                bool first = id < id2;
-                double t = pair_time(first ? x : x2, first ? y : y2, first ? vx : vx2, first ? vy : vy2,
-                                     first ? x2 : x, first ? y2 : y, first ? vx2 : vx, first ? vy2 : vy, sigma2);
-                if (t < 0) continue;
-                if (gr.K > 1) {
-                    int64_t kt = (int64_t)(t * gr.K);
-                    if (kt > gr.K - 1) kt = gr.K - 1;
-                    if (kt != (int64_t)k) continue;
-                }
-                PairEvent e;
-                e.hi = time_key(t) | 1;
-                if (!(e.hi < wall && e.hi < en.wall[q])) continue; /* a wall event comes first */
-                int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
-                e.a = id < id2 ? s : s2;
-                e.b = id < id2 ? s2 : s;
-                e.lo = id < id2 ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
-                unsigned long long at = list_append(&info->found);
-                if ((int64_t)at < cap) ev[at] = e;
-                atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
-                atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
-            }
+        uint32_t cy = c / g, cx = c - cy * g;
+        uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+        uint32_t row = k * gr.ncell + cy * g;
+        uint32_t a0 = p + 1, na = __ldg(&start[row + x1 + 1]) - a0;
+        uint32_t b0 = 0, nb = 0;
+        if (cy + 1 < g) {
+            b0 = __ldg(&start[row + g + x0]);
+            nb = __ldg(&start[row + g + x1 + 1]) - b0;
+        }
+        real2 pos = __ldg(&en.pos[p]), vel = __ldg(&en.vel[p]);
+        int32_t id = __ldg(&en.id[p]);
+        uint64_t wall = __ldg(&en.wall[p]);
+        for (uint32_t i = 0; i < na + nb; i++) {
+            uint32_t q = i < na ? a0 + i : b0 + (i - na);
+            real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
+            int32_t id2 = __ldg(&en.id[q]);
+            tests++;
+            /* the arguments are chosen first, so the warp runs one pair_time, not two branches */
+            bool first = id < id2;
+            real2 pi = first ? pos : pos2, vi = first ? vel : vel2;
+            real2 pj = first ? pos2 : pos, vj = first ? vel2 : vel;
+            real t = pair_time(pi.x, pi.y, vi.x, vi.y, pj.x, pj.y, vj.x, vj.y, sigma2);
+            if (t < 0) continue;
+            if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)k) continue;
+            PairEvent e;
+            e.hi = time_key(t) | 1;
+            if (!(e.hi < wall && e.hi < __ldg(&en.wall[q]))) continue; /* a wall event comes first */
+            int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
+            e.a = first ? s : s2;
+            e.b = first ? s2 : s;
+            e.lo = first ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
+            unsigned long long at = list_append(&info->found);
+            if ((int64_t)at < cap) ev[at] = e;
+            atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
+            atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
         }
     }
     typedef cub::BlockReduce<unsigned long long, THREADS> Reduce;
@@ -403,11 +446,12 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                             const uint64_t *wall_hi, const uint64_t *best_hi, StepInfo *info)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    double vabs = 0;
+    real vabs = 0;
     unsigned long long accepted = 0;
     if (s < n) {
-        double lo = par.lo, hi = par.hi;
-        double x = in.x[s], y = in.y[s], vx = in.vx[s], vy = in.vy[s];
+        real lo = par.lo, hi = par.hi;
+        real2 pos = in.pos[s], vel = in.vel[s];
+        real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
         int32_t pc = in.pc[s], wc = in.wc[s], id = in.id[s];
         int32_t o = partner[s];
         if (o < 0 && wall_hi[s] != NO_EVENT) o = (int32_t)s;
@@ -415,65 +459,65 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             x = x + vx;
             y = y + vy;
         } else if (o == s) {
-            double t1 = key_time(wall_hi[s]);
+            real t1 = key_time(wall_hi[s]);
             wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
             finish_step(&x, &y, vx, vy, t1, lo, hi);
             wc++;
             accepted = 1;
         } else {
-            double t1 = key_time(best_hi[s]);
-            double x2 = in.x[o], y2 = in.y[o], vx2 = in.vx[o], vy2 = in.vy[o];
+            /* both partners compute the contact with the lower original index as i, then each
+             * finishes its own side: the arithmetic of pair_collide */
+            real t1 = key_time(best_hi[s]);
+            real2 pos2 = in.pos[o], vel2 = in.vel[o];
+            real x2 = pos2.x, y2 = pos2.y, vx2 = vel2.x, vy2 = vel2.y;
             int mine_first = id < in.id[o];
-            double xi = mine_first ? x : x2, yi = mine_first ? y : y2;
-            double vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
-            double xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
-            double vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
-            xi = xi + vxi * t1;
-            yi = yi + vyi * t1;
-            xj = xj + vxj * t1;
-            yj = yj + vyj * t1;
-            pair_bounce(xi, yi, &vxi, &vyi, xj, yj, &vxj, &vyj);
-            if (mine_first) {
-                finish_step(&xi, &yi, vxi, vyi, t1, lo, hi);
-                x = xi, y = yi, vx = vxi, vy = vyi;
-            } else {
-                finish_step(&xj, &yj, vxj, vyj, t1, lo, hi);
-                x = xj, y = yj, vx = vxj, vy = vyj;
-            }
+            real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
+            real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
+            real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
+            real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
+            pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
+            x = mine_first ? xi : xj, y = mine_first ? yi : yj;
+            vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
+            finish_step(&x, &y, vx, vy, t1, lo, hi);
             pc++;
             accepted = mine_first;
         }
-        out.x[s] = clamp_coord(x, lo, hi);
-        out.y[s] = clamp_coord(y, lo, hi);
-        out.vx[s] = vx;
-        out.vy[s] = vy;
+        real2 pos1, vel1;
+        pos1.x = clamp_coord(x, lo, hi);
+        pos1.y = clamp_coord(y, lo, hi);
+        vel1.x = vx;
+        vel1.y = vy;
+        out.pos[s] = pos1;
+        out.vel[s] = vel1;
         out.pc[s] = pc;
         out.wc[s] = wc;
         out.id[s] = id;
-        vabs = fmax(fabs(vx), fabs(vy));
+        real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+        vabs = ax < ay ? ay : ax;
     }
-    typedef cub::BlockReduce<double, THREADS> ReduceD;
+    typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;
-    __shared__ typename ReduceD::TempStorage tmp_d;
+    __shared__ typename ReduceR::TempStorage tmp_r;
     __shared__ typename ReduceU::TempStorage tmp_u;
-    double m = ReduceD(tmp_d).Reduce(vabs, cuda::maximum<>());
+    real m = ReduceR(tmp_r).Reduce(vabs, cuda::maximum<>());
     unsigned long long a = ReduceU(tmp_u).Sum(accepted);
     if (threadIdx.x == 0) {
-        atomicMax(&info->vmax, (unsigned long long)__double_as_longlong(m));
+        atomicMax(&info->vmax, (unsigned long long)__double_as_longlong((double)m));
         if (a) atomicAdd(&info->events, a);
     }
 }
 
 /* Print mode: the state back in original index order, for the copy to the host. */
-__global__ void unpermute_kernel(DevState st, int64_t n, double *x, double *y, double *vx, double *vy)
+__global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real *vx, real *vy)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
     int32_t i = st.id[s];
-    x[i] = st.x[s];
-    y[i] = st.y[s];
-    vx[i] = st.vx[s];
-    vy[i] = st.vy[s];
+    real2 pos = st.pos[s], vel = st.vel[s];
+    x[i] = pos.x;
+    y[i] = pos.y;
+    vx[i] = vel.x;
+    vy[i] = vel.y;
 }
 
 /* ==== host side ========================================================================================== */
@@ -498,8 +542,8 @@ typedef struct {
     int64_t ev_cap;
     unsigned long long *counts; /* list lengths of the parallel rounds */
     StepInfo *info, *info_host; /* device record and its pinned copy */
-    double *out_dev;     /* print mode: 4n doubles in original order */
-    double *out_host;    /* its pinned copy */
+    real *out_dev;       /* print mode: 4n reals in original order */
+    real *out_host;      /* its pinned copy */
     cudaEvent_t copied;  /* the copy into out_host is complete */
     cudaStream_t stream;
     int sms;
@@ -539,11 +583,9 @@ static void *dev_alloc(size_t bytes, const char *what)
 
 static void state_alloc(DevState *d, int64_t n)
 {
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
-    d->x = (double *)dev_alloc(nd, "the state");
-    d->y = (double *)dev_alloc(nd, "the state");
-    d->vx = (double *)dev_alloc(nd, "the state");
-    d->vy = (double *)dev_alloc(nd, "the state");
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
+    d->pos = (real2 *)dev_alloc(2 * nd, "the state");
+    d->vel = (real2 *)dev_alloc(2 * nd, "the state");
     d->pc = (int32_t *)dev_alloc(ni, "the state");
     d->wc = (int32_t *)dev_alloc(ni, "the state");
     d->id = (int32_t *)dev_alloc(ni, "the state");
@@ -551,10 +593,8 @@ static void state_alloc(DevState *d, int64_t n)
 
 static void state_free(DevState *d)
 {
-    cudaFree(d->x);
-    cudaFree(d->y);
-    cudaFree(d->vx);
-    cudaFree(d->vy);
+    cudaFree(d->pos);
+    cudaFree(d->vel);
     cudaFree(d->pc);
     cudaFree(d->wc);
     cudaFree(d->id);
@@ -587,9 +627,26 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
 
     state_alloc(&c->st[0], n);
     state_alloc(&c->st[1], n);
-    c->entry_cap = n > ENTRY_CAP ? n : ENTRY_CAP;
-    int64_t k = c->entry_cap / n;
-    c->max_slices = (int)(k > MAX_SLICES ? MAX_SLICES : k);
+    c->wall_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
+    c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
+    c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
+    c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+    events_alloc(c, n / 2 + 4096);
+    c->counts = (unsigned long long *)dev_alloc((PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), "counters");
+    c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
+    CUDA_CHECK(cudaMallocHost((void **)&c->info_host, sizeof(StepInfo)));
+    /* Entries take up to ENTRY_MEMORY of what is left, at most MAX_SLICES per disk: per entry, four
+     * 4-byte keys, three cells of count and start, and (K > 1) a copy of the disk. More entries allow
+     * more slices, hence fewer pair tests, in fast scenes of millions of disks. Entry and cell indices
+     * stay below 2^31. */
+    size_t free_b = 0, total_b = 0;
+    CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
+    double entry_bytes = 16 + 3 * 8 + 2 * sizeof(real2) + 16;
+    double afford = ENTRY_MEMORY * (double)free_b / entry_bytes;
+    int64_t cap = n * MAX_SLICES;
+    if ((double)cap > afford) cap = (int64_t)afford;
+    if (cap > INT32_MAX) cap = INT32_MAX;
+    c->max_slices = cap / n >= 1 ? (int)(cap / n) : 1;
     c->entry_cap = n * c->max_slices;
     c->cell_cap = 3 * c->entry_cap > (1LL << 22) ? 3 * c->entry_cap : (1LL << 22);
     if (c->cell_cap > INT32_MAX - 1) c->cell_cap = INT32_MAX - 1;
@@ -604,34 +661,31 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
     c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
     if (c->max_slices > 1) {
-        c->en.x = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.y = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.vx = (double *)dev_alloc(ne * 8, "the entry copies");
-        c->en.vy = (double *)dev_alloc(ne * 8, "the entry copies");
+        c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
+        c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
         c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
     }
-    c->wall_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
-    c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
-    c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
-    c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
-    events_alloc(c, n / 2 + 4096);
-    c->counts = (unsigned long long *)dev_alloc((PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), "counters");
-    c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
-    CUDA_CHECK(cudaMallocHost((void **)&c->info_host, sizeof(StepInfo)));
     if (par->print && par->steps > 1) {
-        c->out_dev = (double *)dev_alloc((size_t)n * 4 * sizeof(double), "the print buffer");
-        CUDA_CHECK(cudaMallocHost((void **)&c->out_host, (size_t)n * 4 * sizeof(double)));
+        c->out_dev = (real *)dev_alloc((size_t)n * 4 * sizeof(real), "the print buffer");
+        CUDA_CHECK(cudaMallocHost((void **)&c->out_host, (size_t)n * 4 * sizeof(real)));
         CUDA_CHECK(cudaEventCreateWithFlags(&c->copied, cudaEventDisableTiming));
     }
 
     DevState *d = &c->st[0];
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
-    CUDA_CHECK(cudaMemcpy(d->x, sim->x, nd, cudaMemcpyHostToDevice));
-    CUDA_CHECK(cudaMemcpy(d->y, sim->y, nd, cudaMemcpyHostToDevice));
-    CUDA_CHECK(cudaMemcpy(d->vx, sim->vx, nd, cudaMemcpyHostToDevice));
-    CUDA_CHECK(cudaMemcpy(d->vy, sim->vy, nd, cudaMemcpyHostToDevice));
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
+    real2 *pos = (real2 *)io_alloc((size_t)n, sizeof *pos), *vel = (real2 *)io_alloc((size_t)n, sizeof *vel);
+    for (int64_t i = 0; i < n; i++) {
+        pos[i].x = sim->x[i];
+        pos[i].y = sim->y[i];
+        vel[i].x = sim->vx[i];
+        vel[i].y = sim->vy[i];
+    }
+    CUDA_CHECK(cudaMemcpy(d->pos, pos, 2 * nd, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(d->vel, vel, 2 * nd, cudaMemcpyHostToDevice));
+    free(pos);
+    free(vel);
     CUDA_CHECK(cudaMemcpy(d->pc, sim->pc, ni, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(d->wc, sim->wc, ni, cudaMemcpyHostToDevice));
     int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
@@ -652,10 +706,8 @@ static void cuda_close(Cuda *c)
     cudaFree(c->count);
     cudaFree(c->start);
     cudaFree(c->scan_tmp);
-    cudaFree(c->en.x);
-    cudaFree(c->en.y);
-    cudaFree(c->en.vx);
-    cudaFree(c->en.vy);
+    cudaFree(c->en.pos);
+    cudaFree(c->en.vel);
     cudaFree(c->en.id);
     cudaFree(c->en.slot);
     cudaFree(c->en.wall);
@@ -702,7 +754,10 @@ static void phase_report(const Cuda *c)
 /* The binning of a step whose largest velocity component is vmax. A pair with an event at t in slice
  * k is, at t, at most 2r apart per axis (plus rounding, covered by the margin), and each midpoint of
  * slice k is within |v| / (2K) of the disk at t, so midpoints are at most 2r + vmax / K + margin apart:
- * with cells at least that wide the pair is in neighbouring cells. K trades binning work (n K entries)
+ * with cells at least that wide the pair is in neighbouring cells. The margin is omp's: the rounding of
+ * positions and times (REL_MARGIN of the coordinates' scale), and pair_time near a graze, where D > 0
+ * can hold while the exact paths miss contact by up to about eps dd / r, with dd <= reach^2 for a
+ * pair with an event. K trades binning work (n K entries)
  * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice). */
 static Grid grid_choose(const Cuda *c, double vmax)
 {
@@ -713,8 +768,9 @@ static Grid grid_choose(const Cuda *c, double vmax)
     Grid gr;
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
-    double margin = 1e-6 * (2 * r + 4 * vmax) + 1e-9 * (L + 2 * vmax);
-    double cell_min = 2 * r + vmax / gr.K + margin;
+    double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
+    double margin = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
+    double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + REL_MARGIN) + REL_MARGIN * scale;
     double gmax = floor(sqrt((double)c->cell_cap / gr.K));
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;
@@ -754,7 +810,7 @@ static int step_launch(Cuda *c, const Grid *gr)
         CUDA_LAUNCHED();
         in = 1 - in;
         DevState *d = &c->st[in];
-        en.x = d->x, en.y = d->y, en.vx = d->vx, en.vy = d->vy, en.id = d->id;
+        en.pos = d->pos, en.vel = d->vel, en.id = d->id;
         en.slot = NULL;
         en.wall = c->wall_hi;
     } else {
@@ -816,30 +872,23 @@ static double host_vmax(const Sim *sim, int64_t n)
 {
     double m = 0;
     for (int64_t i = 0; i < n; i++) {
-        m = fmax(m, fabs(sim->vx[i]));
-        m = fmax(m, fabs(sim->vy[i]));
+        m = fmax(m, fabs((double)sim->vx[i]));
+        m = fmax(m, fabs((double)sim->vy[i]));
     }
     return m;
 }
 
-/* Formats one printed state (original order, in out_host) with a few threads and writes it in order. */
-static void print_state(Cuda *c, Output *out, int64_t step)
+/* Formats lines [0, n) of a state with up to 16 host threads, each a contiguous part into its own
+ * buffer, and writes the parts in order. */
+static void format_state(Output *out, int64_t step, const Sim *view, int64_t n, int with_counts)
 {
-    int64_t n = c->n;
-    CUDA_CHECK(cudaEventSynchronize(c->copied));
-    Sim view;
-    memset(&view, 0, sizeof view);
-    view.x = c->out_host;
-    view.y = c->out_host + n;
-    view.vx = c->out_host + 2 * n;
-    view.vy = c->out_host + 3 * n;
     int dump17 = io_dump17(out);
     unsigned hw = std::thread::hardware_concurrency();
     int64_t parts = hw > 1 ? (int64_t)hw : 1;
     if (parts > 16) parts = 16;
     if (n < 65536) parts = 1;
     if (parts == 1) {
-        io_write_state(out, step, &view, 0, n, 0);
+        io_write_state(out, step, view, 0, n, with_counts);
         return;
     }
     std::vector<std::vector<char>> text((size_t)parts);
@@ -852,7 +901,7 @@ static void print_state(Cuda *c, Output *out, int64_t step)
             size_t len = 0;
             for (int64_t i = from; i < to; i++) {
                 if (len + IO_LINE_MAX > buf.size()) buf.resize(buf.size() * 2);
-                len += io_format_line(buf.data() + len, step, i, &view, 0, dump17);
+                len += io_format_line(buf.data() + len, step, i, view, with_counts, dump17);
             }
             buf.resize(len);
         });
@@ -861,13 +910,33 @@ static void print_state(Cuda *c, Output *out, int64_t step)
     for (auto &b : text) io_write_bytes(out, b.data(), b.size());
 }
 
+/* Step 0 and the final state, on host threads. */
+extern "C" void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    format_state(out, step, sim, n, with_counts);
+}
+
+/* Formats one printed state (original order, in out_host) while the device runs the next step. */
+static void print_state(Cuda *c, Output *out, int64_t step)
+{
+    int64_t n = c->n;
+    CUDA_CHECK(cudaEventSynchronize(c->copied));
+    Sim view;
+    memset(&view, 0, sizeof view);
+    view.x = c->out_host;
+    view.y = c->out_host + n;
+    view.vx = c->out_host + 2 * n;
+    view.vy = c->out_host + 3 * n;
+    format_state(out, step, &view, n, 0);
+}
+
 static void print_enqueue(Cuda *c)
 {
     int64_t n = c->n;
-    double *d = c->out_dev;
+    real *d = c->out_dev;
     unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, d, d + n, d + 2 * n, d + 3 * n);
     CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(c->out_host, d, (size_t)n * 4 * sizeof(double), cudaMemcpyDeviceToHost,
+    CUDA_CHECK(cudaMemcpyAsync(c->out_host, d, (size_t)n * 4 * sizeof(real), cudaMemcpyDeviceToHost,
                                c->stream));
     CUDA_CHECK(cudaEventRecord(c->copied, c->stream));
 }
@@ -876,28 +945,29 @@ static void state_download(Cuda *c, Sim *sim)
 {
     int64_t n = c->n;
     DevState *d = &c->st[c->cur];
-    size_t nd = (size_t)n * sizeof(double), ni = (size_t)n * sizeof(int32_t);
-    Sim tmp;
-    if (sim_alloc(&tmp, n)) io_fail("out of memory for %lld disks", (long long)n);
+    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
+    real2 *pos = (real2 *)io_alloc((size_t)n, sizeof *pos), *vel = (real2 *)io_alloc((size_t)n, sizeof *vel);
+    int32_t *pc = (int32_t *)io_alloc((size_t)n, sizeof *pc), *wc = (int32_t *)io_alloc((size_t)n, sizeof *wc);
     int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
-    CUDA_CHECK(cudaMemcpy(tmp.x, d->x, nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(tmp.y, d->y, nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(tmp.vx, d->vx, nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(tmp.vy, d->vy, nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(tmp.pc, d->pc, ni, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(tmp.wc, d->wc, ni, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(pos, d->pos, 2 * nd, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(vel, d->vel, 2 * nd, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(pc, d->pc, ni, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(wc, d->wc, ni, cudaMemcpyDeviceToHost));
     CUDA_CHECK(cudaMemcpy(ids, d->id, ni, cudaMemcpyDeviceToHost));
     for (int64_t s = 0; s < n; s++) {
         int32_t i = ids[s];
-        sim->x[i] = tmp.x[s];
-        sim->y[i] = tmp.y[s];
-        sim->vx[i] = tmp.vx[s];
-        sim->vy[i] = tmp.vy[s];
-        sim->pc[i] = tmp.pc[s];
-        sim->wc[i] = tmp.wc[s];
+        sim->x[i] = pos[s].x;
+        sim->y[i] = pos[s].y;
+        sim->vx[i] = vel[s].x;
+        sim->vy[i] = vel[s].y;
+        sim->pc[i] = pc[s];
+        sim->wc[i] = wc[s];
     }
+    free(pos);
+    free(vel);
+    free(pc);
+    free(wc);
     free(ids);
-    sim_free(&tmp);
 }
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
@@ -910,7 +980,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     int64_t printing = 0; /* step whose state is on its way to out_host, or 0 */
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = io_now();
-    for (int64_t step = 1; step <= par->steps; step++) {
+    /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
+    int64_t k = par->substeps, last = par->steps * k;
+    for (int64_t sub = 1; sub <= last; sub++) {
         for (;;) {
             Grid gr = grid_choose(&c, vmax);
             int next = step_launch(&c, &gr);
@@ -935,11 +1007,12 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
             memcpy(&vmax, &bits, sizeof vmax);
             break;
         }
-        if (par->print && step < par->steps) {
+        if (sub % k) continue;
+        if (par->print && sub < last) {
             print_enqueue(&c);
-            printing = step;
+            printing = sub / k;
         }
-        io_progress(out, step);
+        io_progress(out, sub / k);
     }
     if (printing) {
         CUDA_CHECK(cudaStreamSynchronize(c.stream));

@@ -72,17 +72,35 @@ typedef struct {
 /* ==== the disks ====================================================================================== */
 
 /* The slack covers the rounding of c = dd - sigma2 at a contact: coordinates up to L carry errors of a
- * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. */
+ * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. It never
+ * exceeds r^2 (centres 1.73 r apart), so that deep overlaps pass through even where L / r is so large
+ * that rounding swamps the radius. */
 static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
 {
     int64_t n = p->n;
     d->sim = sim;
-    d->slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r);
+    real slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r), most = p->r * p->r;
+    d->slack = slack < most ? slack : most;
     d->t = io_alloc((size_t)n, sizeof *d->t);
     d->ver = io_alloc((size_t)n, sizeof *d->ver);
     d->last = io_alloc((size_t)n, sizeof *d->last);
     d->step_events = io_alloc((size_t)n, sizeof *d->step_events);
     for (int64_t i = 0; i < n; i++) d->last[i] = -1;
+}
+
+/* Stops the run before its first step if a disk alone would cross the box more often within one step
+ * than EXACT_MAX_STEP_EVENTS allows (as the random placement's speeds up to L/(8r) can when L/r is
+ * huge): such a step could not be run event by event. */
+static inline void exact_check_speeds(const Sim *s, const Params *p)
+{
+    double span = (double)p->hi - (double)p->lo;
+    for (int64_t i = 0; i < p->n; i++) {
+        double crossings = (fabs((double)s->vx[i]) + fabs((double)s->vy[i])) / span;
+        if (crossings > EXACT_MAX_STEP_EVENTS)
+            io_fail("--exact: disk %lld would hit the walls about %.3g times within one step (more than "
+                    "%u events of one disk per step)",
+                    (long long)i, crossings, EXACT_MAX_STEP_EVENTS);
+    }
 }
 
 static inline void exact_free(ExactDisks *d)

@@ -744,7 +744,7 @@ int io_main(int argc, char **argv)
     out.dump17 = opt.dump17;
     out.progress = isatty(STDERR_FILENO);
     out.steps = par.steps;
-    io_write_state(&out, 0, &sim, 0, par.n, 0);
+    backend_write_state(&out, 0, &sim, par.n, 0);
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     par.substeps = opt.substeps;
@@ -768,7 +768,7 @@ int io_main(int argc, char **argv)
     }
     v_unscale = 1;
 
-    io_write_state(&out, par.steps, &sim, 0, par.n, 1);
+    backend_write_state(&out, par.steps, &sim, par.n, 1);
     out_flush(&out);
     if (!opt.quiet) {
         double ps = (double)par.n * (double)par.steps;

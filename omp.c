@@ -29,8 +29,8 @@
 const char backend_name[] = "omp" SIM_SUFFIX;
 const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
-    "  --check      also test every pair each step (O(N^2)) and stop with a message if the broad\n"
-    "               phase missed an event; for testing\n";
+    "  --check      also test every pair each step (with --exact: each time window; O(N^2)) and\n"
+    "               stop with a message if the broad phase missed an event; for testing\n";
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
@@ -834,6 +834,38 @@ static void step_run(Work *w, int tid, int64_t step)
     if (p->print && step < p->steps * k) print_state(w, tid, step / k);
 #pragma omp single
     io_progress(w->out, step / k);
+}
+
+/* Step 0 and the final state: rounds of PRINT_BLOCK lines per thread, each thread formatting into its
+ * own buffer, the buffers written in thread order. */
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    int nt = omp_get_max_threads();
+    if (nt < 2 || n < 2 * PRINT_BLOCK) {
+        io_write_state(out, step, sim, 0, n, with_counts);
+        return;
+    }
+    char **text = io_alloc((size_t)nt, sizeof *text);
+    size_t *cap = io_alloc((size_t)nt, sizeof *cap), *len = io_alloc((size_t)nt, sizeof *len);
+    int dump17 = io_dump17(out);
+    for (int64_t base = 0; base < n; base += (int64_t)nt * PRINT_BLOCK) {
+#pragma omp parallel num_threads(nt)
+        for (int t = omp_get_thread_num(); t < nt; t += omp_get_num_threads()) { /* any team size */
+            int64_t from = base + (int64_t)t * PRINT_BLOCK, to = from + PRINT_BLOCK;
+            if (to > n) to = n;
+            len[t] = 0;
+            for (int64_t i = from; i < to; i++) {
+                text[t] = grow(text[t], &cap[t], len[t] + IO_LINE_MAX, 1);
+                len[t] += io_format_line(text[t] + len[t], step, i, sim, with_counts, dump17);
+            }
+        }
+        for (int t = 0; t < nt; t++)
+            if (len[t]) io_write_bytes(out, text[t], len[t]);
+    }
+    for (int t = 0; t < nt; t++) free(text[t]);
+    free(text);
+    free(cap);
+    free(len);
 }
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)

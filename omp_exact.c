@@ -289,6 +289,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.p = par;
     w.check = opt->check;
     w.nt = omp_get_max_threads();
+    exact_check_speeds(sim, par);
     exact_alloc(&w.d, sim, par);
     w.th = io_alloc((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
@@ -305,7 +306,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         while (!done) from = run_window(&w, from, &done, st);
 #pragma omp parallel for schedule(static)
         for (int64_t i = 0; i < n; i++) exact_finish(&w.d, par, i);
-        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, n, 0);
+        if (par->print && step < par->steps) backend_write_state(out, step, sim, n, 0);
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;

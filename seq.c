@@ -136,6 +136,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
 {
     ExactDisks d;
     ExactHeap h = {NULL, 0, 0};
+    exact_check_speeds(sim, par);
     exact_alloc(&d, sim, par);
     double t0 = io_now();
     for (int64_t step = 1; step <= par->steps; step++) {
@@ -167,6 +168,11 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     free(h.e);
     exact_free(&d);
     return 0;
+}
+
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    io_write_state(out, step, sim, 0, n, with_counts);
 }
 
 /* ==== the step of SPEC.md ============================================================================ */

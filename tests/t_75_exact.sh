@@ -182,6 +182,18 @@ for prog in seq omp seq_f32 omp_f32; do
     fi
 done
 
+# A step that could not be run event by event (speeds up to L/(8r) = 1e99 in a box of 1e50) is refused
+# before any output.
+for prog in seq omp; do
+    if ./$prog inputs/extreme_large_box.in --exact --quiet > "$X/out" 2> "$X/err"; then
+        fail "exact/$prog refuses 1e49 wall collisions per step" "exit 0"
+    elif [ -s "$X/out" ] || [ "$(wc -l < "$X/err")" -ne 1 ] || ! grep -q "would hit the walls" "$X/err"; then
+        fail "exact/$prog refuses 1e49 wall collisions per step" "$(head -c 300 "$X/err")"
+    else
+        pass "exact/$prog refuses 1e49 wall collisions per step"
+    fi
+done
+
 # --pressure: the walls case has 12 reflections of |vx| = 32 and one of |vy| = 2, so the impulse is
 # 12 * 64 + 4 = 772 over 3 time units on 4 walls of length 10: P = 772 / 120. omp adds the same per-disk
 # sums in the same order as seq on a generated scene.

@@ -1,6 +1,8 @@
 # cuda against seq, byte for byte, on generated scenes that stress the broad phase: slow and fast disks
 # (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes.
-# Each scene runs in print and perf mode. Without a GPU every case is a SKIP.
+# Each scene runs in print and perf mode, in double (cuda against seq) and in single precision
+# (cuda_f32 against seq_f32: its broad phase has its own rounding margins). Without a GPU every case
+# is a SKIP.
 cuda_scenes() {
     echo "slow       tools/gen 2000 --fraction 0.2 --speed 0.5 --steps 40 --seed 3"
     echo "medium     tools/gen 1500 --fraction 0.2 --speed 20 --steps 30 --seed 4"
@@ -14,8 +16,10 @@ cuda_scenes() {
 }
 while read -r name cmd; do
     if ! have_gpu; then
-        skip "cuda/$name print" "no GPU"
-        skip "cuda/$name perf" "no GPU"
+        for suf in "" _f32; do
+            skip "cuda$suf/$name print" "no GPU"
+            skip "cuda$suf/$name perf" "no GPU"
+        done
         continue
     fi
     if [ "${cmd%% *}" = printf ]; then
@@ -24,9 +28,43 @@ while read -r name cmd; do
         fail "cuda/$name" "cannot generate the scene"
         continue
     fi
-    for mode in print perf; do
-        sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$mode.in"
-        ./seq "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda_${name}_$mode.expected"
-        same_bytes "cuda/$name $mode" "$TMP/cuda_${name}_$mode.expected" ./cuda "$TMP/cuda_${name}_$mode.in" --quiet
+    for suf in "" _f32; do
+        if [ ! -x "./cuda$suf" ]; then
+            skip "cuda$suf/$name" "./cuda$suf not built"
+            continue
+        fi
+        for mode in print perf; do
+            sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$mode.in"
+            ./seq$suf "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda_${name}_$mode.expected"
+            same_bytes "cuda$suf/$name $mode" "$TMP/cuda_${name}_$mode.expected" \
+                ./cuda$suf "$TMP/cuda_${name}_$mode.in" --quiet
+        done
     done
 done <<< "$(cuda_scenes)"
+
+# --substeps K: cuda runs the K sub-steps of each step and hands out whole steps, like seq
+for name in slow fast walls random; do
+    for k in 2 4; do
+        if ! have_gpu; then
+            skip "cuda/$name --substeps $k" "no GPU"
+            continue
+        fi
+        in=$TMP/cuda_${name}_print.in
+        ./seq "$in" --quiet --substeps $k > "$TMP/cuda_${name}_sub$k.expected"
+        same_bytes "cuda/$name print --substeps $k" "$TMP/cuda_${name}_sub$k.expected" \
+            ./cuda "$in" --quiet --substeps $k
+    done
+done
+
+# --pressure is not offered by cuda: one line on stderr, nothing on stdout, non-zero exit
+if [ -x ./cuda ]; then
+    if ./cuda inputs/$(ls inputs | head -1) --pressure > "$TMP/out" 2> "$TMP/err"; then
+        fail "cuda --pressure rejected" "exit 0"
+    elif [ -s "$TMP/out" ] || [ "$(wc -l < "$TMP/err")" != 1 ] || ! grep -q -- '--pressure' "$TMP/err"; then
+        fail "cuda --pressure rejected" "stdout $(wc -c < "$TMP/out") bytes, stderr: $(head -c 200 "$TMP/err")"
+    else
+        pass "cuda --pressure rejected with one line"
+    fi
+else
+    skip "cuda --pressure rejected" "./cuda not built"
+fi

@@ -20,6 +20,11 @@ const char backend_name[] = "fmtcheck";
 const char backend_options[] = "";
 const unsigned backend_features = 0;
 
+void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    io_write_state(out, step, sim, 0, n, with_counts);
+}
+
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
     (void)sim, (void)par, (void)opt, (void)out, (void)stats;

@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
 # tools/gpu_run.sh: on a machine with an NVIDIA GPU, builds everything, checks cuda against seq and
 # times cuda against omp on the same inputs. Logs and a CSV go to $OUT (default bench/tmp).
-#   tools/gpu_run.sh check   build, make test, compute-sanitizer memcheck on a small scene
-#   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene
-#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated and parsed on the host: ~8 minutes)
+#   tools/gpu_run.sh check   build, make test, compute-sanitizer memcheck on small scenes
+#   tools/gpu_run.sh memcheck  only the memcheck part
+#   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
+#                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs
+#   tools/gpu_run.sh host    the host-side work around the steps at N = 1e8 (random placement, writing
+#                            step 0 and the final state), timed stage by stage, seq (one thread) and cuda
+#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
+#                            about 110 s, nearly all of it parsing the input)
 #   tools/gpu_run.sh profile device time per phase (cuda --stats)
 #   tools/gpu_run.sh all     check, then perf
 set -euo pipefail
@@ -22,20 +27,21 @@ provenance() {
         "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader), $(nproc) cores"
 }
 
-# time_one LABEL N PROGRAM ARGS...: one run, step-loop time from the program's own stderr line.
+# time_one LABEL N PROGRAM ARGS...: one run, step-loop time from the program's own stderr line. The
+# program is named by its file name, or NAME=... in the environment (an earlier build: cuda_base).
 time_one() {
     local label=$1 n=$2 prog=$3
     shift 3
-    local err=$DATA/err
-    if ! "$prog" "$@" > "$DATA/$label.$(basename "$prog").out" 2> "$err"; then
-        echo "$label,$(basename "$prog"),$n,FAILED: $(head -c 200 "$err")" | tee -a "$CSV"
+    local err=$DATA/err name=${NAME:-$(basename "$prog")}
+    if ! "$prog" "$@" > "$DATA/$label.$name.out" 2> "$err"; then
+        echo "$label,$name,$n,FAILED: $(head -c 200 "$err")" | tee -a "$CSV"
         return
     fi
     local line secs ps
     line=$(grep -E "step loop" "$err" | tail -1)
     secs=$(echo "$line" | sed -E 's/.* ([0-9.]+) s step loop.*/\1/')
     ps=$(echo "$line" | sed -E 's/.* ([0-9.e+]+) particle-steps\/s.*/\1/')
-    echo "$label,$(basename "$prog"),$n,$secs,$ps,$(grep -E 'pair tests' "$err" | sed -E 's/.*: //' || true)" \
+    echo "$label,$name,$n,$secs,$ps,$(grep -E 'pair tests' "$err" | sed -E 's/.*: //' || true)" \
         | tee -a "$CSV"
 }
 
@@ -47,13 +53,24 @@ do_check() {
     make -j"$(nproc)" all seq_san 2>&1 | tail -3
     nvidia-smi -L
     set +e
-    make test 2>&1 | tee "$OUT/test.log" | grep -vE '^PASS' 
+    make test 2>&1 | tee "$OUT/test.log" | grep -vE '^PASS'
     set -e
+    do_memcheck
+}
+
+# compute-sanitizer memcheck of cuda and cuda_f32 on small scenes, outputs compared with seq.
+do_memcheck() {
     local san
     san=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
     if [ -x "$san" ]; then
         tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
         printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
+        ./seq_f32 "$DATA/san.in" --quiet > "$DATA/san.seq_f32"
+        "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_san_f32.log" \
+            ./cuda_f32 "$DATA/san.in" --quiet > "$DATA/san.out_f32" && echo "memcheck san cuda_f32: clean" \
+            || { echo "memcheck san cuda_f32: ERRORS"; tail -20 "$OUT/memcheck_san_f32.log"; }
+        cmp -s "$DATA/san.seq_f32" "$DATA/san.out_f32" && echo "memcheck san cuda_f32 output == seq_f32" \
+            || echo "memcheck san cuda_f32 output DIFFERS"
         for f in san san_random; do
             "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_$f.log" \
                 ./cuda "$DATA/$f.in" --quiet > "$DATA/$f.out" && echo "memcheck $f: clean" \
@@ -66,16 +83,28 @@ do_check() {
     fi
 }
 
+# cuda, and BASE/cuda where given, on one input; BASE's output must be the same bytes.
+time_cuda() { # LABEL N INPUT
+    time_one "$1" "$2" ./cuda "$3" --stats
+    time_one "$1" "$2" ./cuda "$3" --stats
+    if [ -n "${BASE:-}" ]; then
+        NAME=cuda_base time_one "$1" "$2" "$BASE/cuda" "$3" --stats
+        NAME=cuda_base time_one "$1" "$2" "$BASE/cuda" "$3" --stats
+        same "$1" cuda_base
+    fi
+}
+
 do_perf() {
     echo "# $(provenance)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     for n in 1000000 10000000; do
         [ -s "$DATA/gas_$n.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps $GAS_STEPS > "$DATA/gas_$n.in"
         ./cuda "$DATA/gas_$n.in" > /dev/null 2>&1 # warm-up, discarded
-        time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
-        time_one gas_$n $n ./cuda "$DATA/gas_$n.in" --stats
-        time_one gas_$n $n ./omp "$DATA/gas_$n.in" --threads "$THREADS" --stats
-        same gas_$n omp
+        time_cuda gas_$n $n "$DATA/gas_$n.in"
+        if [ "${OMP_TOO:-1}" = 1 ]; then
+            time_one gas_$n $n ./omp "$DATA/gas_$n.in" --threads "$THREADS" --stats
+            same gas_$n omp
+        fi
     done
     # omp beside cuda on a small gas
     tools/gen 20000 --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/gas_20000.in"
@@ -86,10 +115,11 @@ do_perf() {
         local s=$RANDOM_STEPS
         [ $n -gt 100000 ] && s=10
         printf '%s\n20000\n1\n%s\nperf\n' $n $s > "$DATA/random_$n.in"
-        time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
-        time_one random_$n $n ./cuda "$DATA/random_$n.in" --stats
-        time_one random_$n $n ./omp "$DATA/random_$n.in" --threads "$THREADS" --stats
-        same random_$n omp
+        time_cuda random_$n $n "$DATA/random_$n.in"
+        if [ "${OMP_TOO:-1}" = 1 ] && [ $n -le 100000 ]; then # omp takes ~50 s at 1e6
+            time_one random_$n $n ./omp "$DATA/random_$n.in" --threads "$THREADS" --stats
+            same random_$n omp
+        fi
     done
     printf '32000\n20000\n1\n10\nperf\n' > "$DATA/random10_32000.in"
     time_one random10_32000 32000 ./omp "$DATA/random10_32000.in" --threads "$THREADS" --stats
@@ -97,6 +127,27 @@ do_perf() {
     same random10_32000 omp
     printf '32000\n20000\n1\n20\nprint\n' > "$DATA/random_print.in"
     time_one random_print 32000 ./cuda "$DATA/random_print.in"
+}
+
+# host_stages PROGRAM NAME ARGS...: each stderr line with the wall time at which it came (the
+# placement's line, the timing line after the steps), and the time of the exit; stdout to /dev/null.
+host_stages() {
+    local prog=$1 name=$2 t0 line
+    shift 2
+    t0=$(date +%s.%N)
+    "$prog" "$@" 2>&1 > /dev/null | while IFS= read -r line; do
+        echo "$(awk -v a="$(date +%s.%N)" -v b="$t0" 'BEGIN { printf "%.1f", a - b }') s $name: $line"
+    done
+    echo "$(awk -v a="$(date +%s.%N)" -v b="$t0" 'BEGIN { printf "%.1f", a - b }') s $name: exit"
+}
+
+# The host work of a 1e8 run with the built-in placement: placement, then step 0 and the final state
+# (S = 0: no steps, so the time after placement is the two writes). seq writes them on one thread, as
+# every backend did before backend_write_state; the placement is the same code in both.
+do_host() {
+    printf '100000000\n6324555\n1\n0\nperf\n' > "$DATA/host.in"
+    host_stages ./seq seq "$DATA/host.in" | tee -a "$OUT/host.log"
+    host_stages ./cuda cuda "$DATA/host.in" | tee -a "$OUT/host.log"
 }
 
 # N = 1e8: generating (~5 min on one core), parsing and formatting the two printed states run on the
@@ -107,7 +158,7 @@ do_big() {
     t0=$(date +%s)
     [ -s "$DATA/big.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps 10 > "$DATA/big.in"
     echo "big: input ready after $(( $(date +%s) - t0 )) s"
-    ./cuda "$DATA/big.in" --stats > /dev/null 2> "$DATA/big.err" || echo "big: cuda FAILED"
+    host_stages ./cuda cuda "$DATA/big.in" --stats > "$DATA/big.err"
     cat "$DATA/big.err"
     echo "big: done after $(( $(date +%s) - t0 )) s"
     echo "gas_$n,cuda,$n,$(grep 'step loop' "$DATA/big.err" | sed -E 's/.* ([0-9.]+) s step loop, ([0-9.e+]+).*/\1,\2/')" >> "$CSV"
@@ -125,10 +176,12 @@ do_profile() {
 
 case ${1:-all} in
 check) do_check ;;
+memcheck) do_memcheck ;;
 perf) do_perf ;;
 profile) do_profile ;;
+host) do_host ;;
 big) do_big ;;
 all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
-*) echo "usage: $0 check|perf|big|all" >&2; exit 2 ;;
+*) echo "usage: $0 check|memcheck|perf|host|big|profile|all" >&2; exit 2 ;;
 esac
 [ -f "$CSV" ] && tail -30 "$CSV" || true
