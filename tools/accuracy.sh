@@ -24,7 +24,7 @@ EQ_STEPS=${EQ_STEPS:-300}       # equilibration of each rung from the generated 
 BLOCKS=${BLOCKS:-8}             # measured runs, each continuing the last; their spread gives Z's error
 BLOCK_STEPS=${BLOCK_STEPS:-500} # steps (time units) of one measured run
 PRINT_STEPS=${PRINT_STEPS:-100} # print-mode run (%.8f) from the equilibrated state, for the overlaps
-TIME_ROUNDS=${TIME_ROUNDS:-5}   # timing runs of every rung in turn, after the measured runs of a scene
+TIME_ROUNDS=${TIME_ROUNDS:-8}   # timing rounds after the measured runs: every scene and rung in turn
 TIME_STEPS=${TIME_STEPS:-100}   # steps of one timing run
 DEPTH=${DEPTH:-1e-6}            # overlaps shallower than DEPTH * r are not counted (%.8f resolves 1e-8)
 THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)} # omp threads: all cores
@@ -223,7 +223,7 @@ provenance() {
     echo "# scenes: tools/gen $N --fraction ETA --speed $SPEED --seed $SEED for ETA in $FRACTIONS; rungs: $RUNGS"
     echo "# per point: $EQ_STEPS steps of equilibration, $BLOCKS x $BLOCK_STEPS measured steps" \
         "(--pressure --dump17, perf), $PRINT_STEPS print-mode steps for overlaps deeper than $DEPTH r," \
-        "$TIME_ROUNDS timing runs of $TIME_STEPS steps (every rung in turn)"
+        "$TIME_ROUNDS timing rounds of $TIME_STEPS steps (every scene and rung in turn)"
     echo "# Z = P L^2 / (N kT), kT = <v^2>/2 per measured run; Z_henderson = (1 + eta^2/8) / (1 - eta)^2;" \
         "enskog rate = 2 (2r) n g sqrt(pi kT), g = (Z_henderson - 1) / (2 eta)"
 }
@@ -236,10 +236,10 @@ COLUMNS+=",energy_drift,overlap_state_fraction,overlap_pairs_per_state,mean_pene
 COLUMNS+=",max_penetration_over_r"
 
 # ---- the study ------------------------------------------------------------------------------------
-# For each scene: first the physics of every rung (equilibration, overlaps, measured runs); then the
-# timing rounds, every rung once per round, so that all rungs of a scene meet the same load on a shared
-# machine; then one CSV row per rung. Times are the step loop as the program reports it, per disk and
-# time unit (K sub-steps count as one step), the best of the measured and timing runs.
+# First the physics of every scene and rung (equilibration, overlaps, measured runs); then the timing
+# rounds; then one CSV row per scene and rung. Times are the step loop as the program reports it, per
+# disk and time unit (K sub-steps count as one step), the best of the measured and timing runs: on a
+# shared machine the least disturbed run is the closest to the cost itself.
 LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo unknown)
 START=$EPOCHREALTIME
 : > "$OUTPUT.rows"
@@ -276,7 +276,11 @@ for eta in $FRACTIONS; do
             state_input "$tag.out" "$base" > "$tag.next.in"
         done
     done
-    for ((k = 1; k <= TIME_ROUNDS; k++)); do
+done
+# the timing rounds: every scene and rung once per round, so that the rounds spread over minutes and
+# every rung meets the same load
+for ((k = 1; k <= TIME_ROUNDS; k++)); do
+    for eta in $FRACTIONS; do
         for rung in $RUNGS; do
             rung_command "$rung"
             tag=$TMP_DIR/eta$eta-$rung
@@ -287,6 +291,8 @@ for eta in $FRACTIONS; do
             awk -v x="$seconds" -v n="$N" -v s="$TIME_STEPS" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }' >> "$tag.times"
         done
     done
+done
+for eta in $FRACTIONS; do
     k1_ns=nan
     [ ! -s "$TMP_DIR/eta$eta-k1.times" ] || k1_ns=$(sort -g "$TMP_DIR/eta$eta-k1.times" | head -n 1)
     for rung in $RUNGS; do
