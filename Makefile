@@ -73,7 +73,7 @@ golden: seq
 bench: all
 	./bench.sh --quick
 
-# the accuracy ladder against the hard-disk equation of state (REPORT.md); about 10 minutes on 2 cores
+# the accuracy ladder against the hard-disk equation of state (REPORT.md 7); about 5 minutes on 2 cores
 accuracy: all
 	tools/accuracy.sh
 
