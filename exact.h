@@ -28,7 +28,8 @@
  *   collides at t = 0, would here collide again and again at one instant inside a cluster of
  *   overlapping disks.) Pairs that touch within rounding do collide.
  * - Every processed event updates the per-disk counters: p (pair) and w (wall) as in SPEC.md 3.5, now
- *   any number per step, and a version that marks the disk's older predictions stale.
+ *   any number per step, and a version that marks the disk's older predictions stale. With --pressure
+ *   each wall event adds wall_impulse (2 |v| per reflected axis) to the disk's wi, in its event order.
  *
  * Because each event's arithmetic reads only its own disks' states, any algorithm that processes the
  * same events in the same order prints the same bytes: seq finds the next event among all pairs, omp

@@ -3,6 +3,7 @@
  * The simplest code that is obviously SPEC.md section 3: every wall and every pair tested each step,
  * all events sorted by (t, kind, i, j), the greedy one-event-per-disk choice, the moves. O(N^2) per
  * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly.
+ * --exact (exact.h) likewise: every pair's next contact predicted, a heap of events in key order.
  */
 #include "common.h"
 #include "exact.h"
@@ -117,21 +118,26 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
 
 /* ==== --exact (exact.h): the next event among all pairs ============================================ */
 
-/* Pushes disk i's wall event and its pair events with every disk but i and skip. */
+/* Pushes disk i's wall event and its pair events with every disk but i and skip; returns the pairs
+ * tested. */
 static uint64_t exact_predict(const ExactDisks *d, const Params *p, int64_t i, int64_t skip,
                               ExactHeap *h)
 {
+    uint64_t tests = 0;
     real t = exact_wall_time(d, p, i);
     if (t >= 0) heap_push(h, d, t, i, i);
     for (int64_t k = 0; k < p->n; k++) {
         if (k == i || k == skip) continue;
         int64_t a = k < i ? k : i, b = k < i ? i : k;
+        tests++;
         t = exact_pair_time(d, p, a, b);
         if (t >= 0) heap_push(h, d, t, a, b);
     }
-    return (uint64_t)p->n - 1;
+    return tests;
 }
 
+/* Each step: every disk's and pair's event from the step's start into the heap, then the smallest
+ * valid event, processed and its disks predicted again, until none is left; then the flights to 1. */
 static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
 {
     ExactDisks d;
@@ -140,7 +146,6 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     exact_alloc(&d, sim, par);
     double t0 = io_now();
     for (int64_t step = 1; step <= par->steps; step++) {
-        /* every event of the step's start, then the smallest valid one until none is left */
         h.len = 0;
         for (int64_t i = 0; i < par->n; i++) {
             real t = exact_wall_time(&d, par, i);
