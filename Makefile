@@ -18,7 +18,7 @@ PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
 PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
-.PHONY: all test golden bench plots clean tools
+.PHONY: all test golden bench accuracy plots clean tools
 ifeq ($(PRECISION),float)
 all: $(PROGRAMS_F32)
 else
@@ -73,9 +73,15 @@ golden: seq
 bench: all
 	./bench.sh --quick
 
-# figures from the committed bench/*.summary.csv (needs gnuplot: apt-get install gnuplot-nox)
+# the accuracy ladder against the hard-disk equation of state (REPORT.md 7); about 5 minutes on 2 cores
+accuracy: all
+	tools/accuracy.sh
+
+# figures from the committed bench/*.summary.csv and bench/accuracy.csv (needs gnuplot: apt-get install
+# gnuplot-nox)
 plots:
 	@bash tools/plot.sh
+	@if [ -f bench/accuracy.csv ]; then bash tools/accuracy.sh --plot bench/accuracy.csv; fi
 
 clean:
 	rm -f seq omp cuda seq_san io.o io_f32.o $(PROGRAMS_F32) $(TOOLS)
