@@ -92,7 +92,7 @@ typedef struct {
 typedef struct {
     real *x, *y;     /* centres, length */
     real *vx, *vy;   /* velocities, length per step */
-    int32_t *pc;     /* collisions with other disks so far (at most one per step, so <= S fits) */
+    int32_t *pc;     /* collisions with other disks so far (<= S x K, checked; --exact checks its own) */
     int32_t *wc;     /* collisions with walls so far */
     double *wi;      /* --pressure: wall impulse received so far (unit mass x velocity); else NULL */
 } Sim;

@@ -31,7 +31,7 @@
 #include <thread>
 #include <vector>
 
-extern "C" const char backend_name[] = "cuda";
+extern "C" const char backend_name[] = "cuda" SIM_SUFFIX;
 /* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
 extern "C" const unsigned backend_features = SIM_FEATURE_SUBSTEPS;
 extern "C" const char backend_options[] = "";

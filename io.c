@@ -8,6 +8,7 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include "common.h"
+#include "exact.h"
 
 #include <errno.h>
 #include <signal.h>
@@ -561,6 +562,11 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
         smin = smax;
         smax = t;
     }
+#ifdef SIM_FLOAT
+    /* the float build's speed limit, which keeps squared speeds finite, holds for placed disks too */
+    if (smax > SIM_MAX_V) smax = SIM_MAX_V;
+    if (smin > SIM_MAX_V) smin = SIM_MAX_V;
+#endif
     const double two_pi = 6.283185307179586;
     for (int64_t i = 0; i < par->n; i++) {
         int tries = 0, placed = 0;
@@ -744,6 +750,12 @@ int io_main(int argc, char **argv)
     out.dump17 = opt.dump17;
     out.progress = isatty(STDERR_FILENO);
     out.steps = par.steps;
+    /* runs that cannot finish are refused before the first byte of output */
+    if (opt.exact) exact_check_speeds(&sim, &par);
+    if (par.steps * (int64_t)opt.substeps > INT32_MAX)
+        io_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
+                "(S x K must be <= %d)",
+                opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
     backend_write_state(&out, 0, &sim, par.n, 0);
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */

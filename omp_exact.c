@@ -288,7 +288,6 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.p = par;
     w.check = opt->check;
     w.nt = omp_get_max_threads();
-    exact_check_speeds(sim, par);
     exact_alloc(&w.d, sim, par);
     w.th = io_alloc((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;

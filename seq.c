@@ -142,7 +142,6 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
 {
     ExactDisks d;
     ExactHeap h = {NULL, 0, 0};
-    exact_check_speeds(sim, par);
     exact_alloc(&d, sim, par);
     double t0 = io_now();
     for (int64_t step = 1; step <= par->steps; step++) {

@@ -193,6 +193,19 @@ for prog in seq omp; do
         pass "exact/$prog refuses 1e49 wall collisions per step"
     fi
 done
+# the same refusal when step 0 alone would overflow the output buffer (200000 lines, over 8 MB): still
+# nothing on stdout
+printf '200000\n1\n1e-8\n1\nperf\n' > "$X/fast_many.in"
+for prog in seq omp; do
+    if ./$prog "$X/fast_many.in" --exact --quiet > "$X/out" 2> "$X/err"; then
+        fail "exact/$prog refuses 200000 too-fast disks before step 0" "exit 0"
+    elif [ -s "$X/out" ] || [ "$(wc -l < "$X/err")" -ne 1 ] || ! grep -q "would hit the walls" "$X/err"; then
+        fail "exact/$prog refuses 200000 too-fast disks before step 0" \
+            "$(wc -c < "$X/out") bytes on stdout; $(head -c 300 "$X/err")"
+    else
+        pass "exact/$prog refuses 200000 too-fast disks before step 0"
+    fi
+done
 
 # --pressure: the walls case has 12 reflections of |vx| = 32 and one of |vy| = 2, so the impulse is
 # 12 * 64 + 4 = 772 over 3 time units on 4 walls of length 10: P = 772 / 120. omp adds the same per-disk
