@@ -163,6 +163,7 @@ void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int
                     int with_counts);
 void io_write_bytes(Output *out, const char *bytes, size_t len);
 int io_dump17(const Output *out);
+int io_threads(const Output *out); /* --threads, 0 if not given */
 /* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
 void io_progress(Output *out, int64_t step);
 

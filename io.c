@@ -85,6 +85,7 @@ struct Output {
     char *buf;         /* pending bytes */
     size_t len;        /* bytes pending in buf */
     int dump17;        /* reals as %.17g instead of %.8f */
+    int threads;       /* --threads, for backends that format on several threads; 0: their default */
     int progress;      /* stderr is a terminal */
     int64_t steps;     /* for the progress line */
     double start;      /* io_now() when the step loop began */
@@ -123,6 +124,11 @@ void io_write_bytes(Output *out, const char *bytes, size_t len)
 int io_dump17(const Output *out)
 {
     return out->dump17;
+}
+
+int io_threads(const Output *out)
+{
+    return out->threads;
 }
 
 /* Writes the decimal digits of u; returns the end. */
@@ -748,6 +754,7 @@ int io_main(int argc, char **argv)
     memset(&out, 0, sizeof out);
     out.buf = io_alloc(OUT_BUFFER, 1);
     out.dump17 = opt.dump17;
+    out.threads = opt.threads;
     out.progress = isatty(STDERR_FILENO);
     out.steps = par.steps;
     /* runs that cannot finish are refused before the first byte of output */

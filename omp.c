@@ -834,7 +834,7 @@ static void step_run(Work *w, int tid, int64_t step)
  * own buffer, the buffers written in thread order. */
 void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
 {
-    int nt = omp_get_max_threads();
+    int nt = io_threads(out) > 0 ? io_threads(out) : omp_get_max_threads();
     if (nt < 2 || n < 2 * PRINT_BLOCK) {
         io_write_state(out, step, sim, 0, n, with_counts);
         return;
