@@ -47,3 +47,17 @@ backend_list() {
     echo seq omp
     if have_gpu; then echo cuda; fi
 }
+
+# refuses NAME PATTERN COMMAND...: COMMAND must fail with nothing on stdout and exactly one line on
+# stderr that matches PATTERN (grep), the rule for every refused input or option.
+refuses() {
+    local name=$1 pattern=$2
+    shift 2
+    if "$@" > "$TMP/out" 2> "$TMP/err"; then
+        fail "$name" "exit 0"
+    elif [ -s "$TMP/out" ] || [ "$(wc -l < "$TMP/err")" -ne 1 ] || ! grep -q -e "$pattern" "$TMP/err"; then
+        fail "$name" "$(wc -c < "$TMP/out") bytes on stdout; stderr: $(head -c 300 "$TMP/err")"
+    else
+        pass "$name"
+    fi
+}
