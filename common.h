@@ -312,6 +312,14 @@ static inline SIM_HD double wall_impulse(real vx0, real vy0, real vx1, real vy1)
     return p;
 }
 
+/* The margin a broad phase adds to r for rounding: of positions and times (rel of the contact
+ * distance and of the coordinates' scale), and of pair_time near a graze, where D > 0 can hold while
+ * the exact path misses contact by up to about eps * dd / r, for pairs no farther apart than reach. */
+static inline SIM_HD double broad_margin(double r, double scale, double reach, double rel)
+{
+    return rel * (r + r) + rel * scale + SIM_GRAZE_MARGIN * (reach / r) * reach;
+}
+
 /* Keeps a coordinate in [lo, hi]: only one-ulp rounding ever needs it. */
 static inline SIM_HD real clamp_coord(real c, real lo, real hi)
 {

@@ -741,6 +741,15 @@ static void parse_args(int argc, char **argv, Options *opt)
     opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
 }
 
+/* Multiplies every velocity by f, a power of two for --substeps: exact (short of subnormals). */
+static void scale_velocities(Sim *sim, int64_t n, real f)
+{
+    for (int64_t i = 0; i < n && f != 1; i++) {
+        sim->vx[i] = sim->vx[i] * f;
+        sim->vy[i] = sim->vy[i] * f;
+    }
+}
+
 int io_main(int argc, char **argv)
 {
     Options opt;
@@ -768,10 +777,7 @@ int io_main(int argc, char **argv)
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     par.substeps = opt.substeps;
     real k = (real)opt.substeps;
-    for (int64_t i = 0; i < par.n && opt.substeps > 1; i++) {
-        sim.vx[i] = sim.vx[i] / k;
-        sim.vy[i] = sim.vy[i] / k;
-    }
+    scale_velocities(&sim, par.n, 1 / k);
     v_unscale = k;
     if (opt.pressure) sim.wi = io_alloc((size_t)par.n, sizeof *sim.wi);
 
@@ -781,10 +787,7 @@ int io_main(int argc, char **argv)
     out.next_show = out.start + 2.0;
     if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
     if (out.shown) fputc('\n', stderr);
-    for (int64_t i = 0; i < par.n && opt.substeps > 1; i++) {
-        sim.vx[i] = sim.vx[i] * k;
-        sim.vy[i] = sim.vy[i] * k;
-    }
+    scale_velocities(&sim, par.n, k);
     v_unscale = 1;
 
     backend_write_state(&out, par.steps, &sim, par.n, 1);

@@ -214,18 +214,15 @@ static void slots_unpermute(Work *w, int tid)
 /* ==== broad phase ==================================================================================== */
 
 /* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
- * that touch at a time of slice k have boxes that overlap in slice k; the margin m covers, with a
- * wide factor to spare (SIM_REL_MARGIN, SIM_GRAZE_MARGIN), the rounding of positions (about
- * eps * scale) and that of
- * pair_time near a graze, where D > 0 can hold while the exact path misses contact by up to about
- * eps * dd / r. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
+ * that touch at a time of slice k have boxes that overlap in slice k; the margin m (broad_margin)
+ * covers, with a wide factor to spare, the rounding of positions (about eps * scale) and that of
+ * pair_time near a graze. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
  * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
 static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max_cells)
 {
     Plan pl;
     double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
-    double m = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale +
-               SIM_GRAZE_MARGIN * (reach / r) * reach;
+    double m = broad_margin(r, scale, reach, SIM_REL_MARGIN);
     pl.grow = r + m;
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;

@@ -23,9 +23,8 @@
 #include <stdio.h>
 #include <string.h>
 
-/* Relative margins for rounding, as in omp.c: of positions and times (REL; it covers WINDOW_EVENTS
- * events' worth of rounding of one disk, a few rounding units each) and of pair_time near a graze
- * (GRAZE). */
+/* Relative margin for rounding of positions and times (broad_margin's rel; it covers WINDOW_EVENTS
+ * events' worth of rounding of one disk, a few rounding units each). */
 #ifdef SIM_FLOAT
 #define REL_MARGIN 1e-4 /* ten times common.h's: 64 events of rounding per window */
 #define WINDOW_EVENTS 64
@@ -33,7 +32,6 @@
 #define REL_MARGIN SIM_REL_MARGIN
 #define WINDOW_EVENTS 4096
 #endif
-#define GRAZE_MARGIN SIM_GRAZE_MARGIN
 
 #define VBOUND_FACTOR 1.5 /* vbound over the fastest component at the window's start */
 #define WINDOW_CHOICES 24 /* window lengths tried: the rest of the step over 1, 2, 4, ... */
@@ -75,7 +73,7 @@ typedef struct {
 static double cell_width(const Params *p, double vbound, double h)
 {
     double r = p->r, reach = 2 * r + 2 * vbound * h, scale = (double)p->L + 2 * vbound * h;
-    double m = REL_MARGIN * (r + r) + REL_MARGIN * scale + GRAZE_MARGIN * (reach / r) * reach;
+    double m = broad_margin(r, scale, reach, REL_MARGIN);
     return (reach + 2 * m) * (1 + REL_MARGIN);
 }
 
