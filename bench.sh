@@ -58,12 +58,7 @@ EOF
 
 die() { echo "bench.sh: $*" >&2; exit 1; }
 [ -n "${EPOCHREALTIME:-}" ] || die "needs bash 5 or later (EPOCHREALTIME)"
-words() { echo "${1//,/ }"; }
-# Integer from 1000 or 1e3 notation.
-integer() {
-    awk -v s="$1" 'BEGIN { if (s !~ /^[0-9.]+([eE][0-9]+)?$/ || s + 0 < 1) exit 1; printf "%.0f\n", s }' ||
-        die "not a positive integer: '$1'"
-}
+. tools/script_lib.sh
 
 # ---- options --------------------------------------------------------------------------------------
 QUICK=0 SIZES="" OUTPUT_GIVEN=0 GIVEN=""
@@ -221,25 +216,12 @@ warm_up() {
 }
 
 # ---- provenance -----------------------------------------------------------------------------------
-make_var() { make -s --no-print-directory --eval='bench-print-%: ; @echo $($*)' "bench-print-$1" 2>/dev/null; }
 provenance() {
-    local hash dirty cc nvcc gpu
-    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
-        dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
-    else
-        hash="unknown" dirty="not a git checkout"
-    fi
-    cc=$(make_var CC)
+    local nvcc gpu
     nvcc=$(make_var NVCC)
     echo "# bench.sh results (bench/README.md explains the columns)"
     echo "# command: $COMMAND_LINE"
-    echo "# git: $hash ($dirty)"
-    echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
-    echo "# host: $(uname -n); kernel: $(uname -srm)"
-    echo "# load average at start (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
-    echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $CORES"
-    echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
-    echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)" "$CORES"
     if command -v "$nvcc" >/dev/null 2>&1; then
         echo "# nvcc: $("$nvcc" --version | grep -i release | head -n 1)"
         echo "# NVCCFLAGS: $(make_var NVCCFLAGS)"

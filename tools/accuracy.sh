@@ -61,11 +61,7 @@ EOF
 }
 
 die() { echo "accuracy.sh: $*" >&2; exit 1; }
-words() { echo "${1//,/ }"; }
-integer() {
-    awk -v s="$1" 'BEGIN { if (s !~ /^[0-9.]+([eE][0-9]+)?$/ || s + 0 < 1) exit 1; printf "%.0f\n", s }' ||
-        die "not a positive integer: '$1'"
-}
+. tools/script_lib.sh
 
 # ---- the figure -------------------------------------------------------------------------------------
 # plot CSV: the figure, two panels with one point per rung and scene (a colour per scene; a line joins
@@ -201,24 +197,10 @@ run_prog() {
 value() { echo "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
 
 # ---- provenance -----------------------------------------------------------------------------------
-make_var() { make -s --no-print-directory --eval='accuracy-print-%: ; @echo $($*)' "accuracy-print-$1" 2>/dev/null; }
 provenance() {
-    local hash dirty cc
-    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
-        dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
-    else
-        hash="unknown" dirty="not a git checkout"
-    fi
-    cc=$(make_var CC)
     echo "# tools/accuracy.sh results (REPORT.md, What accuracy costs in time, explains the columns)"
     echo "# command: $COMMAND_LINE"
-    echo "# git: $hash ($dirty)"
-    echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
-    echo "# host: $(uname -n); kernel: $(uname -srm)"
-    echo "# load average at start (1, 5, 15 min): $LOAD_START"
-    echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $(nproc 2>/dev/null)"
-    echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
-    echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
+    machine_provenance "$LOAD_START" "$(nproc 2>/dev/null)"
     echo "# OMP_PROC_BIND=$OMP_PROC_BIND OMP_PLACES=$OMP_PLACES; omp threads: $THREADS"
     echo "# scenes: tools/gen $N --fraction ETA --speed $SPEED --seed $SEED for ETA in $FRACTIONS; rungs: $RUNGS"
     echo "# per point: $EQ_STEPS steps of equilibration, $BLOCKS x $BLOCK_STEPS measured steps" \

@@ -1,0 +1,32 @@
+# tools/script_lib.sh: helpers that bench.sh and tools/accuracy.sh share; sourced from the repository
+# root after the script has defined die (its own name in messages). Never run alone.
+
+words() { echo "${1//,/ }"; }
+
+# Integer from 1000 or 1e3 notation.
+integer() {
+    awk -v s="$1" 'BEGIN { if (s !~ /^[0-9.]+([eE][0-9]+)?$/ || s + 0 < 1) exit 1; printf "%.0f\n", s }' ||
+        die "not a positive integer: '$1'"
+}
+
+# A variable of the Makefile, as make sees it (CC, CFLAGS, ...).
+make_var() { make -s --no-print-directory --eval='script-print-%: ; @echo $($*)' "script-print-$1" 2>/dev/null; }
+
+# machine_provenance LOAD CORES: the '#' lines of a results file that name the tree, the machine and
+# the C compiler.
+machine_provenance() {
+    local hash dirty cc
+    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
+        dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
+    else
+        hash="unknown" dirty="not a git checkout"
+    fi
+    cc=$(make_var CC)
+    echo "# git: $hash ($dirty)"
+    echo "# date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+    echo "# host: $(uname -n); kernel: $(uname -srm)"
+    echo "# load average at start (1, 5, 15 min): $1"
+    echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $2"
+    echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
+    echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
+}
