@@ -140,6 +140,10 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 /* Writes the lines of a whole state: step 0 before backend_run, the final state (with counts) after.
  * seq calls io_write_state; omp and cuda format on several threads (1e8 lines take minutes on one). */
 void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
+/* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's default;
+ * seq: one, in order). The tasks must not depend on each other's order: io.c parses the particle lines
+ * of the input in independent chunks this way (1e8 lines take minutes on one thread). */
+void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
 
 /* ---- io.c: everything untimed ---------------------------------------------------------------------- */
 

@@ -28,6 +28,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <atomic>
 #include <thread>
 #include <vector>
 
@@ -759,8 +760,7 @@ static Grid grid_choose(const Cuda *c, double vmax)
     gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
     if (gr.K < 1) gr.K = 1;
     double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
-    double margin = SIM_REL_MARGIN * (r + r) + SIM_REL_MARGIN * scale +
-                    SIM_GRAZE_MARGIN * (reach / r) * reach;
+    double margin = broad_margin(r, scale, reach, SIM_REL_MARGIN);
     double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
     double gmax = floor(sqrt((double)c->cell_cap / gr.K));
     double gf = floor(L / cell_min);
@@ -905,6 +905,26 @@ static void format_state(Output *out, int64_t step, const Sim *view, int64_t n, 
 extern "C" void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
 {
     format_state(out, step, sim, n, with_counts);
+}
+
+/* The tasks are taken in turn from a shared counter by up to 16 host threads. */
+extern "C" void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+{
+    unsigned hw = std::thread::hardware_concurrency();
+    int64_t nt = threads > 0 ? threads : hw > 1 ? (int64_t)hw : 1;
+    if (nt > 16 && threads <= 0) nt = 16;
+    if (nt > tasks) nt = tasks;
+    if (nt <= 1) {
+        for (int64_t k = 0; k < tasks; k++) task(ctx, k);
+        return;
+    }
+    std::atomic<int64_t> next(0);
+    std::vector<std::thread> workers;
+    for (int64_t t = 0; t < nt; t++)
+        workers.emplace_back([&]() {
+            for (int64_t k; (k = next++) < tasks;) task(ctx, k);
+        });
+    for (auto &w : workers) w.join();
 }
 
 /* Formats one printed state (original order, in out_host) while the device runs the next step. */

@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -279,8 +280,14 @@ static char *slurp(const Options *opt, size_t *size)
         f = fopen(opt->path, "rb");
         if (!f) io_fail("%s: cannot open the input (%s)", opt->path, strerror(errno));
     }
+    /* a regular file is read into a buffer of its size: growing by doubling copies gigabytes at N = 1e8 */
+    struct stat st;
     size_t cap = 1 << 16, len = 0;
-    char *buf = io_alloc(cap, 1);
+    if (fstat(fileno(f), &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0 &&
+        (uint64_t)st.st_size < SIZE_MAX / 2)
+        cap = (size_t)st.st_size + 2;
+    char *buf = malloc(cap);
+    if (!buf) io_fail("%s: out of memory reading the input (%zu bytes)", opt->label, cap);
     for (;;) {
         if (cap - len < 2) {
             if (cap > SIZE_MAX / 2) io_fail("%s: input too large", opt->label);
@@ -305,6 +312,25 @@ static int is_space(char c)
     return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
 }
 
+/* Splits the line [s, end) into tokens, NUL-terminating them in place; stores up to 8 in tok and returns
+ * how many there were (more than 8 counts on). */
+static int split_line(char *s, char *end, char **tok)
+{
+    int ntok = 0;
+    *end = '\0';
+    for (char *p = s; p < end;) {
+        while (p < end && is_space(*p)) p++;
+        if (p == end) break;
+        char *t = p;
+        while (p < end && !is_space(*p)) p++;
+        *p = '\0';
+        if (ntok < 8) tok[ntok] = t;
+        ntok++;
+        p++;
+    }
+    return ntok;
+}
+
 /* Splits the next non-blank line into tokens; returns 0 at the end of the input. */
 static int next_record(Reader *rd)
 {
@@ -318,18 +344,7 @@ static int next_record(Reader *rd)
         if (nul)
             input_error(rd, rd->line, "unexpected byte 0 in the text (found one at column %ld)",
                         (long)(nul - s) + 1);
-        *end = '\0';
-        rd->ntok = 0;
-        for (char *p = s; p < end;) {
-            while (p < end && is_space(*p)) p++;
-            if (p == end) break;
-            char *t = p;
-            while (p < end && !is_space(*p)) p++;
-            *p = '\0';
-            if (rd->ntok < 8) rd->tok[rd->ntok] = t;
-            rd->ntok++;
-            p++;
-        }
+        rd->ntok = split_line(s, end, rd->tok);
         if (rd->ntok > 0) return 1;
     }
     return 0;
@@ -452,57 +467,198 @@ static void read_header(Reader *rd, Params *par)
 
 static const char *const field_name[5] = {"index i", "x", "y", "vx", "vy"};
 
-/* Reads the particle lines, if any; returns how many there were (0 or n). */
-static int64_t read_particles(Reader *rd, const Params *par, Sim *sim)
+/* The particle lines are parsed in chunks of whole lines, in parallel (backend_parallel), and the
+ * checks that need the lines before (more lines than N, an index given twice) run afterwards in one
+ * pass over the index each line gave. The error reported is the one a line-by-line reader meets
+ * first: the earliest line, and on that line the first check in the order of read_line below. */
+#define CHUNK_BYTES 65536
+#define LINE_BLANK (-1)   /* line_idx of a line without tokens (or not reached) */
+#define LINE_NO_INDEX (-2) /* a record whose fields or index are wrong */
+#define LINE_ZERO_BYTE (-3) /* a line holding a byte 0: its error comes before any other check */
+
+typedef struct {
+    size_t from, to; /* bytes [from, to) of the text: whole lines */
+    int64_t line0;   /* index (from 0) of its first line among the particle lines */
+    int64_t lines;
+    long err_line;   /* first error of the chunk (0: none) and its message */
+    char *err;
+} Chunk;
+
+typedef struct {
+    const Params *par;
+    Sim *sim;
+    char *text;
+    long line_base;   /* number of the line before the first particle line */
+    Chunk *chunk;
+    int32_t *line_idx; /* per particle line: its index, or LINE_BLANK, LINE_NO_INDEX, LINE_ZERO_BYTE */
+} Parse;
+
+static void chunk_error(Chunk *c, long line, const char *fmt, ...)
 {
-    int64_t n = par->n, seen = 0;
-    long *first_line = NULL; /* line of each index, to name both lines of a duplicate */
-    while (next_record(rd)) {
-        if (!first_line) first_line = io_alloc((size_t)n, sizeof *first_line);
-        if (seen == n)
-            input_error(rd, rd->line, "more particle lines than N = %lld (found another one)",
-                        (long long)n);
-        if (rd->ntok != 5)
-            input_error(rd, rd->line, "expected 5 fields 'i x y vx vy' (found %d)", rd->ntok);
-        long long idx;
-        int rc = parse_int(rd->tok[0], &idx);
-        if (rc == -1) input_error(rd, rd->line, "index i is not an integer (found '%s')", rd->tok[0]);
-        if (rc == -2 || idx < 0 || idx >= n)
-            input_error(rd, rd->line, "index i must be between 0 and %lld (found '%s')",
-                        (long long)n - 1, rd->tok[0]);
-        if (first_line[idx])
-            input_error(rd, rd->line, "index %lld given twice (first on line %ld)", idx,
-                        first_line[idx]);
-        first_line[idx] = rd->line;
-        double v[4];
-        for (int k = 0; k < 4; k++) {
-            rc = parse_real(rd->tok[k + 1], &v[k]);
-            if (rc)
-                input_error(rd, rd->line, "%s %s (found '%s')", field_name[k + 1], real_problem(rc),
-                            rd->tok[k + 1]);
+    va_list ap;
+    va_start(ap, fmt);
+    int len = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    c->err = io_alloc((size_t)len + 1, 1);
+    va_start(ap, fmt);
+    vsnprintf(c->err, (size_t)len + 1, fmt, ap);
+    va_end(ap);
+    c->err_line = line;
+}
+
+/* Checks one record and stores its disk; returns its index, or LINE_NO_INDEX after an error that left
+ * no valid index (an error after the index returns the index: the duplicate check comes first). */
+static int32_t read_line(const Parse *ps, Chunk *c, long line, char **tok, int ntok)
+{
+    const Params *par = ps->par;
+    int64_t n = par->n;
+    if (ntok != 5) {
+        chunk_error(c, line, "expected 5 fields 'i x y vx vy' (found %d)", ntok);
+        return LINE_NO_INDEX;
+    }
+    long long idx;
+    int rc = parse_int(tok[0], &idx);
+    if (rc == -1) {
+        chunk_error(c, line, "index i is not an integer (found '%s')", tok[0]);
+        return LINE_NO_INDEX;
+    }
+    if (rc == -2 || idx < 0 || idx >= n) {
+        chunk_error(c, line, "index i must be between 0 and %lld (found '%s')", (long long)n - 1, tok[0]);
+        return LINE_NO_INDEX;
+    }
+    double v[4];
+    for (int k = 0; k < 4; k++) {
+        rc = parse_real(tok[k + 1], &v[k]);
+        if (rc) {
+            chunk_error(c, line, "%s %s (found '%s')", field_name[k + 1], real_problem(rc), tok[k + 1]);
+            return (int32_t)idx;
         }
-        for (int k = 0; k < 2; k++)
-            if (!(v[k] >= par->lo && v[k] <= par->hi))
-                input_error(rd, rd->line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
-                            field_name[k + 1], (double)par->lo, (double)par->hi, rd->tok[k + 1]);
-        for (int k = 2; k < 4; k++)
-            if (!(fabs(v[k]) <= SIM_MAX_V))
-                input_error(rd, rd->line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V,
-                            rd->tok[k + 1]);
-        sim->x[idx] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
-        sim->y[idx] = (real)v[1];
-        sim->vx[idx] = (real)v[2];
-        sim->vy[idx] = (real)v[3];
+    }
+    for (int k = 0; k < 2; k++)
+        if (!(v[k] >= par->lo && v[k] <= par->hi)) {
+            chunk_error(c, line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
+                        field_name[k + 1], (double)par->lo, (double)par->hi, tok[k + 1]);
+            return (int32_t)idx;
+        }
+    for (int k = 2; k < 4; k++)
+        if (!(fabs(v[k]) <= SIM_MAX_V)) {
+            chunk_error(c, line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V,
+                        tok[k + 1]);
+            return (int32_t)idx;
+        }
+    /* a duplicate index writes twice here, and is then reported: the values are never used */
+    ps->sim->x[idx] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
+    ps->sim->y[idx] = (real)v[1];
+    ps->sim->vx[idx] = (real)v[2];
+    ps->sim->vy[idx] = (real)v[3];
+    return (int32_t)idx;
+}
+
+static void count_lines(void *ctx, int64_t k)
+{
+    Parse *ps = ctx;
+    Chunk *c = &ps->chunk[k];
+    int64_t lines = 0;
+    for (const char *p = ps->text + c->from, *end = ps->text + c->to; p < end; lines++) {
+        const char *nl = memchr(p, '\n', (size_t)(end - p));
+        p = nl ? nl + 1 : end;
+    }
+    c->lines = lines;
+}
+
+/* Parses the lines of chunk k up to its first error. */
+static void parse_chunk(void *ctx, int64_t k)
+{
+    Parse *ps = ctx;
+    Chunk *c = &ps->chunk[k];
+    char *p = ps->text + c->from, *stop = ps->text + c->to, *tok[8];
+    for (int64_t i = 0; i < c->lines; i++) {
+        long line = ps->line_base + 1 + (long)(c->line0 + i);
+        char *nl = memchr(p, '\n', (size_t)(stop - p));
+        char *end = nl ? nl : stop;
+        char *nul = memchr(p, '\0', (size_t)(end - p));
+        int32_t *idx = &ps->line_idx[c->line0 + i];
+        if (nul) {
+            chunk_error(c, line, "unexpected byte 0 in the text (found one at column %ld)", (long)(nul - p) + 1);
+            *idx = LINE_ZERO_BYTE;
+            return;
+        }
+        int ntok = split_line(p, end, tok);
+        *idx = ntok ? read_line(ps, c, line, tok, ntok) : LINE_BLANK;
+        if (c->err_line) return;
+        p = end + 1;
+    }
+}
+
+/* Reads the particle lines, if any; returns how many there were (0 or n). */
+static int64_t read_particles(Reader *rd, const Params *par, Sim *sim, int threads)
+{
+    Parse ps = {par, sim, rd->text, rd->line, NULL, NULL};
+    size_t from = rd->pos, size = rd->size;
+    int64_t nchunk = (int64_t)((size - from) / CHUNK_BYTES) + 1;
+    ps.chunk = io_alloc((size_t)nchunk, sizeof *ps.chunk);
+    for (int64_t k = 0; k < nchunk; k++) { /* each ends after the first newline past its share */
+        Chunk *c = &ps.chunk[k];
+        c->from = k ? ps.chunk[k - 1].to : from;
+        size_t cut = from + (size_t)((double)(size - from) * (double)(k + 1) / (double)nchunk);
+        const char *nl = cut < c->from || k == nchunk - 1 ? NULL : memchr(rd->text + cut, '\n', size - cut);
+        c->to = k == nchunk - 1 ? size : cut < c->from ? c->from : nl ? (size_t)(nl - rd->text) + 1 : size;
+    }
+    backend_parallel(threads, nchunk, count_lines, &ps);
+    int64_t lines = 0;
+    for (int64_t k = 0; k < nchunk; k++) {
+        ps.chunk[k].line0 = lines;
+        lines += ps.chunk[k].lines;
+    }
+    ps.line_idx = io_alloc((size_t)lines, sizeof *ps.line_idx);
+    backend_parallel(threads, nchunk, parse_chunk, &ps);
+
+    /* In file order up to the first chunk error: count the records, mark the indices seen. */
+    Chunk verdict = {0, 0, 0, 0, 0, NULL};
+    for (int64_t k = 0; k < nchunk && !verdict.err; k++)
+        if (ps.chunk[k].err) {
+            verdict = ps.chunk[k];
+            ps.chunk[k].err = NULL;
+        }
+    int64_t last = verdict.err ? verdict.err_line - ps.line_base - 1 : lines - 1, seen = 0;
+    unsigned char *have = io_alloc((size_t)(par->n / 8 + 1), 1);
+    for (int64_t i = 0; i <= last; i++) {
+        int32_t idx = ps.line_idx[i];
+        long line = ps.line_base + 1 + (long)i;
+        if (idx == LINE_BLANK || idx == LINE_ZERO_BYTE) continue;
+        if (seen == par->n) {
+            free(verdict.err);
+            chunk_error(&verdict, line, "more particle lines than N = %lld (found another one)", (long long)par->n);
+            break;
+        }
         seen++;
+        if (idx < 0) continue;
+        if (have[idx / 8] & (1u << (idx % 8))) {
+            int64_t first = 0;
+            while (ps.line_idx[first] != idx) first++;
+            free(verdict.err);
+            chunk_error(&verdict, line, "index %lld given twice (first on line %ld)", (long long)idx,
+                        ps.line_base + 1 + (long)first);
+            break;
+        }
+        have[idx / 8] |= (unsigned char)(1u << (idx % 8));
     }
-    if (seen > 0 && seen < n) {
+    if (!verdict.err && seen > 0 && seen < par->n) {
         int64_t missing = 0;
-        while (first_line[missing]) missing++;
-        input_error(rd, rd->line + 1,
+        while (have[missing / 8] & (1u << (missing % 8))) missing++;
+        chunk_error(&verdict, ps.line_base + (long)lines + 1,
                     "expected %lld particle lines, found %lld (index %lld is missing; end of input)",
-                    (long long)n, (long long)seen, (long long)missing);
+                    (long long)par->n, (long long)seen, (long long)missing);
     }
-    free(first_line);
+    for (int64_t k = 0; k < nchunk; k++) free(ps.chunk[k].err);
+    free(ps.chunk);
+    free(ps.line_idx);
+    free(have);
+    if (verdict.err) {
+        static char *message; /* reachable at exit, so the leak checker stays quiet */
+        message = verdict.err;
+        input_error(rd, verdict.err_line, "%s", message);
+    }
     return seen;
 }
 
@@ -630,7 +786,7 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim)
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
                     (long long)par->n);
-    if (read_particles(&rd, par, sim) == 0) {
+    if (read_particles(&rd, par, sim, opt->threads) == 0) {
         int64_t failed = generate(par, opt->seed, sim);
         if (failed >= 0)
             input_error(&rd, rd.n_line,

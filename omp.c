@@ -859,6 +859,13 @@ void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, i
     free(len);
 }
 
+void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+{
+    int nt = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+    for (int64_t k = 0; k < tasks; k++) task(ctx, k);
+}
+
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
     if (opt->threads > 0) omp_set_num_threads(opt->threads);

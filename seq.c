@@ -179,6 +179,12 @@ void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, i
     io_write_state(out, step, sim, 0, n, with_counts);
 }
 
+void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+{
+    (void)threads;
+    for (int64_t k = 0; k < tasks; k++) task(ctx, k);
+}
+
 /* ==== the step of SPEC.md ============================================================================ */
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
