@@ -59,6 +59,10 @@ seq_san: seq.c io.c common.h exact.h Makefile
 tools/%: tools/%.c common.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
 
+# the generator fills the bands of a large scene in parallel
+tools/gen: tools/gen.c Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) $< -o $@ $(LDLIBS)
+
 # the formatter check calls io.c's own io_format_line
 tools/fmtcheck: tools/fmtcheck.c io.o common.h Makefile
 	$(CC) $(CFLAGS) tools/fmtcheck.c io.o -o $@ $(LDLIBS)
