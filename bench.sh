@@ -11,7 +11,7 @@ BACKENDS=${BACKENDS:-"seq omp cuda"}                  # those without a runnable
 SCENES=${SCENES:-"random gas05 gas20 gas40 dilute"}   # see scene_make below
 SIZES_CPU=${SIZES_CPU:-"1000 3000 10000 30000 100000 300000 1000000"}
 SIZES_GPU=${SIZES_GPU:-"$SIZES_CPU 3000000 10000000 30000000 100000000"}
-FILE_MAX_N=${FILE_MAX_N:-10000000}  # scenes with particle lines take ~45 bytes per disk on disk
+FILE_MAX_N=${FILE_MAX_N:-100000000} # scenes with particle lines take ~45 bytes per disk on disk
 THREADS=${THREADS:-""}              # omp thread counts; empty: 1, 2, 4, ... and the core count
 REPEATS=${REPEATS:-3}               # timed runs per point, after one discarded warm-up run
 TARGET_S=${TARGET_S:-1.0}           # aimed step-loop time of one run; steps are chosen per point
@@ -19,6 +19,7 @@ CALIBRATE_S=${CALIBRATE_S:-}       # probe runs grow their steps until the loop 
                                     # (default TARGET_S / 5)
 MAX_STEP_S=${MAX_STEP_S:-3.0}       # skip a point (and larger N) whose single step would take longer
 MAX_STEPS=${MAX_STEPS:-1000000}
+STEPS_FIXED=${STEPS_FIXED:-}        # steps of every run; empty: chosen per point by probe runs
 RUN_TIMEOUT=${RUN_TIMEOUT:-300}     # seconds before one run counts as hung
 SEED=${SEED:-1}
 RANDOM_L0=${RANDOM_L0:-20000}       # random scene: box side at RANDOM_N0 disks of radius 1 ...
@@ -47,6 +48,8 @@ options (lists are space- or comma-separated; sizes accept 1e5 notation):
   --repeats K        timed runs per point (default $REPEATS)
   --target S         step-loop seconds aimed at per run (default $TARGET_S)
   --max-step S       skip points whose single step would take longer (default $MAX_STEP_S)
+  --steps S          S steps in every run, no probe runs (the warm-up run is the probe): for large N,
+                     where each run spends seconds reading the input and writing the final state
   -o, --output FILE  runs CSV (default $OUTPUT)
   --help             this text
 Scenes: random = the assignment's generated input (r = 1, L = $RANDOM_L0 up to N = $RANDOM_N0, then
@@ -74,6 +77,7 @@ while [ $# -gt 0 ]; do
         --repeats) REPEATS=$(integer "${2?--repeats needs a number}"); GIVEN="$GIVEN repeats"; shift ;;
         --target) TARGET_S=${2?--target needs seconds}; GIVEN="$GIVEN target"; shift ;;
         --max-step) MAX_STEP_S=${2?--max-step needs seconds}; GIVEN="$GIVEN max-step"; shift ;;
+        --steps) STEPS_FIXED=$(integer "${2?--steps needs a number}"); shift ;;
         -o | --output) OUTPUT=${2?--output needs a file}; OUTPUT_GIVEN=1; shift ;;
         *) die "unknown option '$1' (see --help)" ;;
     esac
@@ -122,18 +126,21 @@ make -q all >/dev/null 2>&1 || echo "bench.sh: warning: binaries older than thei
 mkdir -p "$TMP_DIR" "$(dirname "$OUTPUT")"
 
 # ---- scenes: each writes an input file for N disks; add new ones here ------------------------------
-# scene_make NAME N FILE: the input for N disks with 1 step (runs rewrite the steps line).
+# scene_make NAME N FILE: the input for N disks. Its steps line has STEPS_WIDTH digits, so that runs
+# can rewrite it in place (with_steps) instead of copying gigabytes per run at N = 1e8.
+STEPS_WIDTH=10
+STEPS_PLACEHOLDER=1000000000
 scene_make() {
-    local name=$1 n=$2 file=$3
+    local name=$1 n=$2 file=$3 s=$STEPS_PLACEHOLDER
     case $name in
         random)
-            awk -v n="$n" -v l0="$RANDOM_L0" -v n0="$RANDOM_N0" \
-                'BEGIN { L = n > n0 ? l0 * sqrt(n / n0) : l0; printf "%d\n%.10g\n1\n1\nperf\n", n, L }' \
+            awk -v n="$n" -v l0="$RANDOM_L0" -v n0="$RANDOM_N0" -v s="$s" \
+                'BEGIN { L = n > n0 ? l0 * sqrt(n / n0) : l0; printf "%d\n%.10g\n1\n%s\nperf\n", n, L, s }' \
                 > "$file" ;;
-        gas05) tools/gen "$n" --fraction 0.05 --speed 0.5 --steps 1 --seed "$SEED" > "$file" ;;
-        gas20) tools/gen "$n" --fraction 0.2 --speed 0.5 --steps 1 --seed "$SEED" > "$file" ;;
-        gas40) tools/gen "$n" --fraction 0.4 --speed 0.5 --steps 1 --seed "$SEED" > "$file" ;;
-        dilute) tools/gen "$n" --fraction 0.001 --speed 0.5 --steps 1 --seed "$SEED" > "$file" ;;
+        gas05) tools/gen "$n" --fraction 0.05 --speed 0.5 --steps $s --seed "$SEED" > "$file" ;;
+        gas20) tools/gen "$n" --fraction 0.2 --speed 0.5 --steps $s --seed "$SEED" > "$file" ;;
+        gas40) tools/gen "$n" --fraction 0.4 --speed 0.5 --steps $s --seed "$SEED" > "$file" ;;
+        dilute) tools/gen "$n" --fraction 0.001 --speed 0.5 --steps $s --seed "$SEED" > "$file" ;;
         *) die "unknown scene '$name'" ;;
     esac
 }
@@ -154,9 +161,17 @@ scene_file() {
 RUN_IN=$TMP_DIR/run.$$.in
 RUN_ERR=$TMP_DIR/run.$$.err
 trap 'rm -f "$RUN_IN" "$RUN_ERR"' EXIT
-# with_steps BASE S: the base input with its steps line replaced, as $RUN_IN.
+# with_steps BASE S: the base input with its steps line replaced, as $RUN_IN: copied once per base,
+# then only the steps line (line 4, STEPS_WIDTH digits, leading zeros allowed) is overwritten.
+RUN_BASE=""
 with_steps() {
-    { head -n 3 "$1"; echo "$2"; tail -n +5 "$1"; } > "$RUN_IN"
+    if [ "$RUN_BASE" != "$1" ]; then
+        cp "$1" "$RUN_IN"
+        RUN_BASE=$1
+        RUN_OFFSET=$(head -n 3 "$1" | wc -c)
+        [ "$(sed -n 4p "$1" | tr -d '\n' | wc -c)" -eq "$STEPS_WIDTH" ] || die "$1: line 4 is not $STEPS_WIDTH digits"
+    fi
+    printf "%0${STEPS_WIDTH}d" "$2" | dd of="$RUN_IN" bs=1 seek="$RUN_OFFSET" conv=notrunc status=none
 }
 
 # run_once BACKEND THREADS: runs $RUN_IN; sets SECONDS_LOOP, WALL, PAIR_TESTS, EVENTS.
@@ -236,7 +251,7 @@ provenance() {
     fi
     echo "# OMP_PROC_BIND=$OMP_PROC_BIND OMP_PLACES=$OMP_PLACES; omp threads: $THREADS"
     echo "# backends: $RUNNABLE; scenes: $SCENES; seed: $SEED; repeats: $REPEATS after 1 warm-up;" \
-        "target: $TARGET_S s per run; max step: $MAX_STEP_S s"
+        "target: $TARGET_S s per run; max step: $MAX_STEP_S s${STEPS_FIXED:+; steps: $STEPS_FIXED per run}"
     echo "# random scene: r = 1, L = $RANDOM_L0 * sqrt(max(N, $RANDOM_N0) / $RANDOM_N0)"
 }
 
@@ -297,7 +312,14 @@ for scene in $SCENES; do
                     geometry=$(awk 'NR == 2 { L = $1 } NR == 3 { r = $1 } NR == 1 { n = $1 } NR == 3 {
                         printf "%.10g,%.10g,%.6g", L, r, n * 3.141592653589793 * r * r / (L * L); exit }' "$base")
                 fi
-                calibrate "$b" "$t" "$base"
+                if [ -n "$STEPS_FIXED" ]; then
+                    STEPS=$STEPS_FIXED
+                    with_steps "$base" "$STEPS"
+                    run_once "$b" "$t" # the warm-up, discarded; it also measures the step
+                    PER_STEP=$(awk -v x="$SECONDS_LOOP" -v s="$STEPS" 'BEGIN { printf "%.9g", x / s }')
+                else
+                    calibrate "$b" "$t" "$base"
+                fi
                 PREV_N[$key]=${LAST_N[$key]:-}
                 PREV_STEP[$key]=${LAST_STEP[$key]:-}
                 LAST_N[$key]=$n
@@ -307,7 +329,7 @@ for scene in $SCENES; do
                     echo "bench.sh: $key: N >= $n skipped (one step takes $PER_STEP s)" >&2
                     continue
                 fi
-                warm_up "$b" "$t" "$base"
+                [ -n "$STEPS_FIXED" ] || warm_up "$b" "$t" "$base"
                 for ((k = 1; k <= REPEATS; k++)); do
                     run_once "$b" "$t"
                     awk -v OFS=, -v b="$b" -v t="$t" -v sc="$scene" -v n="$n" -v s="$STEPS" -v k="$k" \

@@ -12,11 +12,13 @@ integer() {
 # A variable of the Makefile, as make sees it (CC, CFLAGS, ...).
 make_var() { make -s --no-print-directory --eval='script-print-%: ; @echo $($*)' "script-print-$1" 2>/dev/null; }
 
-# machine_provenance LOAD CORES: the '#' lines of a results file that name the tree, the machine and
-# the C compiler.
+# machine_provenance LOAD CORES: the '#' lines of a results file that name the tree (REVISION, or git),
+# the machine and the C compiler.
 machine_provenance() {
     local hash dirty cc
-    if hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
+    if [ -n "${REVISION:-}" ]; then # a copy of the tree without its git checkout names its commit here
+        hash=$REVISION dirty="given by REVISION"
+    elif hash=$(git rev-parse --short=12 HEAD 2>/dev/null); then
         dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo dirty || echo clean)
     else
         hash="unknown" dirty="not a git checkout"
