@@ -48,6 +48,7 @@ options (lists are space- or comma-separated; sizes accept 1e5 notation):
   --repeats K        timed runs per point (default $REPEATS)
   --target S         step-loop seconds aimed at per run (default $TARGET_S)
   --max-step S       skip points whose single step would take longer (default $MAX_STEP_S)
+  --prepare          only generate the scene files of the sweep (cached under $TMP_DIR), run nothing
   --steps S          S steps in every run, no probe runs (the warm-up run is the probe): for large N,
                      where each run spends seconds reading the input and writing the final state
   -o, --output FILE  runs CSV (default $OUTPUT)
@@ -64,12 +65,13 @@ die() { echo "bench.sh: $*" >&2; exit 1; }
 . tools/script_lib.sh
 
 # ---- options --------------------------------------------------------------------------------------
-QUICK=0 SIZES="" OUTPUT_GIVEN=0 GIVEN=""
+QUICK=0 PREPARE=0 SIZES="" OUTPUT_GIVEN=0 GIVEN=""
 COMMAND_LINE="./bench.sh $*"
 while [ $# -gt 0 ]; do
     case $1 in
         --help | -h) usage; exit 0 ;;
         --quick) QUICK=1 ;;
+        --prepare) PREPARE=1 ;;
         --backends) BACKENDS=$(words "${2?--backends needs a list}"); shift ;;
         --scenes) SCENES=$(words "${2?--scenes needs a list}"); shift ;;
         --sizes) SIZES=$(words "${2?--sizes needs a list}"); shift ;;
@@ -306,6 +308,11 @@ for scene in $SCENES; do
                     SKIPPED[$key]=1
                     echo "bench.sh: $key: N >= $n skipped (one step would take over $MAX_STEP_S s)" >&2
                     continue
+                fi
+                if [ "$PREPARE" = 1 ]; then
+                    scene_file "$scene" "$n" > /dev/null
+                    echo "bench.sh: scene $scene N = $n ready" >&2
+                    break 2
                 fi
                 if [ -z "$base" ]; then
                     base=$(scene_file "$scene" "$n")
