@@ -52,6 +52,8 @@ extern "C" const char backend_options[] = "";
 #define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
 #define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
 #define PHASES 7                  /* phases timed under --stats */
+#define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
+                                     clearing and scanning cells than it saves in pair tests */
 
 
 /* ==== device state ======================================================================================= */
@@ -762,7 +764,9 @@ static Grid grid_choose(const Cuda *c, double vmax)
     double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
     double margin = broad_margin(r, scale, reach, SIM_REL_MARGIN);
     double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
-    double gmax = floor(sqrt((double)c->cell_cap / gr.K));
+    double per_slice = (double)c->cell_cap / gr.K;
+    if (per_slice > CELLS_PER_DISK * n + 1024) per_slice = CELLS_PER_DISK * n + 1024;
+    double gmax = floor(sqrt(per_slice));
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;
     if (!(gf >= 1)) gf = 1;
