@@ -37,6 +37,7 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
 #define K_MAX 65536      /* most time slices per step */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
+#define SCAN_WIDTH 4     /* boxes one group of the scan tests at once */
 
 
 /* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
@@ -50,6 +51,14 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 /* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
 typedef struct {
     real xlo, xhi, ylo, yhi;
+} Span;
+
+/* A Span as the scan reads it: in cell units from the grid's corner, rounded to float, half the bytes
+ * to stream. Subtracting, scaling by a positive factor and rounding never reverse the order of two
+ * coordinates, so spans that overlap still overlap as Boxes (a few more may): the scan only gets more
+ * conservative. */
+typedef struct {
+    float xlo, xhi, ylo, yhi;
 } Box;
 
 /* A disk's state at the start of the step, stored in the cell order of the boxes, so that the
@@ -252,7 +261,7 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     return pl;
 }
 
-static inline void slice_box(const Slots *s, int64_t q, real ta, real tb, real grow, Box *b)
+static inline void slice_span(const Slots *s, int64_t q, real ta, real tb, real grow, Span *b)
 {
     real xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
     real ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
@@ -260,6 +269,14 @@ static inline void slice_box(const Slots *s, int64_t q, real ta, real tb, real g
     b->xhi = (xa < xb ? xb : xa) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
     b->yhi = (ya < yb ? yb : ya) + grow;
+}
+
+static inline void span_box(const Span *a, const Plan *pl, Box *b)
+{
+    b->xlo = (float)(((double)a->xlo - pl->x0) * pl->inv_h);
+    b->xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
+    b->ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h);
+    b->yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
 }
 
 static inline void slot_body(const Slots *s, int64_t q, Body *b)
@@ -321,8 +338,8 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
     memset(h, 0, (size_t)cells * sizeof *h);
     range_of(w->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
-        Box b;
-        slice_box(s, q, ta, tb, pl->grow, &b);
+        Span b;
+        slice_span(s, q, ta, tb, pl->grow, &b);
         int64_t c = cell_coord(b.ylo, b.yhi, pl->y0, pl->inv_h, pl->g) * pl->g +
                     cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
         w->cell_of[q] = (int32_t)c;
@@ -358,7 +375,9 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
-            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            Span b;
+            slice_span(s, q, ta, tb, pl->grow, &b);
+            span_box(&b, pl, &w->boxes[pos]);
             w->box_slot[pos] = pos;
             wall_event(w, q, pos);
             d->x[pos] = s->x[q];
@@ -374,7 +393,9 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
-            slice_box(s, q, ta, tb, pl->grow, &w->boxes[pos]);
+            Span b;
+            slice_span(s, q, ta, tb, pl->grow, &b);
+            span_box(&b, pl, &w->boxes[pos]);
             if (mode == BIN_SLOTS) w->box_slot[pos] = (int32_t)q;
             else slot_body(s, q, &w->bodies[pos]);
         }
@@ -434,6 +455,34 @@ static inline void try_slots(const Work *w, Thread *th, int32_t a, int32_t b)
     try_pair(w, th, &p, &q, 0);
 }
 
+/* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
+static void scan_hits(const Work *w, Thread *th, int32_t a, int32_t b, unsigned m, int k)
+{
+    for (int u = 0; u < SCAN_WIDTH; u++) {
+        if (!(m >> u & 1)) continue;
+        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b + u]);
+        else try_pair(w, th, &w->bodies[a], &w->bodies[b + u], k);
+    }
+}
+
+/* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
+ * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
+ * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
+ * entries) and masks them off. */
+static inline void scan_range(const Work *w, Thread *th, int32_t a, int32_t b0, int32_t b1, int k)
+{
+    const Box *bx = w->boxes, *ba = &w->boxes[a];
+    for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
+        unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
+                     (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
+                     (unsigned)boxes_overlap(ba, &bx[b + 2]) << 2 |
+                     (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
+        int32_t rest = b1 - b;
+        m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
+        if (m) scan_hits(w, th, a, b, m, k);
+    }
+}
+
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
  * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
  * memory and the three northern cells are contiguous, so two ranges cover them. */
@@ -441,8 +490,6 @@ static void scan_slice(Work *w, int tid, int k)
 {
     const Plan *pl = &w->plan;
     Thread *th = &w->th[tid];
-    const Box *bx = w->boxes;
-    const Body *bd = w->bodies;
     const int32_t *cs = w->cell_start;
     int64_t g = pl->g;
     int64_t chunk = g / (8 * w->nt) + 1;
@@ -459,17 +506,8 @@ static void scan_slice(Work *w, int tid, int k)
                 end2 = cs[last + 1];
             }
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                const Box *ba = &bx[a];
-                for (int32_t b = a + 1; b < end1; b++)
-                    if (boxes_overlap(ba, &bx[b])) {
-                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
-                        else try_pair(w, th, &bd[a], &bd[b], k);
-                    }
-                for (int32_t b = lo2; b < end2; b++)
-                    if (boxes_overlap(ba, &bx[b])) {
-                        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b]);
-                        else try_pair(w, th, &bd[a], &bd[b], k);
-                    }
+                scan_range(w, th, a, a + 1, end1, k);
+                scan_range(w, th, a, lo2, end2, k);
             }
         }
     }
@@ -898,7 +936,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
     w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
     w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
-    w.boxes = io_alloc((size_t)n, sizeof *w.boxes);
+    w.boxes = io_alloc((size_t)n + SCAN_WIDTH, sizeof *w.boxes);
     w.bodies = io_alloc((size_t)n, sizeof *w.bodies);
     w.wall_t = io_alloc((size_t)n, sizeof *w.wall_t);
     w.off = io_alloc((size_t)n + 1, sizeof *w.off);
