@@ -3,15 +3,15 @@
 # parts that each fit a 10-minute slot. Results (CSV, logs) go to $OUT (default bench/tmp/gpu).
 #   tools/gpu_sweep.sh small   make test (beside it: the 1e7 scene files), omp on 16 threads and cuda
 #                              over all scenes up to N = 1e6, omp thread scaling, cuda at N = 1e7
-#   tools/gpu_sweep.sh big     cuda at N = 1e8 on the four scenes with particle lines (4.5 GB each)
-# Both end by packing everything into $OUT/results.tgz (few files travel back easily); small also leaves
-# cuda and tools/gen in $OUT, for a later big run on a fresh machine (big builds only what is missing).
+#   tools/gpu_sweep.sh big     make test (beside it: the 1e8 scene files), cuda at N = 1e8 on the four
+#                              scenes with particle lines (4.5 GB each)
+# Both end by packing everything into $OUT/results.tgz (few files travel back easily).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-bench/tmp/gpu}
 mkdir -p "$OUT"
 export REVISION=${REVISION:-$(git rev-parse --short=12 HEAD 2>/dev/null || echo unknown)}
-FILE_SCENES="gas05 gas20 gas40 dilute"
+FILE_SCENES="gas20 gas05 gas40 dilute"
 
 stamp() { echo "[$(date +%T)] $*"; }
 
@@ -20,8 +20,8 @@ build() { # TARGETS...
 }
 
 pack() {
-    (cd "$OUT" && tar czf results.tgz --exclude results.tgz --exclude cuda --exclude gen ./*.csv ./*.log)
-    find "$OUT" -maxdepth 1 -type f ! -name results.tgz ! -name cuda ! -name gen -delete
+    (cd "$OUT" && tar czf results.tgz --exclude results.tgz ./*.csv ./*.log)
+    find "$OUT" -maxdepth 1 -type f ! -name results.tgz -delete
 }
 
 # prepare N: the scene files with particle lines at N, one generator per scene, side by side
@@ -39,7 +39,6 @@ esac
 case ${1:-} in
 small)
     build all seq_san
-    cp cuda tools/gen "$OUT/"
     stamp "make test, and the N = 1e7 scenes generated beside it"
     prepare 1e7 &
     make test > "$OUT/test.log" 2>&1 || true
@@ -59,9 +58,12 @@ small)
     stamp done
     ;;
 big)
-    [ -x ./cuda ] && [ -x tools/gen ] || build cuda tools/gen
-    stamp "the N = 1e8 scenes"
-    prepare 1e8
+    build all seq_san
+    stamp "make test, and the N = 1e8 scenes generated beside it"
+    prepare 1e8 &
+    make test > "$OUT/test.log" 2>&1 || true
+    wait
+    tail -3 "$OUT/test.log"
     df -h . | tail -1
     stamp "cuda, N = 1e8"
     ./bench.sh --backends cuda --sizes 1e8 --steps 20 --scenes "$FILE_SCENES" --repeats 3 \
