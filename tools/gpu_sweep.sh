@@ -3,6 +3,7 @@
 # parts that each fit a 10-minute slot. Results (CSV, logs) go to $OUT (default bench/tmp/gpu).
 #   tools/gpu_sweep.sh small   make test (beside it: the 1e7 scene files), omp on 16 threads and cuda
 #                              over all scenes up to N = 1e6, omp thread scaling, cuda at N = 1e7
+#   tools/gpu_sweep.sh cuda    cuda alone: all scenes up to N = 1e6, and N = 1e7 (after a change to cuda.cu)
 #   tools/gpu_sweep.sh big     make test (beside it: the 1e8 scene files), cuda at N = 1e8 on the four
 #                              scenes with particle lines (4.5 GB each)
 # Both end by packing everything into $OUT/results.tgz (few files travel back easily).
@@ -34,7 +35,7 @@ prepare() {
 }
 
 case ${1:-} in
-small | big) trap pack EXIT ;; # also when a time limit stops the sweep: what ran comes back
+small | big | cuda) trap pack EXIT ;; # also when a time limit stops the sweep: what ran comes back
 esac
 case ${1:-} in
 small)
@@ -70,8 +71,20 @@ big)
         -o "$OUT/gpu_h100_1e8.csv" 2> "$OUT/sweep_1e8.log"
     stamp done
     ;;
+cuda)
+    build cuda tools/gen
+    stamp "the N = 1e7 scenes"
+    prepare 1e7
+    stamp "cuda, all scenes, N = 1e3 .. 1e6"
+    ./bench.sh --backends cuda --sizes 1e3,1e4,1e5,1e6 --repeats 3 --target 0.1 \
+        -o "$OUT/gpu_h100_cuda.csv" 2> "$OUT/sweep_cuda.log"
+    stamp "cuda, N = 1e7"
+    ./bench.sh --backends cuda --sizes 1e7 --steps 100 --scenes "$FILE_SCENES" --repeats 3 \
+        -o "$OUT/gpu_h100_1e7.csv" 2> "$OUT/sweep_1e7.log"
+    stamp done
+    ;;
 *)
-    echo "usage: $0 small|big" >&2
+    echo "usage: $0 small|big|cuda" >&2
     exit 2
     ;;
 esac
