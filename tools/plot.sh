@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # tools/plot.sh: the figures of bench.sh summaries (make plots). For each NAME.summary.csv given (default:
-# every bench/*.summary.csv) it writes beside it:
+# every bench/*.summary.csv) it writes beside it (with --merge NAME FILES...: one set NAME-*.png of the
+# points of all the files, for a machine whose sweep ran in parts):
 #   NAME-time.png     ns per particle-step against N, log-log, a panel per scene, a line per backend/threads
 #   NAME-speedup.png  omp speedup over 1 thread against threads, a panel per scene, a line per N
 #   NAME-gpu.png      cuda speedup over the fastest CPU run against N, a line per scene (cuda rows only)
@@ -143,17 +144,38 @@ plot_gpu() {
     gnuplot "$WORK/gpu.gp"
 }
 
+# figures DATA NAME CSV: the three figures of the rows in DATA, titled by CSV's machine lines
+figures() {
+    local data=$1 name=$2 csv=$3 where gpu
+    where=$(sed -n 's/^# cpu: \(.*\); cores: \(.*\)/\1, \2 cores/p' "$csv" | head -n 1)
+    gpu=$(sed -n 's/^# gpu: \([^;]*\).*/\1/p' "$csv" | head -n 1)
+    [ -z "$gpu" ] || [ "$gpu" = none ] || where="$where; $gpu"
+    plot_time "$data" "$name-time.png" "Time per particle-step ($where)"
+    plot_speedup "$data" "$name-speedup.png" "OpenMP speedup ($where)"
+    plot_gpu "$data" "$name-gpu.png" "GPU over CPU ($where)"
+}
+
+if [ "$1" = --merge ]; then
+    # --merge NAME A.summary.csv B.summary.csv ...: one set of figures NAME-*.png from the points of all
+    # the files (sweeps of one machine run in parts); a point measured in several files is taken from
+    # the last one given
+    name=${2?--merge needs a name}
+    shift 2
+    for csv in "$@"; do
+        [ -r "$csv" ] || { echo "plot.sh: cannot read $csv" >&2; exit 1; }
+        rows "$csv"
+    done | awk '{ key = $1 " " $2 " " $3 " " $4; if (!(key in row)) order[++k] = key; row[key] = $0 }
+                END { for (i = 1; i <= k; i++) print row[order[i]] }' > "$WORK/data"
+    figures "$WORK/data" "$name" "$1"
+    echo "plot.sh: figures of $* written as $name-*.png" >&2
+    exit 0
+fi
 for csv in "$@"; do
     [ -r "$csv" ] || { echo "plot.sh: cannot read $csv" >&2; exit 1; }
     name=${csv%.summary.csv}
     name=${name%.csv}
     rows "$csv" > "$WORK/data"
     [ -s "$WORK/data" ] || { echo "plot.sh: $csv has no rows" >&2; exit 1; }
-    where=$(sed -n 's/^# cpu: \(.*\); cores: \(.*\)/\1, \2 cores/p' "$csv" | head -n 1)
-    gpu=$(sed -n 's/^# gpu: \([^;]*\).*/\1/p' "$csv" | head -n 1)
-    [ -z "$gpu" ] || [ "$gpu" = none ] || where="$where; $gpu"
-    plot_time "$WORK/data" "$name-time.png" "Time per particle-step ($where)"
-    plot_speedup "$WORK/data" "$name-speedup.png" "OpenMP speedup ($where)"
-    plot_gpu "$WORK/data" "$name-gpu.png" "GPU over CPU ($where)"
+    figures "$WORK/data" "$name" "$csv"
     echo "plot.sh: figures of $csv written as $name-*.png" >&2
 done
