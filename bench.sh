@@ -11,7 +11,7 @@ BACKENDS=${BACKENDS:-"seq omp cuda"}                  # those without a runnable
 SCENES=${SCENES:-"random gas05 gas20 gas40 dilute"}   # see scene_make below
 SIZES_CPU=${SIZES_CPU:-"1000 3000 10000 30000 100000 300000 1000000"}
 SIZES_GPU=${SIZES_GPU:-"$SIZES_CPU 3000000 10000000 30000000 100000000"}
-FILE_MAX_N=${FILE_MAX_N:-100000000} # scenes with particle lines take ~45 bytes per disk on disk
+FILE_MAX_N=${FILE_MAX_N:-100000000} # scenes with particle lines take ~60 bytes per disk on disk
 THREADS=${THREADS:-""}              # omp thread counts; empty: 1, 2, 4, ... and the core count
 REPEATS=${REPEATS:-3}               # timed runs per point, after one discarded warm-up run
 TARGET_S=${TARGET_S:-1.0}           # aimed step-loop time of one run; steps are chosen per point
@@ -48,6 +48,7 @@ options (lists are space- or comma-separated; sizes accept 1e5 notation):
   --repeats K        timed runs per point (default $REPEATS)
   --target S         step-loop seconds aimed at per run (default $TARGET_S)
   --max-step S       skip points whose single step would take longer (default $MAX_STEP_S)
+  --summarize FILE   only write FILE's summary again from its rows (a sweep stopped before its end)
   --prepare          only generate the scene files of the sweep (cached under $TMP_DIR), run nothing
   --steps S          S steps in every run, no probe runs (the warm-up run is the probe): for large N,
                      where each run spends seconds reading the input and writing the final state
@@ -64,6 +65,36 @@ die() { echo "bench.sh: $*" >&2; exit 1; }
 [ -n "${EPOCHREALTIME:-}" ] || die "needs bash 5 or later (EPOCHREALTIME)"
 . tools/script_lib.sh
 
+# ---- summary: min and median of the timed runs of each point (its rows are consecutive) ------------
+summarize() { # RUNS_CSV [EXTRA_HEADER_LINE]: writes RUNS_CSV minus .csv plus .summary.csv
+    local runs=$1
+    {
+    grep '^#' "$runs"
+    [ -z "${2:-}" ] || echo "$2"
+    echo "backend,threads,scene,n,steps,runs,min_seconds,median_seconds,min_ns_per_particle_step,median_ns_per_particle_step,min_wall_seconds,median_wall_seconds,pair_tests_per_particle_step,events_per_particle_step,L,r,area_fraction"
+    grep -v -e '^#' -e '^backend,' "$runs" | awk -F, -v OFS=, '
+        function median(a, k,   h) { h = int((k + 1) / 2); return k % 2 ? a[h] : (a[h] + a[h + 1]) / 2 }
+        function sorted(a, k,   i, j, v) {
+            for (i = 2; i <= k; i++) { v = a[i]; for (j = i - 1; j >= 1 && a[j] > v; j--) a[j + 1] = a[j]; a[j + 1] = v }
+        }
+        function flush(   ps) {
+            if (!k) return
+            sorted(sec, k); sorted(wall, k)
+            ps = n * s
+            printf "%s,%d,%d,%.6f,%.6f,%.6g,%.6g,%.6f,%.6f,%s,%s,%s\n", key, s, k, sec[1], median(sec, k),
+                   sec[1] * 1e9 / ps, median(sec, k) * 1e9 / ps, wall[1], median(wall, k), tests, ev, geo
+            k = 0
+        }
+        {
+            id = $1 "," $2 "," $3 "," $4
+            if (id != key) { flush(); key = id }
+            n = $4; s = $5; k++; sec[k] = $7 + 0; wall[k] = $8 + 0; tests = $10; ev = $11
+            geo = $14 "," $15 "," $16
+        }
+        END { flush() }'
+    } > "${runs%.csv}.summary.csv"
+}
+
 # ---- options --------------------------------------------------------------------------------------
 QUICK=0 PREPARE=0 SIZES="" OUTPUT_GIVEN=0 GIVEN=""
 COMMAND_LINE="./bench.sh $*"
@@ -72,6 +103,7 @@ while [ $# -gt 0 ]; do
         --help | -h) usage; exit 0 ;;
         --quick) QUICK=1 ;;
         --prepare) PREPARE=1 ;;
+        --summarize) summarize "${2?--summarize needs a runs CSV}" "# summary written afterwards by ./bench.sh --summarize"; echo "bench.sh: ${2%.csv}.summary.csv" >&2; exit 0 ;;
         --backends) BACKENDS=$(words "${2?--backends needs a list}"); shift ;;
         --scenes) SCENES=$(words "${2?--scenes needs a list}"); shift ;;
         --sizes) SIZES=$(words "${2?--sizes needs a list}"); shift ;;
@@ -352,31 +384,7 @@ for scene in $SCENES; do
 done
 
 # ---- summary: min and median of the timed runs of each point (its rows are consecutive) ------------
-{
-    echo "$HEADER"
-    echo "# load average at end (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
-    echo "backend,threads,scene,n,steps,runs,min_seconds,median_seconds,min_ns_per_particle_step,median_ns_per_particle_step,min_wall_seconds,median_wall_seconds,pair_tests_per_particle_step,events_per_particle_step,L,r,area_fraction"
-    grep -v -e '^#' -e '^backend,' "$OUTPUT" | awk -F, -v OFS=, '
-        function median(a, k,   h) { h = int((k + 1) / 2); return k % 2 ? a[h] : (a[h] + a[h + 1]) / 2 }
-        function sorted(a, k,   i, j, v) {
-            for (i = 2; i <= k; i++) { v = a[i]; for (j = i - 1; j >= 1 && a[j] > v; j--) a[j + 1] = a[j]; a[j + 1] = v }
-        }
-        function flush(   ps) {
-            if (!k) return
-            sorted(sec, k); sorted(wall, k)
-            ps = n * s
-            printf "%s,%d,%d,%.6f,%.6f,%.6g,%.6g,%.6f,%.6f,%s,%s,%s\n", key, s, k, sec[1], median(sec, k),
-                   sec[1] * 1e9 / ps, median(sec, k) * 1e9 / ps, wall[1], median(wall, k), tests, ev, geo
-            k = 0
-        }
-        {
-            id = $1 "," $2 "," $3 "," $4
-            if (id != key) { flush(); key = id }
-            n = $4; s = $5; k++; sec[k] = $7 + 0; wall[k] = $8 + 0; tests = $10; ev = $11
-            geo = $14 "," $15 "," $16
-        }
-        END { flush() }'
-} > "$SUMMARY"
+summarize "$OUTPUT" "# load average at end (1, 5, 15 min): $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
 
 echo "bench.sh: $(grep -c -v -e '^#' -e '^backend,' "$OUTPUT") runs in" \
     "$(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s: $OUTPUT, $SUMMARY" >&2
