@@ -83,10 +83,11 @@ accuracy: all
 
 # figures from the committed bench/*.summary.csv and bench/accuracy.csv (needs gnuplot: apt-get install
 # gnuplot-nox)
-# the H100 sweep ran in parts (tools/gpu_sweep.sh); a point in several files is taken from the later one
+# sweeps run in parts (the CPU's N = 1e6 again with longer runs; the H100's in tools/gpu_sweep.sh): a
+# point in several files is taken from the later one
 GPU_SUMMARIES = $(subst _ALL,,$(patsubst %,bench/gpu_h100%.summary.csv,_ALL _threads _cuda _1e7_random _1e7 _1e8 _1e8b))
 plots:
-	@bash tools/plot.sh bench/cpu.summary.csv
+	@bash tools/plot.sh --merge bench/cpu bench/cpu.summary.csv bench/cpu_1e6.summary.csv
 	@bash tools/plot.sh --merge bench/gpu_h100 $(GPU_SUMMARIES)
 	@if [ -f bench/accuracy.csv ]; then bash tools/accuracy.sh --plot bench/accuracy.csv; fi
 

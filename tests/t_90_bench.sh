@@ -38,3 +38,24 @@ if [ "$bench_points" -gt 0 ] && [ "$bench_rows" -eq "$bench_points" ]; then
 else
     fail "bench.sh --quick summary: one row per point" "$bench_rows good rows for $bench_points points"
 fi
+
+# --summarize rebuilds the summary of the runs above from their rows alone (as for a stopped sweep)
+cp "$bench_csv" "$TMP/again.csv"
+./bench.sh --summarize "$TMP/again.csv" 2> /dev/null
+if [ -s "$TMP/again.summary.csv" ] &&
+    diff <(grep -v '^#' "$bench_sum") <(grep -v '^#' "$TMP/again.summary.csv") > /dev/null; then
+    pass "bench.sh --summarize: the sweep's summary rows"
+else
+    fail "bench.sh --summarize: the sweep's summary rows" "$(diff <(grep -v '^#' "$bench_sum") <(grep -v '^#' "$TMP/again.summary.csv") 2>&1 | head -3)"
+fi
+
+# --steps S: every run has S steps in its input's steps line (rewritten in place, so the file of a
+# scene keeps its other lines) and no probe runs
+./bench.sh --backends omp --threads 2 --scenes gas20,random --sizes 1000 --steps 7 --repeats 3 \
+    -o "$TMP/steps.csv" > "$TMP/steps.log" 2>&1
+steps_rows=$(grep -v -e '^#' -e '^backend,' "$TMP/steps.csv" 2>/dev/null | awk -F, '$5 == 7' | wc -l)
+if [ "$steps_rows" -eq 6 ]; then
+    pass "bench.sh --steps 7: 6 runs of 7 steps"
+else
+    fail "bench.sh --steps 7: 6 runs of 7 steps" "$steps_rows rows with 7 steps: $(tail -n 2 "$TMP/steps.log")"
+fi
