@@ -42,6 +42,21 @@ on_backends() {
     fi
 }
 
+# threads_mismatch "THREADS" REF COMMAND...: runs COMMAND --threads T for each T of THREADS and prints
+# " T:exit(message)" or " T:differs" for each run that fails or whose stdout is not REF (nothing if all
+# match). omp's thread-count tests (t_70, t_75) build their verdicts on it.
+threads_mismatch() {
+    local threads=$1 ref=$2 t
+    shift 2
+    for t in $threads; do
+        if ! "$@" --threads "$t" > "$TMP/threads.out" 2> "$TMP/threads.err"; then
+            printf ' %s' "$t:exit($(head -c 200 "$TMP/threads.err"))"
+        elif ! cmp -s "$TMP/threads.out" "$ref"; then
+            printf ' %s' "$t:differs"
+        fi
+    done
+}
+
 # The programs that must reject bad input the same way: seq, omp, and cuda where a GPU answers.
 backend_list() {
     echo seq omp

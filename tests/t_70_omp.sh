@@ -43,14 +43,8 @@ omp_compare() { # name input [extra options]
         fail "omp/$name seq" "$(head -c 300 "$D/err")"
         return
     fi
-    local t bad=""
-    for t in ${OMP_THREAD_COUNTS:-1 2 3 7}; do
-        if ! ./omp$SUF "$in" --quiet --threads "$t" "$@" > "$D/out" 2> "$D/err"; then
-            bad="$bad $t:exit($(head -c 200 "$D/err"))"
-        elif ! cmp -s "$D/out" "$D/$name.ref"; then
-            bad="$bad $t:differs"
-        fi
-    done
+    local bad
+    bad=$(threads_mismatch "${OMP_THREAD_COUNTS:-1 2 3 7}" "$D/$name.ref" ./omp$SUF "$in" --quiet "$@")
     if [ -z "$bad" ]; then
         pass "omp$SUF/$name same bytes as seq$SUF at ${OMP_THREAD_COUNTS:-1 2 3 7} threads"
     else

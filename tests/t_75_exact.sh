@@ -70,19 +70,13 @@ SCENES
 }
 
 exact_compare() { # name input suffix [extra options]
-    local name=$1 in=$2 suf=$3 t bad=""
+    local name=$1 in=$2 suf=$3 bad
     shift 3
     if ! ./seq$suf "$in" --exact --quiet "$@" > "$X/$name.ref" 2> "$X/err"; then
         fail "exact/$name seq$suf" "$(head -c 300 "$X/err")"
         return
     fi
-    for t in 1 2 3 7; do
-        if ! ./omp$suf "$in" --exact --quiet --threads "$t" "$@" > "$X/out" 2> "$X/err"; then
-            bad="$bad $t:exit($(head -c 200 "$X/err"))"
-        elif ! cmp -s "$X/out" "$X/$name.ref"; then
-            bad="$bad $t:differs"
-        fi
-    done
+    bad=$(threads_mismatch "1 2 3 7" "$X/$name.ref" ./omp$suf "$in" --exact --quiet "$@")
     if [ -z "$bad" ]; then
         pass "exact/$name omp$suf --exact same bytes as seq$suf at 1 2 3 7 threads"
     else
