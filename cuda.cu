@@ -1,16 +1,21 @@
 /* cuda.cu: the CUDA backend.
  *
- * Every phase of a step runs on the device; the host reads back one 32-byte record per step (the new
- * maximum speed, which sizes the next step's grid, and the event-buffer count, which detects an
- * overflow). A step:
+ * Every phase of a step runs on the device, and the device never waits for the host. The host launches
+ * steps in batches of up to BATCH, two batches ahead, and reads one control record per batch (the
+ * largest speed, the counters) while the next batch runs. From that speed, a batch or two old, it plans
+ * the launch sizes: the most time slices and the finest grid a step may use. Each step's first kernel
+ * fits its grid to the largest speed of its own disks within that plan, so the grid is always valid.
+ * A step whose pair events overflow the event list is refused before it writes the state; the steps
+ * launched after it then write only scratch buffers and commit nothing, and the host runs them again
+ * with a larger list. A step:
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
- *            lies in neighbouring cells (see grid_choose); a counting sort orders the (slice, cell)
+ *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
  *            entries: count, exclusive scan, place
- *   gather   with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
+ *   place    with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
  *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
- *            gather); a pair is kept only in the slice that holds its event time, so it is found once
+ *            place); a pair is kept only in the slice that holds its event time, so it is found once
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
@@ -50,7 +55,9 @@ extern "C" const char backend_options[] = "";
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
 #define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
-#define SLICE_COST 64.0           /* cost of one entry, in pair tests: sets K (measured best of 4..256) */
+#ifndef SLICE_COST
+#define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 40, 64, 100: 40 best) */
+#endif
 #define PHASES 7                  /* phases timed under --stats */
 #define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
                                      clearing and scanning cells than it saves in pair tests */
@@ -65,10 +72,12 @@ typedef float2 real2;
 typedef double2 real2;
 #endif
 
-/* One copy of the disks in slot order; id maps a slot to the disk's original index. */
+/* One copy of the disks in slot order; id maps a slot to the disk's original index. The collision
+ * counts stay in original order outside it (Cuda.pc, Cuda.wc): only the few disks with an event touch
+ * them, so they are not carried along when the disks change places. */
 typedef struct {
     real2 *pos, *vel; /* (x, y) and (vx, vy) */
-    int32_t *pc, *wc, *id;
+    int32_t *id;
 } DevState;
 
 /* A pair event: hi = (t bits << 1) | 1 (kind 1), lo = (i << 31) | j with i < j original indices;
@@ -80,13 +89,25 @@ typedef struct {
     int32_t a, b;
 } PairEvent;
 
-/* Read back once per step. */
+/* One step's counters, cleared by its gate. */
 typedef struct {
     unsigned long long vmax;   /* bits of the largest |vx| or |vy| after the step (>= 0, so ordered) */
-    unsigned long long found;  /* pair events detected (may exceed the buffer: then the step reruns) */
+    unsigned long long found;  /* pair events detected (may exceed the buffer: then the step is refused) */
     unsigned long long events; /* accepted events */
     unsigned long long tests;  /* narrow-phase pair tests */
 } StepInfo;
+
+/* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
+ * step is: steps + 1. A step is refused only when its pair events overflow the list. */
+typedef struct {
+    unsigned long long vmax;     /* bits of the largest |vx| or |vy| of the current state (double) */
+    unsigned long long steps;    /* steps committed */
+    unsigned long long refused;  /* 1: a step was refused; no step launched after it commits */
+    unsigned long long overflow; /* pair events the refused step found, when they overflowed the list */
+    unsigned long long faster;   /* steps whose disks were faster than their plan's speed */
+    unsigned long long tests, events;             /* sums over committed steps */
+    unsigned long long left[PARALLEL_ROUNDS];     /* pair events undecided before each grid-wide round */
+} Control;
 
 /* Binning of one step. */
 typedef struct {
@@ -98,6 +119,55 @@ typedef struct {
     int64_t cells;  /* K * ncell; also the key of an entry left out */
 } Grid;
 
+/* What bounds a grid: the scene and the memory for entries and cells. */
+typedef struct {
+    int64_t n;
+    double L, r;
+    int max_slices;   /* K never exceeds this: entry_cap / n, capped */
+    int64_t cell_cap; /* cells (slices x g^2) count and start hold */
+} GridLimits;
+
+/* Time slices for a step whose largest velocity component is vmax: K trades binning work (n K entries)
+ * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice). */
+static __host__ __device__ int grid_slices(const GridLimits *lim, double vmax)
+{
+    double dens = (double)lim->n / (lim->L * lim->L);
+    double kf = vmax * sqrt(4.5 * dens / SLICE_COST);
+    int K = kf >= 1 ? (kf < lim->max_slices ? (int)(kf + 0.5) : lim->max_slices) : 1;
+    return K < 1 ? 1 : K;
+}
+
+/* The binning of a step in K slices whose largest velocity component is at most vmax, with at most gcap
+ * cells per side. A pair with an event at t in slice k is, at t, at most 2r apart per axis (plus
+ * rounding, covered by the margin), and each midpoint of slice k is within |v| / (2K) of the disk at t,
+ * so midpoints are at most 2r + vmax / K + margin apart: with cells at least that wide the pair is in
+ * neighbouring cells. The margin is omp's: the rounding of positions and times (SIM_REL_MARGIN of the
+ * coordinates' scale), and pair_time near a graze, where D > 0 can hold while the exact paths miss
+ * contact by up to about eps dd / r, with dd <= reach^2 for a pair with an event. Fewer cells than
+ * that allows are as exact, only slower. */
+static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int K, int64_t gcap)
+{
+    double n = (double)lim->n, L = lim->L, r = lim->r;
+    Grid gr;
+    gr.K = K;
+    double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
+    double margin = broad_margin(r, scale, reach, SIM_REL_MARGIN);
+    double cell_min = (2 * r + 2 * margin + vmax / K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
+    double per_slice = (double)lim->cell_cap / K;
+    if (per_slice > CELLS_PER_DISK * n + 1024) per_slice = CELLS_PER_DISK * n + 1024;
+    double gmax = floor(sqrt(per_slice));
+    if (gmax > (double)gcap) gmax = (double)gcap;
+    double gf = floor(L / cell_min);
+    if (gf > gmax) gf = gmax;
+    if (!(gf >= 1)) gf = 1;
+    gr.g = (int64_t)gf;
+    gr.cs = L / (double)gr.g;
+    gr.ncell = (uint32_t)(gr.g * gr.g);
+    gr.m = lim->n * K;
+    gr.cells = (int64_t)K * gr.ncell;
+    return gr;
+}
+
 /* A slot in a list shared by the whole grid: one atomic per group of threads that append together. */
 static __device__ __forceinline__ unsigned long long list_append(unsigned long long *count)
 {
@@ -105,6 +175,14 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
     unsigned long long base = 0;
     if (g.thread_rank() == 0) base = atomicAdd(count, (unsigned long long)g.size());
     return g.shfl(base, 0) + g.thread_rank();
+}
+
+/* After a refusal, the kernels that write what outlives a step (the state, the collision counts, the
+ * control record, the print copy) do nothing; the others write only scratch buffers, which the step
+ * run again rewrites. */
+static __device__ __forceinline__ bool refused(const Control *ctl)
+{
+    return *(const volatile unsigned long long *)&ctl->refused != 0;
 }
 
 #ifdef SIM_FLOAT
@@ -155,6 +233,38 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
 
 /* ==== bin ================================================================================================ */
 
+/* The first kernel of a step (one thread): fits the step's grid to the largest speed of its disks,
+ * within the plan's slices and cells per side (the host's plan comes from a speed a batch or two old),
+ * and clears the step's counters. */
+__global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
+                            unsigned long long plan_vmax, int K, int64_t gcap, Grid *grid)
+{
+    /* the grid first, even after a refusal: the steps that then run on scratch must stay within the
+     * launch sizes and the cells cleared, which are this plan's */
+    double vmax = __longlong_as_double((long long)ctl->vmax);
+    int k = grid_slices(&lim, vmax);
+    *grid = grid_fit(&lim, vmax, k < K ? k : K, gcap);
+    if (ctl->refused) return;
+    if (ctl->vmax > plan_vmax) ctl->faster++;
+    info->vmax = 0;
+    info->found = 0;
+    info->events = 0;
+    info->tests = 0;
+    for (int r = 0; r <= PARALLEL_ROUNDS; r++) counts[r] = 0;
+}
+
+/* The last kernel of a step (one thread): the step's state is now the current one. */
+__global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
+{
+    if (ctl->refused) return;
+    ctl->vmax = info->vmax;
+    ctl->steps++;
+    ctl->tests += info->tests;
+    ctl->events += info->events;
+    ctl->left[0] += info->found;
+    for (int r = 1; r < PARALLEL_ROUNDS; r++) ctl->left[r] += counts[r];
+}
+
 /* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle.
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
@@ -163,9 +273,10 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
-__global__ void bin_kernel(DevState st, int64_t n, Grid gr, Params par, uint32_t *keys, uint32_t *rank,
+__global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, Params par, uint32_t *keys, uint32_t *rank,
                            uint32_t *count)
 {
+    const Grid gr = *grid;
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= gr.m) return;
     int64_t k = e / n, s = e - k * n;
@@ -196,21 +307,8 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
     partner[s] = -1;
 }
 
-/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte entry
- * index is scattered; the disks are then gathered with coalesced writes. */
-__global__ void place_kernel(int64_t m, int64_t cells, const uint32_t *keys, const uint32_t *rank,
-                             const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
-{
-    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (e >= m) return;
-    uint32_t key = keys[e];
-    if (key >= cells) return;
-    int64_t p = (int64_t)start[key] + rank[e];
-    keys_sorted[p] = key;
-    order[p] = (uint32_t)e;
-}
-
-/* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p). */
+/* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.
+ * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.) */
 __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
 {
@@ -220,10 +318,22 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     real2 pos = in.pos[s], vel = in.vel[s];
     out.pos[p] = pos;
     out.vel[p] = vel;
-    out.pc[p] = in.pc[s];
-    out.wc[p] = in.wc[s];
     out.id[p] = in.id[s];
     slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
+}
+
+/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
+ * entry index is scattered; the disks, or their copies, are then gathered with coalesced writes. */
+__global__ void place_kernel(const Grid *grid, const uint32_t *keys, const uint32_t *rank,
+                             const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
+{
+    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (e >= grid->m) return;
+    uint32_t key = keys[e];
+    if (key >= grid->cells) return;
+    int64_t p = (int64_t)start[key] + rank[e];
+    keys_sorted[p] = key;
+    order[p] = (uint32_t)e;
 }
 
 /* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
@@ -235,10 +345,10 @@ typedef struct {
 
 /* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
 __global__ void gather_entries_kernel(DevState st, int64_t n, const uint32_t *order, const uint32_t *start,
-                                      int64_t cells, const uint64_t *wall_hi, Entries en)
+                                      const Grid *grid, const uint64_t *wall_hi, Entries en)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (p >= (int64_t)start[cells]) return;
+    if (p >= (int64_t)start[grid->cells]) return;
     int64_t s = (int64_t)(order[p] % (uint64_t)n);
     en.pos[p] = st.pos[s];
     en.vel[p] = st.vel[s];
@@ -263,10 +373,14 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
  * (from p + 1 to the end of the cell to its right) and the three cells of the row below, two contiguous
  * runs of entries, walked as one loop. en.slot == NULL means entry == slot (K = 1). Entry and cell
  * indices fit in 32 bits (entry_cap, cell_cap). */
-__global__ void detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
-                              Grid gr, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
+#ifndef DETECT_MIN_BLOCKS
+#define DETECT_MIN_BLOCKS 6 /* 40 registers instead of 60: the random scene 2.5% faster, the gas 0.5% slower */
+#endif
+__global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS) detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
+                              const Grid *grid, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
                               uint64_t *best_hi)
 {
+    const Grid gr = *grid;
     uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
     unsigned long long tests = 0;
     if (p < __ldg(&start[gr.cells])) {
@@ -289,11 +403,11 @@ __global__ void detect_kernel(Entries en, const uint32_t *__restrict__ keys, con
             real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
             int32_t id2 = __ldg(&en.id[q]);
             tests++;
-            /* the arguments are chosen first, so the warp runs one pair_time, not two branches */
+            /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and
+             * dvy exactly, which changes no product, sum or comparison after them. So p goes first
+             * whichever index is lower, and only the event's fields below depend on the order. */
             bool first = id < id2;
-            real2 pi = first ? pos : pos2, vi = first ? vel : vel2;
-            real2 pj = first ? pos2 : pos, vj = first ? vel2 : vel;
-            real t = pair_time(pi.x, pi.y, vi.x, vi.y, pj.x, pj.y, vj.x, vj.y, sigma2);
+            real t = pair_time(pos.x, pos.y, vel.x, vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
             if (t < 0) continue;
             if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)k) continue;
             PairEvent e;
@@ -434,28 +548,45 @@ __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned lon
 /* ==== move =============================================================================================== */
 
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
- * had that wall event accepted: no remaining pair event of it was smaller. */
+ * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
+ * overflowed the list decided on part of them only: it is refused here, before anything is written. */
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
-                            const uint64_t *wall_hi, const uint64_t *best_hi, StepInfo *info)
+                            const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
+                            StepInfo *info, int64_t cap, Control *ctl)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    real2 pos = {0, 0}, vel = {0, 0};
+    int32_t id = 0, o = -1;
+    uint64_t wall = NO_EVENT;
+    if (s < n) { /* loaded before the checks below, so that their loads overlap */
+        pos = in.pos[s];
+        vel = in.vel[s];
+        id = in.id[s];
+        o = partner[s];
+        wall = wall_hi[s];
+    }
+    if (refused(ctl)) return;
+    if (info->found > (unsigned long long)cap) {
+        if (blockIdx.x == 0 && threadIdx.x == 0) {
+            ctl->overflow = info->found;
+            ctl->refused = 1;
+        }
+        return;
+    }
     real vabs = 0;
     unsigned long long accepted = 0;
     if (s < n) {
         real lo = par.lo, hi = par.hi;
-        real2 pos = in.pos[s], vel = in.vel[s];
         real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-        int32_t pc = in.pc[s], wc = in.wc[s], id = in.id[s];
-        int32_t o = partner[s];
-        if (o < 0 && wall_hi[s] != NO_EVENT) o = (int32_t)s;
+        if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
         if (o < 0) {
             x = x + vx;
             y = y + vy;
         } else if (o == s) {
-            real t1 = key_time(wall_hi[s]);
+            real t1 = key_time(wall);
             wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
             finish_step(&x, &y, vx, vy, t1, lo, hi);
-            wc++;
+            wc[id]++;
             accepted = 1;
         } else {
             /* both partners compute the contact with the lower original index as i, then each
@@ -472,7 +603,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             x = mine_first ? xi : xj, y = mine_first ? yi : yj;
             vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
             finish_step(&x, &y, vx, vy, t1, lo, hi);
-            pc++;
+            pc[id]++;
             accepted = mine_first;
         }
         real2 pos1, vel1;
@@ -482,8 +613,6 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         vel1.y = vy;
         out.pos[s] = pos1;
         out.vel[s] = vel1;
-        out.pc[s] = pc;
-        out.wc[s] = wc;
         out.id[s] = id;
         real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
         vabs = ax < ay ? ay : ax;
@@ -501,8 +630,10 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
 }
 
 /* Print mode: the state back in original index order, for the copy to the host. */
-__global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real *vx, real *vy)
+__global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real *vx, real *vy,
+                                 const Control *ctl)
 {
+    if (refused(ctl)) return;
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
     int32_t i = st.id[s];
@@ -515,43 +646,52 @@ __global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real 
 
 /* ==== host side ========================================================================================== */
 
+#ifndef BATCH
+#define BATCH 8             /* steps planned together; the host reads the control record once per batch */
+#endif
+#define RING (2 * BATCH)    /* steps in flight at most: two batches */
+#define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
+#define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
+
 typedef struct {
     int64_t n;
     Params par;
     DevState st[2];      /* old and new state; cur says which holds the current one */
     int cur;
+    int32_t *pc, *wc;    /* collision counts, in original order */
     uint32_t *keys, *rank;               /* per entry: cell key, rank within the cell */
     uint32_t *keys_sorted, *order;       /* per place in cell order: key, entry */
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
     Entries en;                          /* K > 1 only */
-    int64_t cell_cap;    /* cells (slices x g^2) count and start hold */
+    GridLimits lim;
     int64_t entry_cap;   /* entries the key arrays hold */
-    int max_slices;      /* K never exceeds this: entry_cap / n, capped */
+    Grid *grid;          /* the current step's grid, fitted on the device */
     uint64_t *wall_hi, *best_hi, *best_lo;
     int32_t *partner;
     PairEvent *ev[2];
     int64_t ev_cap;
     unsigned long long *counts; /* list lengths of the parallel rounds */
-    StepInfo *info, *info_host; /* device record and its pinned copy */
-    real *out_dev;       /* print mode: 4n reals in original order */
-    real *out_host;      /* its pinned copy */
-    cudaEvent_t copied;  /* the copy into out_host is complete */
+    StepInfo *info;
+    Control *ctl;               /* device record */
+    Control *ctl_host;          /* its pinned copies, one per batch in flight */
+    cudaEvent_t batch_done[2];  /* the copy into ctl_host[b] is complete */
+    real *out_dev;              /* print mode: 4n reals in original order */
+    real *out_host[2];          /* pinned copies, one per batch in flight */
     cudaStream_t stream;
     int sms;
     int timed;                        /* --stats: time each phase with device events */
-    cudaEvent_t mark[PHASES + 1];
+    cudaEvent_t mark[RING][PHASES + 1];
     double phase_ms[PHASES];
-    unsigned long long *counts_host;  /* pinned copy of counts, for --stats */
-    unsigned long long left[PARALLEL_ROUNDS]; /* pair events still undecided before each round */
+    int64_t refusals;                 /* steps refused: their pair events overflowed the list */
 } Cuda;
 
-static const char *const phase_names[PHASES] = {"bin", "scan", "gather", "detect", "rounds", "finish", "move"};
+static const char *const phase_names[PHASES] = {"bin", "scan", "place", "detect", "rounds", "finish", "move"};
 
-static void phase_mark(Cuda *c, int phase)
+static void phase_mark(Cuda *c, int ring, int phase)
 {
-    if (c->timed) CUDA_CHECK(cudaEventRecord(c->mark[phase], c->stream));
+    if (c->timed) CUDA_CHECK(cudaEventRecord(c->mark[ring][phase], c->stream));
 }
 
 static int64_t blocks_for(int64_t n)
@@ -579,8 +719,6 @@ static void state_alloc(DevState *d, int64_t n)
     size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
     d->pos = (real2 *)dev_alloc(2 * nd, "the state");
     d->vel = (real2 *)dev_alloc(2 * nd, "the state");
-    d->pc = (int32_t *)dev_alloc(ni, "the state");
-    d->wc = (int32_t *)dev_alloc(ni, "the state");
     d->id = (int32_t *)dev_alloc(ni, "the state");
 }
 
@@ -588,8 +726,6 @@ static void state_free(DevState *d)
 {
     cudaFree(d->pos);
     cudaFree(d->vel);
-    cudaFree(d->pc);
-    cudaFree(d->wc);
     cudaFree(d->id);
 }
 
@@ -600,7 +736,31 @@ static void events_alloc(Cuda *c, int64_t cap)
     c->ev[1] = (PairEvent *)dev_alloc((size_t)cap * sizeof(PairEvent), "the event list");
 }
 
-static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
+static unsigned long long speed_bits(double v)
+{
+    unsigned long long bits;
+    memcpy(&bits, &v, sizeof bits);
+    return bits;
+}
+
+static double bits_speed(unsigned long long bits)
+{
+    double v;
+    memcpy(&v, &bits, sizeof v);
+    return v;
+}
+
+static double host_vmax(const Sim *sim, int64_t n)
+{
+    double m = 0;
+    for (int64_t i = 0; i < n; i++) {
+        m = fmax(m, fabs((double)sim->vx[i]));
+        m = fmax(m, fabs((double)sim->vy[i]));
+    }
+    return m;
+}
+
+static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed, int64_t ev_cap)
 {
     int devices = 0;
     cudaError_t err = cudaGetDeviceCount(&devices);
@@ -613,21 +773,25 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, 0));
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
     c->timed = timed;
-    if (timed) {
-        for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[k]));
-        CUDA_CHECK(cudaMallocHost((void **)&c->counts_host, PARALLEL_ROUNDS * sizeof(unsigned long long)));
-    }
+    if (timed)
+        for (int s = 0; s < RING; s++)
+            for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[s][k]));
+    for (int b = 0; b < 2; b++) CUDA_CHECK(cudaEventCreateWithFlags(&c->batch_done[b], cudaEventDisableTiming));
 
     state_alloc(&c->st[0], n);
     state_alloc(&c->st[1], n);
+    c->pc = (int32_t *)dev_alloc((size_t)n * 4, "the state");
+    c->wc = (int32_t *)dev_alloc((size_t)n * 4, "the state");
     c->wall_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
-    events_alloc(c, n / 2 + 4096);
+    events_alloc(c, ev_cap);
     c->counts = (unsigned long long *)dev_alloc((PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), "counters");
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
-    CUDA_CHECK(cudaMallocHost((void **)&c->info_host, sizeof(StepInfo)));
+    c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
+    c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
+    CUDA_CHECK(cudaMallocHost((void **)&c->ctl_host, 2 * sizeof(Control)));
     /* Entries take up to ENTRY_MEMORY of what is left, at most MAX_SLICES per disk: per entry, four
      * 4-byte keys, three cells of count and start, and (K > 1) a copy of the disk. More entries allow
      * more slices, hence fewer pair tests, in fast scenes of millions of disks. Entry and cell indices
@@ -639,21 +803,25 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     int64_t cap = n * MAX_SLICES;
     if ((double)cap > afford) cap = (int64_t)afford;
     if (cap > INT32_MAX) cap = INT32_MAX;
-    c->max_slices = cap / n >= 1 ? (int)(cap / n) : 1;
-    c->entry_cap = n * c->max_slices;
-    c->cell_cap = 3 * c->entry_cap > (1LL << 22) ? 3 * c->entry_cap : (1LL << 22);
-    if (c->cell_cap > INT32_MAX - 1) c->cell_cap = INT32_MAX - 1;
+    GridLimits *lim = &c->lim;
+    lim->n = n;
+    lim->L = par->L;
+    lim->r = par->r;
+    lim->max_slices = cap / n >= 1 ? (int)(cap / n) : 1;
+    c->entry_cap = n * lim->max_slices;
+    lim->cell_cap = 3 * c->entry_cap > (1LL << 22) ? 3 * c->entry_cap : (1LL << 22);
+    if (lim->cell_cap > INT32_MAX - 1) lim->cell_cap = INT32_MAX - 1;
     size_t ne = (size_t)c->entry_cap;
     c->keys = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->rank = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->keys_sorted = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
     c->order = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    size_t nc = (size_t)c->cell_cap + 1;
+    size_t nc = (size_t)lim->cell_cap + 1;
     c->count = (uint32_t *)dev_alloc(nc * 4, "the cell table");
     c->start = (uint32_t *)dev_alloc(nc * 4, "the cell table");
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
     c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
-    if (c->max_slices > 1) {
+    if (lim->max_slices > 1) {
         c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
         c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
         c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
@@ -662,8 +830,8 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     }
     if (par->print && par->steps > 1) {
         c->out_dev = (real *)dev_alloc((size_t)n * 4 * sizeof(real), "the print buffer");
-        CUDA_CHECK(cudaMallocHost((void **)&c->out_host, (size_t)n * 4 * sizeof(real)));
-        CUDA_CHECK(cudaEventCreateWithFlags(&c->copied, cudaEventDisableTiming));
+        for (int b = 0; b < 2; b++)
+            CUDA_CHECK(cudaMallocHost((void **)&c->out_host[b], (size_t)n * 4 * sizeof(real)));
     }
 
     DevState *d = &c->st[0];
@@ -679,12 +847,16 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed)
     CUDA_CHECK(cudaMemcpy(d->vel, vel, 2 * nd, cudaMemcpyHostToDevice));
     free(pos);
     free(vel);
-    CUDA_CHECK(cudaMemcpy(d->pc, sim->pc, ni, cudaMemcpyHostToDevice));
-    CUDA_CHECK(cudaMemcpy(d->wc, sim->wc, ni, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(c->pc, sim->pc, ni, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(c->wc, sim->wc, ni, cudaMemcpyHostToDevice));
     int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
     for (int64_t i = 0; i < n; i++) ids[i] = (int32_t)i;
     CUDA_CHECK(cudaMemcpy(d->id, ids, ni, cudaMemcpyHostToDevice));
     free(ids);
+    Control start;
+    memset(&start, 0, sizeof start);
+    start.vmax = speed_bits(host_vmax(sim, n));
+    CUDA_CHECK(cudaMemcpy(c->ctl, &start, sizeof start, cudaMemcpyHostToDevice));
     c->cur = 0;
 }
 
@@ -692,6 +864,8 @@ static void cuda_close(Cuda *c)
 {
     state_free(&c->st[0]);
     state_free(&c->st[1]);
+    cudaFree(c->pc);
+    cudaFree(c->wc);
     cudaFree(c->keys);
     cudaFree(c->rank);
     cudaFree(c->keys_sorted);
@@ -712,94 +886,89 @@ static void cuda_close(Cuda *c)
     cudaFree(c->ev[1]);
     cudaFree(c->counts);
     cudaFree(c->info);
-    cudaFreeHost(c->info_host);
+    cudaFree(c->ctl);
+    cudaFree(c->grid);
+    cudaFreeHost(c->ctl_host);
     cudaFree(c->out_dev);
-    if (c->out_host) cudaEventDestroy(c->copied);
-    cudaFreeHost(c->out_host);
-    if (c->timed) {
-        for (int k = 0; k <= PHASES; k++) cudaEventDestroy(c->mark[k]);
-        cudaFreeHost(c->counts_host);
+    for (int b = 0; b < 2; b++) {
+        cudaFreeHost(c->out_host[b]);
+        cudaEventDestroy(c->batch_done[b]);
     }
+    if (c->timed)
+        for (int s = 0; s < RING; s++)
+            for (int k = 0; k <= PHASES; k++) cudaEventDestroy(c->mark[s][k]);
     cudaStreamDestroy(c->stream);
 }
 
-/* After a step that counted: adds its phase times and its undecided events per round. */
-static void phase_collect(Cuda *c, unsigned long long found)
+/* Adds the phase times of committed steps first..last (their marks are complete). */
+static void phase_collect(Cuda *c, int64_t first, int64_t last)
 {
-    for (int k = 0; k < PHASES; k++) {
-        float ms = 0;
-        CUDA_CHECK(cudaEventElapsedTime(&ms, c->mark[k], c->mark[k + 1]));
-        c->phase_ms[k] += ms;
-    }
-    c->left[0] += found;
-    for (int r = 1; r < PARALLEL_ROUNDS; r++) c->left[r] += c->counts_host[r];
+    for (int64_t s = first; s <= last; s++)
+        for (int k = 0; k < PHASES; k++) {
+            float ms = 0;
+            CUDA_CHECK(cudaEventElapsedTime(&ms, c->mark[s % RING][k], c->mark[s % RING][k + 1]));
+            c->phase_ms[k] += ms;
+        }
 }
 
-static void phase_report(const Cuda *c)
+static void phase_report(const Cuda *c, const Control *h)
 {
     fprintf(stderr, "cuda: device time per phase (ms):");
     for (int k = 0; k < PHASES; k++) fprintf(stderr, " %s %.3f", phase_names[k], c->phase_ms[k]);
     fprintf(stderr, "\ncuda: pair events undecided before each grid-wide round:");
-    for (int r = 0; r < PARALLEL_ROUNDS; r++) fprintf(stderr, " %llu", c->left[r]);
-    fprintf(stderr, "\n");
+    for (int r = 0; r < PARALLEL_ROUNDS; r++) fprintf(stderr, " %llu", h->left[r]);
+    fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
+            "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
 }
 
-/* The binning of a step whose largest velocity component is vmax. A pair with an event at t in slice
- * k is, at t, at most 2r apart per axis (plus rounding, covered by the margin), and each midpoint of
- * slice k is within |v| / (2K) of the disk at t, so midpoints are at most 2r + vmax / K + margin apart:
- * with cells at least that wide the pair is in neighbouring cells. The margin is omp's: the rounding of
- * positions and times (SIM_REL_MARGIN of the coordinates' scale), and pair_time near a graze, where D > 0
- * can hold while the exact paths miss contact by up to about eps dd / r, with dd <= reach^2 for a
- * pair with an event. K trades binning work (n K entries)
- * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice). */
-static Grid grid_choose(const Cuda *c, double vmax)
+/* What the host decides for a batch of steps, from the largest speed it last read back: the most slices
+ * and the finest grid the steps may use (the launch sizes and the cells cleared and scanned). Each step's
+ * gate fits the grid to its own disks within that. */
+typedef struct {
+    unsigned long long vmax; /* bits of the speed planned for */
+    int K;        /* slices at most */
+    int64_t gcap; /* cells per side at most */
+    int64_t m;    /* entries: n K */
+    int64_t cells; /* K gcap^2: the cells each step clears and scans */
+} Plan;
+
+static Plan plan_for(const Cuda *c, double vmax)
 {
-    const Params *p = &c->par;
-    double n = (double)c->n, L = p->L, r = p->r;
-    double dens = n / (L * L);
-    double kf = vmax * sqrt(4.5 * dens / SLICE_COST);
-    Grid gr;
-    gr.K = kf >= 1 ? (kf < c->max_slices ? (int)(kf + 0.5) : c->max_slices) : 1;
-    if (gr.K < 1) gr.K = 1;
-    double scale = L + 2 * vmax, reach = 6 * vmax + 2 * r;
-    double margin = broad_margin(r, scale, reach, SIM_REL_MARGIN);
-    double cell_min = (2 * r + 2 * margin + vmax / gr.K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
-    double per_slice = (double)c->cell_cap / gr.K;
-    if (per_slice > CELLS_PER_DISK * n + 1024) per_slice = CELLS_PER_DISK * n + 1024;
-    double gmax = floor(sqrt(per_slice));
-    double gf = floor(L / cell_min);
-    if (gf > gmax) gf = gmax;
-    if (!(gf >= 1)) gf = 1;
-    gr.g = (int64_t)gf;
-    gr.cs = L / (double)gr.g;
-    gr.ncell = (uint32_t)(gr.g * gr.g);
-    gr.m = c->n * gr.K;
-    gr.cells = (int64_t)gr.K * gr.ncell;
-    return gr;
+    Plan pl;
+    pl.vmax = speed_bits(vmax);
+    /* room for the disks to speed up by SLICE_SLACK, or slow down by SPEED_SLACK, before the grid is
+     * coarser than it could be (extra slices cost only threads that return at once) */
+    pl.K = grid_slices(&c->lim, vmax * SLICE_SLACK);
+    pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, pl.K, INT64_MAX).g;
+    pl.m = c->n * pl.K;
+    pl.cells = (int64_t)pl.K * pl.gcap * pl.gcap;
+    return pl;
 }
 
-/* Launches one step from state st[in]; the new state goes to the other buffer. Returns that index. */
-static int step_launch(Cuda *c, const Grid *gr)
+/* Launches one step from the current state; if the step commits, the current state is then in c->cur.
+ * ring: the step's phase marks under --stats. */
+static void step_launch(Cuda *c, const Plan *pl, int ring)
 {
     cudaStream_t s = c->stream;
-    int64_t n = c->n;
+    int64_t n = c->n, m = pl->m;
     int in = c->cur;
-    CUDA_CHECK(cudaMemsetAsync(c->info, 0, sizeof(StepInfo), s));
-    CUDA_CHECK(cudaMemsetAsync(c->counts, 0, (PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), s));
+    const Grid *grid = c->grid;
+    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, c->grid);
+    CUDA_LAUNCHED();
 
-    phase_mark(c, 0);
-    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)gr->cells + 1) * sizeof(uint32_t), s));
-    bin_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, *gr, c->par, c->keys, c->rank, c->count);
+    phase_mark(c, ring, 0);
+    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->cells + 1) * sizeof(uint32_t), s));
+    bin_kernel<<<blocks_for(m), THREADS, 0, s>>>(c->st[in], n, grid, c->par, c->keys, c->rank, c->count);
     CUDA_LAUNCHED();
-    phase_mark(c, 1);
+    phase_mark(c, ring, 1);
     size_t tmp = c->scan_tmp_bytes;
-    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, gr->cells + 1, s));
-    phase_mark(c, 2);
+    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
+    phase_mark(c, ring, 2);
     Entries en;
-    place_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(gr->m, gr->cells, c->keys, c->rank, c->start,
-                                                       c->keys_sorted, c->order);
-    CUDA_LAUNCHED();
-    if (gr->K == 1) {
+    if (pl->K == 1) {
+        place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted,
+                                                       c->order);
+        CUDA_LAUNCHED();
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
                                                               c->wall_hi, c->best_hi, c->best_lo, c->partner);
         CUDA_LAUNCHED();
@@ -809,99 +978,95 @@ static int step_launch(Cuda *c, const Grid *gr)
         en.slot = NULL;
         en.wall = c->wall_hi;
     } else {
+        place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted,
+                                                       c->order);
+        CUDA_LAUNCHED();
         init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, c->par, c->wall_hi, c->best_hi,
                                                       c->best_lo, c->partner);
         CUDA_LAUNCHED();
-        gather_entries_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(c->st[in], n, c->order, c->start, gr->cells,
-                                                                    c->wall_hi, c->en);
+        gather_entries_kernel<<<blocks_for(m), THREADS, 0, s>>>(c->st[in], n, c->order, c->start, grid,
+                                                                c->wall_hi, c->en);
         CUDA_LAUNCHED();
         en = c->en;
     }
-    phase_mark(c, 3);
-    detect_kernel<<<blocks_for(gr->m), THREADS, 0, s>>>(en, c->keys_sorted, c->start, *gr, c->par.sigma2,
-                                                        c->ev[0], c->ev_cap, c->info, c->best_hi);
+    phase_mark(c, ring, 3);
+    detect_kernel<<<blocks_for(m), THREADS, 0, s>>>(en, c->keys_sorted, c->start, grid, c->par.sigma2,
+                                                    c->ev[0], c->ev_cap, c->info, c->best_hi);
     CUDA_LAUNCHED();
 
-    phase_mark(c, 4);
-    int64_t grid = blocks_for(c->ev_cap);
-    if (grid > 8LL * c->sms) grid = 8LL * c->sms;
+    phase_mark(c, ring, 4);
+    int64_t blocks = blocks_for(c->ev_cap);
+    if (blocks > 8LL * c->sms) blocks = 8LL * c->sms;
     const unsigned long long *found = &c->info->found;
-    min_lo_kernel<<<grid, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
+    min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
     CUDA_LAUNCHED();
-    accept_kernel<<<grid, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
+    accept_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
     CUDA_LAUNCHED();
     int list = 0;
     const unsigned long long *len = found;
     for (int r = 1; r < PARALLEL_ROUNDS; r++) {
-        compact_kernel<<<grid, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &c->counts[r],
+        compact_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &c->counts[r],
                                                 c->partner, c->wall_hi, c->best_hi, c->best_lo);
         CUDA_LAUNCHED();
         list = 1 - list;
         len = &c->counts[r];
-        min_hi_kernel<<<grid, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi);
+        min_hi_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi);
         CUDA_LAUNCHED();
-        min_lo_kernel<<<grid, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+        min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
         CUDA_LAUNCHED();
-        accept_kernel<<<grid, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo, c->partner);
+        accept_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
+                                                 c->partner);
         CUDA_LAUNCHED();
     }
-    phase_mark(c, 5);
+    phase_mark(c, ring, 5);
     finish_kernel<<<1, 1024, 0, s>>>(c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner,
                                      c->wall_hi, c->best_hi, c->best_lo);
     CUDA_LAUNCHED();
 
-    phase_mark(c, 6);
+    phase_mark(c, ring, 6);
     move_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
-                                                  c->best_hi, c->info);
+                                                  c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
     CUDA_LAUNCHED();
-    phase_mark(c, 7);
-    CUDA_CHECK(cudaMemcpyAsync(c->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, s));
-    if (c->timed)
-        CUDA_CHECK(cudaMemcpyAsync(c->counts_host, c->counts, PARALLEL_ROUNDS * sizeof(unsigned long long),
-                                   cudaMemcpyDeviceToHost, s));
-    c->cur = in; /* the state this step started from, in slot order; step_finish moves on */
-    return 1 - in;
+    phase_mark(c, ring, 7);
+    commit_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts);
+    CUDA_LAUNCHED();
+    c->cur = 1 - in;
 }
 
-static double host_vmax(const Sim *sim, int64_t n)
+typedef struct {
+    Output *out;
+    const Sim *view;
+    int64_t step, n, parts;
+    int with_counts, dump17;
+    std::vector<std::vector<char>> *text;
+} FormatJob;
+
+static void format_part(void *ctx, int64_t t)
 {
-    double m = 0;
-    for (int64_t i = 0; i < n; i++) {
-        m = fmax(m, fabs((double)sim->vx[i]));
-        m = fmax(m, fabs((double)sim->vy[i]));
+    FormatJob *job = (FormatJob *)ctx;
+    int64_t from = job->n * t / job->parts, to = job->n * (t + 1) / job->parts;
+    std::vector<char> &buf = (*job->text)[(size_t)t];
+    buf.resize((size_t)(to - from) * 64 + IO_LINE_MAX);
+    size_t len = 0;
+    for (int64_t i = from; i < to; i++) {
+        if (len + IO_LINE_MAX > buf.size()) buf.resize(buf.size() * 2);
+        len += io_format_line(buf.data() + len, job->step, i, job->view, job->with_counts, job->dump17);
     }
-    return m;
+    buf.resize(len);
 }
 
-/* Formats lines [0, n) of a state with up to 16 host threads, each a contiguous part into its own
- * buffer, and writes the parts in order. */
+/* Formats lines [0, n) of a state on the host threads (backend_parallel), each a contiguous part into
+ * its own buffer, and writes the parts in order. */
 static void format_state(Output *out, int64_t step, const Sim *view, int64_t n, int with_counts)
 {
-    int dump17 = io_dump17(out);
-    unsigned hw = std::thread::hardware_concurrency();
-    int64_t parts = hw > 1 ? (int64_t)hw : 1;
-    if (parts > 16) parts = 16;
-    if (n < 65536) parts = 1;
+    int64_t parts = n < 65536 ? 1 : 64;
     if (parts == 1) {
         io_write_state(out, step, view, 0, n, with_counts);
         return;
     }
     std::vector<std::vector<char>> text((size_t)parts);
-    std::vector<std::thread> workers;
-    for (int64_t t = 0; t < parts; t++) {
-        workers.emplace_back([&, t]() {
-            int64_t from = n * t / parts, to = n * (t + 1) / parts;
-            std::vector<char> &buf = text[(size_t)t];
-            buf.resize((size_t)(to - from) * 64 + IO_LINE_MAX);
-            size_t len = 0;
-            for (int64_t i = from; i < to; i++) {
-                if (len + IO_LINE_MAX > buf.size()) buf.resize(buf.size() * 2);
-                len += io_format_line(buf.data() + len, step, i, view, with_counts, dump17);
-            }
-            buf.resize(len);
-        });
-    }
-    for (auto &w : workers) w.join();
+    FormatJob job = {out, view, step, n, parts, with_counts, io_dump17(out), &text};
+    backend_parallel(0, parts, format_part, &job);
     for (auto &b : text) io_write_bytes(out, b.data(), b.size());
 }
 
@@ -931,29 +1096,29 @@ extern "C" void backend_parallel(int threads, int64_t tasks, void (*task)(void *
     for (auto &w : workers) w.join();
 }
 
-/* Formats one printed state (original order, in out_host) while the device runs the next step. */
-static void print_state(Cuda *c, Output *out, int64_t step)
-{
-    int64_t n = c->n;
-    CUDA_CHECK(cudaEventSynchronize(c->copied));
-    Sim view;
-    memset(&view, 0, sizeof view);
-    view.x = c->out_host;
-    view.y = c->out_host + n;
-    view.vx = c->out_host + 2 * n;
-    view.vy = c->out_host + 3 * n;
-    format_state(out, step, &view, n, 0);
-}
-
-static void print_enqueue(Cuda *c)
+/* Print mode: the current state, in original order, on its way to out_host[b]. */
+static void print_enqueue(Cuda *c, int b)
 {
     int64_t n = c->n;
     real *d = c->out_dev;
-    unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, d, d + n, d + 2 * n, d + 3 * n);
+    unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, d, d + n, d + 2 * n, d + 3 * n,
+                                                               c->ctl);
     CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(c->out_host, d, (size_t)n * 4 * sizeof(real), cudaMemcpyDeviceToHost,
+    CUDA_CHECK(cudaMemcpyAsync(c->out_host[b], d, (size_t)n * 4 * sizeof(real), cudaMemcpyDeviceToHost,
                                c->stream));
-    CUDA_CHECK(cudaEventRecord(c->copied, c->stream));
+}
+
+/* Formats the state in out_host[b] (its batch is complete). */
+static void print_state(Cuda *c, Output *out, int b, int64_t step)
+{
+    int64_t n = c->n;
+    Sim view;
+    memset(&view, 0, sizeof view);
+    view.x = c->out_host[b];
+    view.y = view.x + n;
+    view.vx = view.x + 2 * n;
+    view.vy = view.x + 3 * n;
+    format_state(out, step, &view, n, 0);
 }
 
 static void state_download(Cuda *c, Sim *sim)
@@ -962,81 +1127,114 @@ static void state_download(Cuda *c, Sim *sim)
     DevState *d = &c->st[c->cur];
     size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
     real2 *pos = (real2 *)io_alloc((size_t)n, sizeof *pos), *vel = (real2 *)io_alloc((size_t)n, sizeof *vel);
-    int32_t *pc = (int32_t *)io_alloc((size_t)n, sizeof *pc), *wc = (int32_t *)io_alloc((size_t)n, sizeof *wc);
     int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
     CUDA_CHECK(cudaMemcpy(pos, d->pos, 2 * nd, cudaMemcpyDeviceToHost));
     CUDA_CHECK(cudaMemcpy(vel, d->vel, 2 * nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(pc, d->pc, ni, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(wc, d->wc, ni, cudaMemcpyDeviceToHost));
     CUDA_CHECK(cudaMemcpy(ids, d->id, ni, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(sim->pc, c->pc, ni, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(sim->wc, c->wc, ni, cudaMemcpyDeviceToHost));
     for (int64_t s = 0; s < n; s++) {
         int32_t i = ids[s];
         sim->x[i] = pos[s].x;
         sim->y[i] = pos[s].y;
         sim->vx[i] = vel[s].x;
         sim->vy[i] = vel[s].y;
-        sim->pc[i] = pc[s];
-        sim->wc[i] = wc[s];
     }
     free(pos);
     free(vel);
-    free(pc);
-    free(wc);
     free(ids);
 }
+
+/* Steps first..last of one plan, launched together; print: the whole step printed after the last. */
+typedef struct {
+    int64_t first, last, print;
+} Batch;
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
     if (par->steps == 0) return 0;
     if (par->n > INT32_MAX / 2) io_fail("at most %d disks on the GPU", INT32_MAX / 2);
+    /* Test hooks for the paths that ordinary runs take rarely: plans for a fraction of the known speed
+     * (every step's grid is then fitted to disks faster than planned), and a small first event list
+     * (steps overflow it and are refused). */
+    const char *hook = getenv("SIM_CUDA_PLAN_SPEED");
+    double plan_scale = hook && atof(hook) >= 0 ? atof(hook) : 1;
+    hook = getenv("SIM_CUDA_EVENTS");
     Cuda c;
-    cuda_open(&c, sim, par, opt->stats);
-    double vmax = host_vmax(sim, par->n);
-    int64_t printing = 0; /* step whose state is on its way to out_host, or 0 */
+    cuda_open(&c, sim, par, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
+    double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
+    Control last_read;                      /* the newest control record read back */
+    memset(&last_read, 0, sizeof last_read);
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = io_now();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
-    int64_t k = par->substeps, last = par->steps * k;
-    for (int64_t sub = 1; sub <= last; sub++) {
-        for (;;) {
-            Grid gr = grid_choose(&c, vmax);
-            int next = step_launch(&c, &gr);
-            if (printing) {
-                print_state(&c, out, printing);
-                printing = 0;
+    int64_t k = par->substeps, last = par->steps * k, next = 1;
+    Batch batch[2];
+    int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
+    int cur_at[RING];         /* the state buffer each step in flight starts from */
+    while (next <= last || flying > 0) {
+        if (flying < 2 && next <= last) {
+            int b = (head + flying) % 2;
+            Batch *bt = &batch[b];
+            Plan pl = plan_for(&c, known * plan_scale);
+            bt->first = next;
+            bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
+            bt->print = 0;
+            int64_t shown = (next + k - 1) / k * k; /* the first whole step from next on */
+            if (par->print && shown < last && shown <= bt->last) {
+                bt->last = shown;
+                bt->print = shown / k;
             }
+            for (int64_t s = bt->first; s <= bt->last; s++) {
+                cur_at[s % RING] = c.cur;
+                step_launch(&c, &pl, (int)(s % RING));
+            }
+            if (bt->print) print_enqueue(&c, b);
+            CUDA_CHECK(cudaMemcpyAsync(&c.ctl_host[b], c.ctl, sizeof(Control), cudaMemcpyDeviceToHost,
+                                       c.stream));
+            CUDA_CHECK(cudaEventRecord(c.batch_done[b], c.stream));
+            next = bt->last + 1;
+            flying++;
+            continue;
+        }
+        Batch *bt = &batch[head];
+        CUDA_CHECK(cudaEventSynchronize(c.batch_done[head]));
+        last_read = c.ctl_host[head];
+        int64_t done = (int64_t)last_read.steps;
+        known = bits_speed(last_read.vmax);
+        if (c.timed) phase_collect(&c, bt->first, done < bt->last ? done : bt->last);
+        if (last_read.refused) {
+            /* everything launched after the refused step did nothing: run again from the last
+             * committed state, with room for every pair event */
             CUDA_CHECK(cudaStreamSynchronize(c.stream));
-            StepInfo *info = c.info_host;
-            if ((int64_t)info->found > c.ev_cap) {
-                int64_t cap = (int64_t)info->found + info->found / 2;
+            c.refusals++;
+            {
+                int64_t cap = (int64_t)last_read.overflow + (int64_t)(last_read.overflow / 2);
                 cudaFree(c.ev[0]);
                 cudaFree(c.ev[1]);
                 events_alloc(&c, cap);
-                continue; /* rerun the step from the untouched old buffers */
             }
-            c.cur = next;
-            if (c.timed) phase_collect(&c, info->found);
-            stats->pair_tests += info->tests;
-            stats->events += info->events;
-            unsigned long long bits = info->vmax;
-            memcpy(&vmax, &bits, sizeof vmax);
-            break;
+            last_read.refused = 0;
+            last_read.overflow = 0;
+            CUDA_CHECK(cudaMemcpyAsync(c.ctl, &last_read, sizeof last_read, cudaMemcpyHostToDevice, c.stream));
+            CUDA_CHECK(cudaStreamSynchronize(c.stream));
+            next = done + 1;
+            c.cur = cur_at[next % RING];
+            flying = 0;
+            head = 0;
+            continue;
         }
-        if (sub % k) continue;
-        if (par->print && sub < last) {
-            print_enqueue(&c);
-            printing = sub / k;
-        }
-        io_progress(out, sub / k);
-    }
-    if (printing) {
-        CUDA_CHECK(cudaStreamSynchronize(c.stream));
-        print_state(&c, out, printing);
+        if (bt->print) print_state(&c, out, head, bt->print);
+        io_progress(out, bt->last / k);
+        head = 1 - head;
+        flying--;
     }
     CUDA_CHECK(cudaStreamSynchronize(c.stream));
     stats->seconds = io_now() - t0;
+    stats->pair_tests += last_read.tests;
+    stats->events += last_read.events;
     state_download(&c, sim);
-    if (c.timed) phase_report(&c);
+    if (c.timed) phase_report(&c, &last_read);
     cuda_close(&c);
     return 0;
 }

@@ -42,6 +42,30 @@ while read -r name cmd; do
     done
 done <<< "$(cuda_scenes)"
 
+# Paths that ordinary runs take rarely: plans for half the known speed (SIM_CUDA_PLAN_SPEED; each step's
+# gate must fit the grid to disks faster than planned) and a first event list of 2 events
+# (SIM_CUDA_EVENTS; steps overflow it, are refused, and run again from the last committed state). The
+# bytes stay seq's, and --stats must report both, or the case tested nothing.
+for name in slow fast overlap walls random; do
+    for mode in print perf; do
+        if ! have_gpu; then
+            skip "cuda/$name $mode, hooks" "no GPU"
+            continue
+        fi
+        in=$TMP/cuda_${name}_$mode.in
+        ./seq "$in" --quiet > "$TMP/cuda_${name}_$mode.seq"
+        same_bytes "cuda/$name $mode, fast disks and refused steps" "$TMP/cuda_${name}_$mode.seq" \
+            env SIM_CUDA_PLAN_SPEED=0.5 SIM_CUDA_EVENTS=2 ./cuda "$in" --quiet --stats
+        line=$(grep 'steps faster than planned' "$TMP/err")
+        if [[ $line =~ \ ([0-9]+)\ steps\ faster\ than\ planned\;\ ([0-9]+)\ steps\ refused ]] &&
+            [ "${BASH_REMATCH[1]}" -gt 0 ] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+            pass "cuda/$name $mode, both paths taken"
+        else
+            fail "cuda/$name $mode, both paths taken" "stats: ${line:-no line}"
+        fi
+    done
+done
+
 # --substeps K: cuda runs the K sub-steps of each step and hands out whole steps, like seq
 for name in slow fast walls random; do
     for k in 2 4; do

@@ -4,7 +4,8 @@
 #   tools/gpu_run.sh check   build, make test, compute-sanitizer memcheck on small scenes
 #   tools/gpu_run.sh memcheck  only the memcheck part
 #   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
-#                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs
+#                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs, and
+#                            BASE_REV=REV builds revision REV's cuda beside this tree as that BASE
 #   tools/gpu_run.sh host    the host-side work around the steps at N = 1e8 (random placement, writing
 #                            step 0 and the final state), timed stage by stage, seq (one thread) and cuda
 #   tools/gpu_run.sh big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
@@ -95,6 +96,13 @@ time_cuda() { # LABEL N INPUT
 }
 
 do_perf() {
+    if [ -n "${BASE_REV:-}" ] && [ -z "${BASE:-}" ]; then
+        BASE=$DATA/base
+        rm -rf "$BASE"
+        git worktree prune
+        git worktree add --detach "$BASE" "$BASE_REV" > /dev/null
+        make -C "$BASE" -j"$(nproc)" cuda > "$OUT/base_build.log" 2>&1 || { tail -5 "$OUT/base_build.log"; exit 1; }
+    fi
     echo "# $(provenance)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     for n in 1000000 10000000; do

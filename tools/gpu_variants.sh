@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# tools/gpu_variants.sh: on a machine with an NVIDIA GPU, builds cuda.cu once per variant (VARIANTS: a list
+# of NAME=FLAGS, the flags being -D macros of cuda.cu) and, with BASE_REV, that revision's cuda; times each
+# on the same inputs (gas at area fraction 0.2, N = 1e7, 50 steps; the assignment's random scene at
+# N = 32000, 200 steps), checks that all print the same bytes, and keeps each one's phase times
+# (--stats). Results go to $OUT (default bench/tmp/variants).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-bench/tmp/variants}
+DATA=${DATA:-/tmp/gpu_variants}
+RUNS=${RUNS:-2}
+mkdir -p "$OUT" "$DATA/bin"
+make -j"$(nproc)" cuda tools/gen > "$OUT/build.log" 2>&1 || { tail -20 "$OUT/build.log"; exit 1; }
+progs=(./cuda)
+for v in ${VARIANTS:-}; do
+    name=${v%%=*} flags=${v#*=}
+    nvcc -O2 --fmad=false -std=c++17 -gencode arch=compute_90,code=sm_90 -Xcompiler -ffp-contract=off \
+        ${flags//,/ } cuda.cu io.o -o "$DATA/bin/$name" -lm > "$OUT/build_$name.log" 2>&1 &
+    progs+=("$DATA/bin/$name")
+done
+if [ -n "${BASE_REV:-}" ]; then
+    rm -rf "$DATA/base"
+    git worktree prune
+    git worktree add --detach "$DATA/base" "$BASE_REV" > /dev/null
+    make -C "$DATA/base" -j"$(nproc)" cuda > "$OUT/build_base.log" 2>&1 &
+    progs+=("$DATA/base/cuda")
+fi
+wait
+[ -s "$DATA/gas.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas.in"
+printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random.in"
+for scene in gas random; do
+    for p in "${progs[@]}"; do
+        name=$(basename "$(dirname "$p")")/$(basename "$p")
+        for r in $(seq "$RUNS"); do
+            "$p" "$DATA/$scene.in" > "$DATA/out" 2> "$DATA/err"
+            echo "$scene $name: $(grep 'step loop' "$DATA/err" | sed -E 's/.*perf: //')"
+        done
+        "$p" "$DATA/$scene.in" --stats > "$DATA/out_$scene" 2> "$DATA/err"
+        grep -E 'phase|pair tests|faster' "$DATA/err" | sed "s|^|$scene $name: |" >> "$OUT/phases.log"
+        if [ "$p" = ./cuda ]; then cp "$DATA/out_$scene" "$DATA/ref_$scene"; fi
+        cmp -s "$DATA/out_$scene" "$DATA/ref_$scene" || echo "$scene $name: OUTPUT DIFFERS from ./cuda"
+    done
+done | tee "$OUT/timings.log"
+cat "$OUT/phases.log"
