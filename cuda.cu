@@ -239,18 +239,17 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
                             unsigned long long plan_vmax, int K, int64_t gcap, Grid *grid)
 {
-    /* the grid first, even after a refusal: the steps that then run on scratch must stay within the
-     * launch sizes and the cells cleared, which are this plan's */
+    /* the grid and the counters even after a refusal: the steps that then run on scratch must stay
+     * within this plan's launch sizes and cleared cells, and within the event lists */
     double vmax = __longlong_as_double((long long)ctl->vmax);
     int k = grid_slices(&lim, vmax);
     *grid = grid_fit(&lim, vmax, k < K ? k : K, gcap);
-    if (ctl->refused) return;
-    if (ctl->vmax > plan_vmax) ctl->faster++;
     info->vmax = 0;
     info->found = 0;
     info->events = 0;
     info->tests = 0;
     for (int r = 0; r <= PARALLEL_ROUNDS; r++) counts[r] = 0;
+    if (!ctl->refused && ctl->vmax > plan_vmax) ctl->faster++;
 }
 
 /* The last kernel of a step (one thread): the step's state is now the current one. */
@@ -467,13 +466,14 @@ static __device__ __forceinline__ void pass_accept(const PairEvent *ev, int64_t 
 
 /* Keeps the events whose disks are both still free, and restarts those disks' best keys. */
 static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t i, PairEvent *out,
-                                                    unsigned long long *count_out, const int32_t *partner,
-                                                    const uint64_t *wall_hi, uint64_t *best_hi,
-                                                    uint64_t *best_lo)
+                                                    unsigned long long *count_out, int64_t cap,
+                                                    const int32_t *partner, const uint64_t *wall_hi,
+                                                    uint64_t *best_hi, uint64_t *best_lo)
 {
     PairEvent e = ev[i];
     if (partner[e.a] >= 0 || partner[e.b] >= 0) return;
-    out[list_append(count_out)] = e;
+    unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
+    if ((int64_t)at < cap) out[at] = e;
     best_hi[e.a] = wall_hi[e.a];
     best_hi[e.b] = wall_hi[e.b];
     best_lo[e.a] = NO_EVENT;
@@ -515,7 +515,7 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
                                const uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo)
 {
     int64_t len = list_len(count, cap);
-    GRID_LOOP(i, len) pass_compact(ev, i, out, count_out, partner, wall_hi, best_hi, best_lo);
+    GRID_LOOP(i, len) pass_compact(ev, i, out, count_out, cap, partner, wall_hi, best_hi, best_lo);
 }
 
 /* The remaining rounds in one block, until no pair event is left. */
@@ -529,7 +529,7 @@ __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned lon
         if (threadIdx.x == 0) n_out = 0;
         __syncthreads();
         for (int64_t i = threadIdx.x; i < len; i += blockDim.x)
-            pass_compact(in, i, out, &n_out, partner, wall_hi, best_hi, best_lo);
+            pass_compact(in, i, out, &n_out, cap, partner, wall_hi, best_hi, best_lo);
         __syncthreads();
         len = (int64_t)n_out;
         if (len == 0) return;
