@@ -95,6 +95,7 @@ typedef struct {
     unsigned long long found;  /* pair events detected (may exceed the buffer: then the step is refused) */
     unsigned long long events; /* accepted events */
     unsigned long long tests;  /* narrow-phase pair tests */
+    unsigned long long faster; /* 1: the disks are faster than the plan's speed */
 } StepInfo;
 
 /* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
@@ -179,7 +180,7 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
 
 /* After a refusal, the kernels that write what outlives a step (the state, the collision counts, the
  * control record, the print copy) do nothing; the others write only scratch buffers, which the step
- * run again rewrites. */
+ * run again rewrites. The gather of K = 1 writes a state buffer: it checks too. */
 static __device__ __forceinline__ bool refused(const Control *ctl)
 {
     return *(const volatile unsigned long long *)&ctl->refused != 0;
@@ -249,7 +250,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->events = 0;
     info->tests = 0;
     for (int r = 0; r <= PARALLEL_ROUNDS; r++) counts[r] = 0;
-    if (!ctl->refused && ctl->vmax > plan_vmax) ctl->faster++;
+    info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
 
 /* The last kernel of a step (one thread): the step's state is now the current one. */
@@ -260,6 +261,7 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
     ctl->steps++;
     ctl->tests += info->tests;
     ctl->events += info->events;
+    ctl->faster += info->faster;
     ctl->left[0] += info->found;
     for (int r = 1; r < PARALLEL_ROUNDS; r++) ctl->left[r] += counts[r];
 }
@@ -309,15 +311,21 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
 /* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.
  * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.) */
 __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
-                                    uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+                                    uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
+                                    const Control *ctl)
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) return;
     uint32_t s = order[p];
     real2 pos = in.pos[s], vel = in.vel[s];
+    int32_t id = in.id[s];
+    /* after a refusal, out can be the last committed state: each step with K > 1 launched behind the
+     * refused one moves the state to the other buffer in the host's reckoning, so an odd number of
+     * them before a K = 1 step leaves that reckoning one buffer off. Then nothing is written. */
+    if (refused(ctl)) return;
     out.pos[p] = pos;
     out.vel[p] = vel;
-    out.id[p] = in.id[s];
+    out.id[p] = id;
     slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
 }
 
@@ -970,7 +978,8 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                                                        c->order);
         CUDA_LAUNCHED();
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
-                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner);
+                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner,
+                                                              c->ctl);
         CUDA_LAUNCHED();
         in = 1 - in;
         DevState *d = &c->st[in];
@@ -1154,11 +1163,19 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 {
     if (par->steps == 0) return 0;
     if (par->n > INT32_MAX / 2) io_fail("at most %d disks on the GPU", INT32_MAX / 2);
-    /* Test hooks for the paths that ordinary runs take rarely: plans for a fraction of the known speed
-     * (every step's grid is then fitted to disks faster than planned), and a small first event list
-     * (steps overflow it and are refused). */
+    /* Test hooks for the paths that ordinary runs take rarely: plans for a fraction of the known speed,
+     * "A" or "A,B" alternating by batch (each step's grid is then fitted to disks faster than planned;
+     * "0,1" alternates plans of one slice with plans of several), and a small first event list (steps
+     * overflow it and are refused while batches of other plans are in flight). */
+    double plan_scale[2] = {1, 1};
     const char *hook = getenv("SIM_CUDA_PLAN_SPEED");
-    double plan_scale = hook && atof(hook) >= 0 ? atof(hook) : 1;
+    if (hook) {
+        char *end;
+        double a = strtod(hook, &end);
+        if (a >= 0) plan_scale[0] = plan_scale[1] = a;
+        if (*end == ',' && strtod(end + 1, NULL) >= 0) plan_scale[1] = strtod(end + 1, NULL);
+    }
+    int64_t batches = 0;
     hook = getenv("SIM_CUDA_EVENTS");
     Cuda c;
     cuda_open(&c, sim, par, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
@@ -1176,7 +1193,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (flying < 2 && next <= last) {
             int b = (head + flying) % 2;
             Batch *bt = &batch[b];
-            Plan pl = plan_for(&c, known * plan_scale);
+            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2]);
             bt->first = next;
             bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
             bt->print = 0;

@@ -42,27 +42,32 @@ while read -r name cmd; do
     done
 done <<< "$(cuda_scenes)"
 
-# Paths that ordinary runs take rarely: plans for half the known speed (SIM_CUDA_PLAN_SPEED; each step's
-# gate must fit the grid to disks faster than planned) and a first event list of 2 events
-# (SIM_CUDA_EVENTS; steps overflow it, are refused, and run again from the last committed state). The
-# bytes stay seq's, and --stats must report both, or the case tested nothing.
+# Paths that ordinary runs take rarely. SIM_CUDA_PLAN_SPEED plans for a fraction of the known speed
+# ("0.5"), or alternates by batch ("0,1": plans of one slice between plans of several), so each step's
+# gate must fit the grid to disks faster than planned; SIM_CUDA_EVENTS=2 starts with an event list of 2
+# events, so steps overflow it, are refused while batches of other plans are in flight, and run again
+# from the last committed state. The bytes stay seq's, and --stats must report both paths, or the case
+# tested nothing.
 for name in slow fast overlap walls random; do
     for mode in print perf; do
-        if ! have_gpu; then
-            skip "cuda/$name $mode, hooks" "no GPU"
-            continue
-        fi
-        in=$TMP/cuda_${name}_$mode.in
-        ./seq "$in" --quiet > "$TMP/cuda_${name}_$mode.seq"
-        same_bytes "cuda/$name $mode, fast disks and refused steps" "$TMP/cuda_${name}_$mode.seq" \
-            env SIM_CUDA_PLAN_SPEED=0.5 SIM_CUDA_EVENTS=2 ./cuda "$in" --quiet --stats
-        line=$(grep 'steps faster than planned' "$TMP/err")
-        if [[ $line =~ \ ([0-9]+)\ steps\ faster\ than\ planned\;\ ([0-9]+)\ steps\ refused ]] &&
-            [ "${BASH_REMATCH[1]}" -gt 0 ] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
-            pass "cuda/$name $mode, both paths taken"
-        else
-            fail "cuda/$name $mode, both paths taken" "stats: ${line:-no line}"
-        fi
+        for speed in 0.5 0,1; do
+            label="cuda/$name $mode, plans at $speed of the speed, refused steps"
+            if ! have_gpu; then
+                skip "$label" "no GPU"
+                continue
+            fi
+            in=$TMP/cuda_${name}_$mode.in
+            ./seq "$in" --quiet > "$TMP/cuda_${name}_$mode.seq"
+            same_bytes "$label" "$TMP/cuda_${name}_$mode.seq" \
+                env SIM_CUDA_PLAN_SPEED=$speed SIM_CUDA_EVENTS=2 ./cuda "$in" --quiet --stats
+            line=$(grep 'steps faster than planned' "$TMP/err")
+            if [[ $line =~ \ ([0-9]+)\ steps\ faster\ than\ planned\;\ ([0-9]+)\ steps\ refused ]] &&
+                [ "${BASH_REMATCH[1]}" -gt 0 ] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+                pass "$label: both paths taken"
+            else
+                fail "$label: both paths taken" "stats: ${line:-no line}"
+            fi
+        done
     done
 done
 
