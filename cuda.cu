@@ -6,8 +6,8 @@
  * the launch sizes: the most time slices and the finest grid a step may use. Each step's first kernel
  * fits its grid to the largest speed of its own disks within that plan, so the grid is always valid.
  * A step whose pair events overflow the event list is refused before it writes the state; the steps
- * launched after it then write only scratch buffers and commit nothing, and the host runs them again
- * with a larger list. A step:
+ * launched after it then get an empty grid, write only scratch buffers and commit nothing, and the
+ * host runs them again with a larger list. A step:
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
@@ -240,11 +240,17 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
                             unsigned long long plan_vmax, int K, int64_t gcap, Grid *grid)
 {
-    /* the grid and the counters even after a refusal: the steps that then run on scratch must stay
-     * within this plan's launch sizes and cleared cells, and within the event lists */
+    /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
+     * search nothing (their state buffers may hold anything, even memory never written, whose disks
+     * could all fall into one cell); the counters are cleared all the same */
     double vmax = __longlong_as_double((long long)ctl->vmax);
     int k = grid_slices(&lim, vmax);
-    *grid = grid_fit(&lim, vmax, k < K ? k : K, gcap);
+    Grid gr = grid_fit(&lim, vmax, k < K ? k : K, gcap);
+    if (ctl->refused) {
+        gr.m = 0;
+        gr.cells = 0;
+    }
+    *grid = gr;
     info->vmax = 0;
     info->found = 0;
     info->events = 0;
@@ -316,12 +322,14 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 {
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) return;
+    /* After a refusal the empty grid places nothing, so order may hold an older step's entries (< n
+     * K): kept in bounds here, and nothing is written, since out can then be the last committed
+     * state (each step with K > 1 launched behind the refused one moves the state to the other buffer
+     * in the host's reckoning, so an odd number of them before a K = 1 step leaves it one off). */
     uint32_t s = order[p];
+    if (s >= n) s = 0;
     real2 pos = in.pos[s], vel = in.vel[s];
     int32_t id = in.id[s];
-    /* after a refusal, out can be the last committed state: each step with K > 1 launched behind the
-     * refused one moves the state to the other buffer in the host's reckoning, so an odd number of
-     * them before a K = 1 step leaves that reckoning one buffer off. Then nothing is written. */
     if (refused(ctl)) return;
     out.pos[p] = pos;
     out.vel[p] = vel;
