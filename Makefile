@@ -56,7 +56,7 @@ cuda: cuda.cu io.o common.h Makefile
 seq_san: seq.c io.c common.h exact.h Makefile
 	$(CC) $(SANFLAGS) seq.c io.c -o $@ $(LDLIBS)
 
-tools/%: tools/%.c common.h Makefile
+tools/%: tools/%.c common.h tools/output_error.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
 
 # the generator fills the bands of a large scene in parallel

@@ -20,26 +20,14 @@
 
 #include <float.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define ENERGY_ULPS 16.0 /* allowed energy change per pair collision, in ulps of the total energy */
 
-static const char *out_name;
-static long out_line;
-
-static void die(const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, "check: %s:%ld: ", out_name, out_line);
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fputc('\n', stderr);
-    exit(1);
-}
+#define TOOL_NAME "check"
+#include "output_error.h"
 
 /* A %.8f token: [-]digits.dddddddd */
 static int is_fixed8(const char *s, size_t len)
@@ -148,10 +136,10 @@ int main(int argc, char **argv)
     int print = strcmp(tok[4], "print") == 0;
     double slack = dump17 ? 0 : 0.5e-8 + 4 * DBL_EPSILON * hi; /* %.8f rounding of a centre */
 
-    out_name = argv[a + 1];
-    FILE *out = fopen(out_name, "r");
+    output_name = argv[a + 1];
+    FILE *out = fopen(output_name, "r");
     if (!out) {
-        fprintf(stderr, "check: cannot open %s\n", out_name);
+        fprintf(stderr, "check: cannot open %s\n", output_name);
         return 2;
     }
     char *line = NULL;
@@ -168,7 +156,7 @@ int main(int argc, char **argv)
     int start_overlaps = 0;
     if (!prev || !moved || !xy || !order) die("out of memory");
     while ((len = getline(&line, &cap, out)) > 0) {
-        out_line++;
+        output_line++;
         if (block == blocks) die("more lines than the %lld expected", blocks * n);
         if (line[len - 1] != '\n') die("last line does not end in a newline");
         line[--len] = '\0';
@@ -242,7 +230,7 @@ int main(int argc, char **argv)
     free(xy);
     free(order);
     fclose(out);
-    out_line++;
+    output_line++;
     if (block != blocks || i != 0) die("output ends early: expected %lld lines", blocks * n);
     if (psum % 2) die("the particle-collision counts add up to an odd %lld", psum);
     long double tol = ENERGY_ULPS * DBL_EPSILON * e0 * (long double)(psum / 2);

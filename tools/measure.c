@@ -18,7 +18,6 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -32,19 +31,8 @@ static const char usage_text[] =
     "Prints one line of key=value pairs: states, overlap fraction of states, overlapping pairs per\n"
     "state, mean and max penetration 2r - distance, energy drift, kT, collisions per unit time.\n";
 
-static const char *out_name = "-";
-static long long out_line;
-
-static void die(const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, "measure: %s:%lld: ", out_name, out_line);
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fputc('\n', stderr);
-    exit(1);
-}
+#define TOOL_NAME "measure"
+#include "output_error.h"
 
 /* ---- parsing --------------------------------------------------------------------------------------- */
 
@@ -239,10 +227,10 @@ int main(int argc, char **argv)
     read_input(names[0], &m);
     FILE *out = stdin;
     if (named == 2 && strcmp(names[1], "-") != 0) {
-        out_name = names[1];
-        out = fopen(out_name, "r");
+        output_name = names[1];
+        out = fopen(output_name, "r");
         if (!out) {
-            fprintf(stderr, "measure: cannot open %s\n", out_name);
+            fprintf(stderr, "measure: cannot open %s\n", output_name);
             return 2;
         }
     }
@@ -270,7 +258,7 @@ int main(int argc, char **argv)
     long long step = -1, last_step = -1, psum = 0, wsum = 0;
     int counted = 0; /* the state being read has p and w columns */
     while ((len = getline(&line, &cap, out)) > 0) {
-        out_line++;
+        output_line++;
         if (line[len - 1] == '\n') line[--len] = '\0';
         const char *f[8], *fe[8];
         int nf = 0;
@@ -308,7 +296,7 @@ int main(int argc, char **argv)
             i = 0;
         }
     }
-    out_line++;
+    output_line++;
     if (ferror(out)) die("read error");
     if (i != 0) die("output ends inside a state (%lld of %lld lines)", (long long)i, (long long)n);
     if (m.states == 0) die("no state");
