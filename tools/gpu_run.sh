@@ -14,6 +14,7 @@
 #   tools/gpu_run.sh all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. tools/script_lib.sh
 OUT=${OUT:-bench/tmp}
 mkdir -p "$OUT"
 THREADS=${THREADS:-16}
@@ -98,10 +99,7 @@ time_cuda() { # LABEL N INPUT
 do_perf() {
     if [ -n "${BASE_REV:-}" ] && [ -z "${BASE:-}" ]; then
         BASE=$DATA/base
-        rm -rf "$BASE"
-        git worktree prune
-        git worktree add --detach "$BASE" "$BASE_REV" > /dev/null
-        make -C "$BASE" -j"$(nproc)" cuda > "$OUT/base_build.log" 2>&1 || { tail -5 "$OUT/base_build.log"; exit 1; }
+        build_revision "$BASE_REV" "$BASE" "$OUT/base_build.log" || { tail -5 "$OUT/base_build.log"; exit 1; }
     fi
     echo "# $(provenance)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"

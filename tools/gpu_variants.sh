@@ -6,6 +6,7 @@
 # (--stats). Results go to $OUT (default bench/tmp/variants).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. tools/script_lib.sh
 OUT=${OUT:-bench/tmp/variants}
 DATA=${DATA:-/tmp/gpu_variants}
 RUNS=${RUNS:-2}
@@ -19,10 +20,7 @@ for v in ${VARIANTS:-}; do
     progs+=("$DATA/bin/$name")
 done
 if [ -n "${BASE_REV:-}" ]; then
-    rm -rf "$DATA/base"
-    git worktree prune
-    git worktree add --detach "$DATA/base" "$BASE_REV" > /dev/null
-    make -C "$DATA/base" -j"$(nproc)" cuda > "$OUT/build_base.log" 2>&1 &
+    build_revision "$BASE_REV" "$DATA/base" "$OUT/build_base.log" &
     progs+=("$DATA/base/cuda")
 fi
 wait

@@ -1,5 +1,6 @@
-# tools/script_lib.sh: helpers that bench.sh and tools/accuracy.sh share; sourced from the repository
-# root after the script has defined die (its own name in messages). Never run alone.
+# tools/script_lib.sh: helpers that bench.sh, tools/accuracy.sh and the GPU scripts share; sourced from
+# the repository root after the script has defined die (its own name in messages), which integer needs.
+# Never run alone.
 
 words() { echo "${1//,/ }"; }
 
@@ -11,6 +12,14 @@ integer() {
 
 # A variable of the Makefile, as make sees it (CC, CFLAGS, ...).
 make_var() { make -s --no-print-directory --eval='script-print-%: ; @echo $($*)' "script-print-$1" 2>/dev/null; }
+
+# build_revision REV DIR LOG: revision REV's cuda, built in a git worktree at DIR (the GPU scripts time it
+# beside this tree's build); the build's output goes to LOG. Non-zero status when it fails.
+build_revision() {
+    rm -rf "$2"
+    git worktree prune
+    git worktree add --detach "$2" "$1" > /dev/null && make -C "$2" -j"$(nproc)" cuda > "$3" 2>&1
+}
 
 # machine_provenance LOAD CORES: the '#' lines of a results file that name the tree (REVISION, or git),
 # the machine and the C compiler.
