@@ -35,8 +35,8 @@ while read -r name cmd; do
         fi
         for mode in print perf; do
             sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$mode.in"
-            ./seq$suf "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda_${name}_$mode.expected"
-            same_bytes "cuda$suf/$name $mode" "$TMP/cuda_${name}_$mode.expected" \
+            ./seq$suf "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda${suf}_${name}_$mode.expected"
+            same_bytes "cuda$suf/$name $mode" "$TMP/cuda${suf}_${name}_$mode.expected" \
                 ./cuda$suf "$TMP/cuda_${name}_$mode.in" --quiet
         done
     done
@@ -56,10 +56,8 @@ for name in slow fast overlap walls random; do
                 skip "$label" "no GPU"
                 continue
             fi
-            in=$TMP/cuda_${name}_$mode.in
-            ./seq "$in" --quiet > "$TMP/cuda_${name}_$mode.seq"
-            same_bytes "$label" "$TMP/cuda_${name}_$mode.seq" \
-                env SIM_CUDA_PLAN_SPEED=$speed SIM_CUDA_EVENTS=2 ./cuda "$in" --quiet --stats
+            same_bytes "$label" "$TMP/cuda_${name}_$mode.expected" env SIM_CUDA_PLAN_SPEED=$speed \
+                SIM_CUDA_EVENTS=2 ./cuda "$TMP/cuda_${name}_$mode.in" --quiet --stats
             line=$(grep 'steps faster than planned' "$TMP/err")
             if [[ $line =~ \ ([0-9]+)\ steps\ faster\ than\ planned\;\ ([0-9]+)\ steps\ refused ]] &&
                 [ "${BASH_REMATCH[1]}" -gt 0 ] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
