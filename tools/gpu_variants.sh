@@ -29,8 +29,12 @@ printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random.in"
 for scene in gas random; do
     for p in "${progs[@]}"; do
         name=$(basename "$(dirname "$p")")/$(basename "$p")
+        if [ ! -x "$p" ]; then
+            echo "$scene $name: NOT BUILT (see $OUT/build_*.log)"
+            continue
+        fi
         for r in $(seq "$RUNS"); do
-            "$p" "$DATA/$scene.in" > "$DATA/out" 2> "$DATA/err"
+            "$p" "$DATA/$scene.in" > "$DATA/out" 2> "$DATA/err" || echo "$scene $name: FAILED: $(head -c 200 "$DATA/err")"
             echo "$scene $name: $(grep 'step loop' "$DATA/err" | sed -E 's/.*perf: //')"
         done
         "$p" "$DATA/$scene.in" --stats > "$DATA/out_$scene" 2> "$DATA/err"
