@@ -15,7 +15,8 @@
  *   place    with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
  *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
- *            place); a pair is kept only in the slice that holds its event time, so it is found once
+ *            place); a pair is kept only in the slice that holds its event time, so it is found once;
+ *            each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
@@ -386,62 +387,144 @@ __global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_h
 /* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own. Cell
  * order is row by row, so the row above lies wholly before p: what is left is the rest of p's own row
  * (from p + 1 to the end of the cell to its right) and the three cells of the row below, two contiguous
- * runs of entries, walked as one loop. en.slot == NULL means entry == slot (K = 1). Entry and cell
- * indices fit in 32 bits (entry_cap, cell_cap). */
+ * runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
+ * (entry_cap, cell_cap).
+ *
+ * A dense scene gives each entry many candidates, and each thread walks its own. A sparse one (the gas)
+ * gives a few each, 0 to 6 or so: walked per thread, most lanes of a warp would idle while the one with
+ * the most finished. There the block deals its candidate pairs out evenly instead, one per thread per
+ * round. */
 #ifndef DETECT_MIN_BLOCKS
-#define DETECT_MIN_BLOCKS 6 /* 40 registers instead of 60: the random scene 2.5% faster, the gas 0.5% slower */
+#define DETECT_MIN_BLOCKS 5 /* 48 registers: at 6 (40) the loop spills, random scene 10% slower */
 #endif
-__global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS) detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
-                              const Grid *grid, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
-                              uint64_t *best_hi)
+#ifndef DEAL_MAX
+#define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
+#endif
+
+/* An entry of the pair search: its disk, and its candidates: na entries from a0 (the rest of its own
+ * row), then those from b0 (the row below). */
+typedef struct {
+    real2 pos, vel;
+    uint64_t wall;
+    int32_t id;
+    uint32_t k, a0, na, b0;
+} Probe;
+
+/* The pair events a block found, appended to the step's list together: one atomic on the list's count
+ * per block. One per warp that found an event, all on that one address, took most of the gas's search
+ * time (64 against 27 ms per 50 steps at N = 1e7). More than BLOCK_EVENTS go straight to the list. */
+#define BLOCK_EVENTS 256
+typedef struct {
+    PairEvent e[BLOCK_EVENTS];
+    unsigned long long n; /* 64 bits: a block of a dense pile can find more than 2^32 */
+    unsigned long long base;
+} BlockEvents;
+
+/* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one. */
+static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
+                                                 uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
+                                                 int64_t cap, StepInfo *info, uint64_t *best_hi)
 {
+    real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
+    int32_t id2 = __ldg(&en.id[q]);
+    /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
+     * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
+     * is lower, and only the event's fields below depend on the order. */
+    real t = pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
+    if (t < 0) return;
+    if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)pr.k) return;
+    PairEvent e;
+    e.hi = time_key(t) | 1;
+    if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[q]))) return; /* a wall event comes first */
+    bool first = pr.id < id2;
+    int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
+    e.a = first ? s : s2;
+    e.b = first ? s2 : s;
+    e.lo = first ? ((uint64_t)pr.id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)pr.id);
+    unsigned long long at = atomicAdd(&be->n, 1ull);
+    if (at < BLOCK_EVENTS) {
+        be->e[at] = e;
+    } else {
+        unsigned long long g = list_append(&info->found);
+        if ((int64_t)g < cap) ev[g] = e;
+    }
+    atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
+    atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+}
+
+__global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
+    detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
+                  const Grid *grid, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info, uint64_t *best_hi)
+{
+    typedef cub::BlockScan<uint32_t, THREADS> Scan;
+    __shared__ typename Scan::TempStorage scan_tmp;
+    __shared__ Probe probes[THREADS];
+    __shared__ uint32_t first[THREADS];
+    static_assert(THREADS <= 256, "owner holds a thread index in 8 bits");
+    __shared__ uint8_t owner[DEAL_MAX > 0 ? DEAL_MAX * THREADS : 1]; /* the thread whose entry each dealt pair is */
+    __shared__ BlockEvents be;
+    __shared__ unsigned long long tests;
     const Grid gr = *grid;
-    uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
-    unsigned long long tests = 0;
-    if (p < __ldg(&start[gr.cells])) {
+    uint32_t p0 = blockIdx.x * blockDim.x, p = p0 + threadIdx.x, end = __ldg(&start[gr.cells]);
+    if (p0 >= end) return; /* the whole block: entries left out take no place */
+    Probe pr = {};
+    uint32_t nb = 0;
+    if (p < end) {
         uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
-        uint32_t k = key / gr.ncell, c = key - k * gr.ncell;
-        uint32_t cy = c / g, cx = c - cy * g;
+        pr.k = key / gr.ncell;
+        uint32_t c = key - pr.k * gr.ncell, cy = c / g, cx = c - cy * g;
         uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
-        uint32_t row = k * gr.ncell + cy * g;
-        uint32_t a0 = p + 1, na = __ldg(&start[row + x1 + 1]) - a0;
-        uint32_t b0 = 0, nb = 0;
+        uint32_t row = pr.k * gr.ncell + cy * g;
+        pr.a0 = p + 1;
+        pr.na = __ldg(&start[row + x1 + 1]) - pr.a0;
         if (cy + 1 < g) {
-            b0 = __ldg(&start[row + g + x0]);
-            nb = __ldg(&start[row + g + x1 + 1]) - b0;
+            pr.b0 = __ldg(&start[row + g + x0]);
+            nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
         }
-        real2 pos = __ldg(&en.pos[p]), vel = __ldg(&en.vel[p]);
-        int32_t id = __ldg(&en.id[p]);
-        uint64_t wall = __ldg(&en.wall[p]);
-        for (uint32_t i = 0; i < na + nb; i++) {
-            uint32_t q = i < na ? a0 + i : b0 + (i - na);
-            real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
-            int32_t id2 = __ldg(&en.id[q]);
-            tests++;
-            /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and
-             * dvy exactly, which changes no product, sum or comparison after them. So p goes first
-             * whichever index is lower, and only the event's fields below depend on the order. */
-            bool first = id < id2;
-            real t = pair_time(pos.x, pos.y, vel.x, vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
-            if (t < 0) continue;
-            if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)k) continue;
-            PairEvent e;
-            e.hi = time_key(t) | 1;
-            if (!(e.hi < wall && e.hi < __ldg(&en.wall[q]))) continue; /* a wall event comes first */
-            int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
-            e.a = first ? s : s2;
-            e.b = first ? s2 : s;
-            e.lo = first ? ((uint64_t)id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id);
-            unsigned long long at = list_append(&info->found);
-            if ((int64_t)at < cap) ev[at] = e;
-            atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
-            atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+        pr.pos = __ldg(&en.pos[p]);
+        pr.vel = __ldg(&en.vel[p]);
+        pr.id = __ldg(&en.id[p]);
+        pr.wall = __ldg(&en.wall[p]);
+    }
+    /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits, and is
+     * exact wherever it is within the limit */
+    const uint32_t deal = DEAL_MAX * THREADS;
+    uint32_t count = pr.na + nb, offset, total;
+    probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the scan */
+    if (threadIdx.x == 0) {
+        be.n = 0;
+        tests = 0;
+    }
+    Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
+    if (total > deal) { /* block-uniform */
+        __syncthreads();
+        unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
+        for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
+        if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
+        const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
+        for (uint32_t i = 0; i < count; i++)
+            test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap, info,
+                      best_hi);
+    } else {
+        if (threadIdx.x == 0) tests = total;
+        first[threadIdx.x] = offset;
+        for (uint32_t i = 0; i < count; i++) owner[offset + i] = (uint8_t)threadIdx.x;
+        __syncthreads();
+        for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
+            uint32_t o = owner[j], i = j - first[o];
+            const Probe po = probes[o];
+            uint32_t q = i < po.na ? po.a0 + i : po.b0 + (i - po.na);
+            test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, info, best_hi);
         }
     }
-    typedef cub::BlockReduce<unsigned long long, THREADS> Reduce;
-    __shared__ typename Reduce::TempStorage tmp;
-    unsigned long long sum = Reduce(tmp).Sum(tests);
-    if (threadIdx.x == 0 && sum) atomicAdd(&info->tests, sum);
+    __syncthreads();
+    if (threadIdx.x == 0 && tests) atomicAdd(&info->tests, tests);
+    unsigned kept = be.n < BLOCK_EVENTS ? (unsigned)be.n : BLOCK_EVENTS;
+    if (kept == 0) return; /* block-uniform */
+    if (threadIdx.x == 0) be.base = atomicAdd(&info->found, (unsigned long long)kept);
+    __syncthreads();
+    for (unsigned i = threadIdx.x; i < kept; i += THREADS)
+        if ((int64_t)(be.base + i) < cap) ev[be.base + i] = be.e[i];
 }
 
 /* ==== choose ============================================================================================= */
