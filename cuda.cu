@@ -859,7 +859,8 @@ static double host_vmax(const Sim *sim, int64_t n)
     return m;
 }
 
-static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed, int64_t ev_cap)
+/* vmax: the largest velocity component of sim (host_vmax) */
+static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, int timed, int64_t ev_cap)
 {
     int devices = 0;
     cudaError_t err = cudaGetDeviceCount(&devices);
@@ -954,7 +955,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, int timed, int
     free(ids);
     Control start;
     memset(&start, 0, sizeof start);
-    start.vmax = speed_bits(host_vmax(sim, n));
+    start.vmax = speed_bits(vmax);
     CUDA_CHECK(cudaMemcpy(c->ctl, &start, sizeof start, cudaMemcpyHostToDevice));
     c->cur = 0;
 }
@@ -1063,11 +1064,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     size_t tmp = c->scan_tmp_bytes;
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
     phase_mark(c, ring, 2);
+    place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted, c->order);
+    CUDA_LAUNCHED();
     Entries en;
     if (pl->K == 1) {
-        place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted,
-                                                       c->order);
-        CUDA_LAUNCHED();
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
                                                               c->wall_hi, c->best_hi, c->best_lo, c->partner,
                                                               c->ctl);
@@ -1078,9 +1078,6 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
         en.slot = NULL;
         en.wall = c->wall_hi;
     } else {
-        place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted,
-                                                       c->order);
-        CUDA_LAUNCHED();
         init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, c->par, c->wall_hi, c->best_hi,
                                                       c->best_lo, c->partner);
         CUDA_LAUNCHED();
@@ -1268,9 +1265,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     int64_t batches = 0;
     hook = getenv("SIM_CUDA_EVENTS");
-    Cuda c;
-    cuda_open(&c, sim, par, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
     double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
+    Cuda c;
+    cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
     Control last_read;                      /* the newest control record read back */
     memset(&last_read, 0, sizeof last_read);
     CUDA_CHECK(cudaDeviceSynchronize());
