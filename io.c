@@ -331,6 +331,15 @@ static int split_line(char *s, char *end, char **tok)
     return ntok;
 }
 
+/* A byte 0 in the line [s, end): its column (from 1), or 0 when there is none. Text with one is refused
+ * before any other check of its line. */
+#define ZERO_BYTE_ERROR "unexpected byte 0 in the text (found one at column %ld)"
+static long zero_byte_column(const char *s, const char *end)
+{
+    const char *nul = memchr(s, '\0', (size_t)(end - s));
+    return nul ? (long)(nul - s) + 1 : 0;
+}
+
 /* Splits the next non-blank line into tokens; returns 0 at the end of the input. */
 static int next_record(Reader *rd)
 {
@@ -340,10 +349,8 @@ static int next_record(Reader *rd)
         char *end = nl ? nl : rd->text + rd->size;
         rd->pos = (size_t)(end - rd->text) + (nl ? 1 : 0);
         rd->line++;
-        char *nul = memchr(s, '\0', (size_t)(end - s));
-        if (nul)
-            input_error(rd, rd->line, "unexpected byte 0 in the text (found one at column %ld)",
-                        (long)(nul - s) + 1);
+        long col = zero_byte_column(s, end);
+        if (col) input_error(rd, rd->line, ZERO_BYTE_ERROR, col);
         rd->ntok = split_line(s, end, rd->tok);
         if (rd->ntok > 0) return 1;
     }
@@ -576,10 +583,10 @@ static void parse_chunk(void *ctx, int64_t k)
         long line = ps->line_base + 1 + (long)(c->line0 + i);
         char *nl = memchr(p, '\n', (size_t)(stop - p));
         char *end = nl ? nl : stop;
-        char *nul = memchr(p, '\0', (size_t)(end - p));
+        long col = zero_byte_column(p, end);
         int32_t *idx = &ps->line_idx[c->line0 + i];
-        if (nul) {
-            chunk_error(c, line, "unexpected byte 0 in the text (found one at column %ld)", (long)(nul - p) + 1);
+        if (col) {
+            chunk_error(c, line, ZERO_BYTE_ERROR, col);
             *idx = LINE_ZERO_BYTE;
             return;
         }
@@ -900,7 +907,8 @@ static void parse_args(int argc, char **argv, Options *opt)
 /* Multiplies every velocity by f, a power of two for --substeps: exact (short of subnormals). */
 static void scale_velocities(Sim *sim, int64_t n, real f)
 {
-    for (int64_t i = 0; i < n && f != 1; i++) {
+    if (f == 1) return;
+    for (int64_t i = 0; i < n; i++) {
         sim->vx[i] = sim->vx[i] * f;
         sim->vy[i] = sim->vy[i] * f;
     }

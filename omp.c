@@ -38,6 +38,9 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 #define K_MAX 65536      /* most time slices per step */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 #define SCAN_WIDTH 4     /* boxes one group of the scan tests at once */
+#if SCAN_WIDTH != 4
+#error "scan_range writes out the four box tests of a group"
+#endif
 
 
 /* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
