@@ -63,16 +63,17 @@ backend_list() {
     if have_gpu; then echo cuda; fi
 }
 
-# refuses NAME PATTERN COMMAND...: COMMAND must fail with nothing on stdout and exactly one line on
-# stderr that matches PATTERN (grep), the rule for every refused input or option.
-refuses() {
-    local name=$1 pattern=$2
+# expect_error NAME PATTERN COMMAND...: COMMAND (stdin from STDIN_FILE, else /dev/null) must exit
+# non-zero with nothing on stdout and exactly one stderr line matching PATTERN (grep -E): the rule for
+# every refused input or option.
+expect_error() {
+    local name=$1 pattern=$2 rc problems=""
     shift 2
-    if "$@" > "$TMP/out" 2> "$TMP/err"; then
-        fail "$name" "exit 0"
-    elif [ -s "$TMP/out" ] || [ "$(wc -l < "$TMP/err")" -ne 1 ] || ! grep -q -e "$pattern" "$TMP/err"; then
-        fail "$name" "$(wc -c < "$TMP/out") bytes on stdout; stderr: $(head -c 300 "$TMP/err")"
-    else
-        pass "$name"
-    fi
+    "$@" > "$TMP/out" 2> "$TMP/err" < "${STDIN_FILE:-/dev/null}"
+    rc=$?
+    [ "$rc" -ne 0 ] || problems="exit status 0;"
+    [ ! -s "$TMP/out" ] || problems="$problems $(wc -c < "$TMP/out") bytes on stdout;"
+    [ "$(wc -l < "$TMP/err")" -eq 1 ] || problems="$problems $(wc -l < "$TMP/err") stderr lines;"
+    grep -Eq -e "$pattern" "$TMP/err" || problems="$problems message '$(head -c 200 "$TMP/err")';"
+    if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
 }

@@ -3,19 +3,6 @@
 # "prog: file:line: what is wrong (what was found)". Then bad command lines, unreadable input and
 # write errors (a full disk, a closed stdout, a closed pipe).
 
-# expect_error NAME PATTERN COMMAND...: non-zero exit, empty stdout, one stderr line matching PATTERN.
-expect_error() {
-    local name=$1 pattern=$2 rc problems=""
-    shift 2
-    "$@" > "$TMP/out" 2> "$TMP/err" < "${STDIN_FILE:-/dev/null}"
-    rc=$?
-    [ "$rc" -ne 0 ] || problems="exit status 0;"
-    [ ! -s "$TMP/out" ] || problems="$problems $(wc -c < "$TMP/out") bytes on stdout;"
-    [ "$(wc -l < "$TMP/err")" -eq 1 ] || problems="$problems $(wc -l < "$TMP/err") stderr lines;"
-    grep -Eq "$pattern" "$TMP/err" || problems="$problems message '$(head -c 200 "$TMP/err")';"
-    if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
-}
-
 for f in tests/bad/*.in; do
     grep -q "^$(basename "$f" .in) " tests/bad/lines.txt || fail "bad/$(basename "$f" .in)" "not in lines.txt"
 done

@@ -156,26 +156,26 @@ fi
 
 # Options: backends without --exact reject it before any output.
 if [ -x ./cuda ]; then
-    refuses "exact/cuda rejects --exact" "--exact is not supported" ./cuda tests/exact/walls.in --exact
+    expect_error "exact/cuda rejects --exact" "--exact is not supported" ./cuda tests/exact/walls.in --exact
 else
     skip "exact/cuda rejects --exact" "cuda not built"
 fi
 for prog in seq omp seq_f32 omp_f32; do
-    refuses "exact/$prog rejects --exact --substeps" "exclude each other" \
+    expect_error "exact/$prog rejects --exact --substeps" "exclude each other" \
         ./$prog tests/exact/walls.in --exact --substeps 2
 done
 
 # A step that could not be run event by event (speeds up to L/(8r) = 1e99 in a box of 1e50) is refused
 # before any output.
 for prog in seq omp; do
-    refuses "exact/$prog refuses 1e49 wall collisions per step" "would hit the walls" \
+    expect_error "exact/$prog refuses 1e49 wall collisions per step" "would hit the walls" \
         ./$prog inputs/extreme_large_box.in --exact --quiet
 done
 # the same refusal when step 0 alone would overflow the output buffer (200000 lines, over 8 MB): still
 # nothing on stdout
 printf '200000\n1\n1e-8\n1\nperf\n' > "$X/fast_many.in"
 for prog in seq omp; do
-    refuses "exact/$prog refuses 200000 too-fast disks before step 0" "would hit the walls" \
+    expect_error "exact/$prog refuses 200000 too-fast disks before step 0" "would hit the walls" \
         ./$prog "$X/fast_many.in" --exact --quiet
 done
 

@@ -85,7 +85,7 @@ done
 
 # --pressure is not offered by cuda: one line on stderr, nothing on stdout, non-zero exit
 if [ -x ./cuda ]; then
-    refuses "cuda --pressure rejected with one line" "--pressure" ./cuda "inputs/$(ls inputs | head -1)" --pressure
+    expect_error "cuda --pressure rejected with one line" "--pressure" ./cuda "inputs/$(ls inputs | head -1)" --pressure
 else
     skip "cuda --pressure rejected" "./cuda not built"
 fi

@@ -41,21 +41,27 @@ fi
 
 # --summarize rebuilds the summary of the runs above from their rows alone (as for a stopped sweep)
 cp "$bench_csv" "$TMP/again.csv"
-./bench.sh --summarize "$TMP/again.csv" 2> /dev/null
-if [ -s "$TMP/again.summary.csv" ] &&
-    diff <(grep -v '^#' "$bench_sum") <(grep -v '^#' "$TMP/again.summary.csv") > /dev/null; then
-    pass "bench.sh --summarize: the sweep's summary rows"
+rm -f "$TMP/again.summary.csv"
+if ./bench.sh --summarize "$TMP/again.csv" > "$TMP/again.log" 2>&1; then
+    summary_diff=$(diff <(grep -v '^#' "$bench_sum") <(grep -v '^#' "$TMP/again.summary.csv") 2>&1)
+    if [ -s "$TMP/again.summary.csv" ] && [ -z "$summary_diff" ]; then
+        pass "bench.sh --summarize: the sweep's summary rows"
+    else
+        fail "bench.sh --summarize: the sweep's summary rows" "$(echo "$summary_diff" | head -3)"
+    fi
 else
-    fail "bench.sh --summarize: the sweep's summary rows" "$(diff <(grep -v '^#' "$bench_sum") <(grep -v '^#' "$TMP/again.summary.csv") 2>&1 | head -3)"
+    fail "bench.sh --summarize: the sweep's summary rows" "exit status non-zero: $(tail -n 2 "$TMP/again.log")"
 fi
 
 # --steps S: every run has S steps in its input's steps line (rewritten in place, so the file of a
 # scene keeps its other lines) and no probe runs
+rm -f "$TMP/steps.csv"
 ./bench.sh --backends omp --threads 2 --scenes gas20,random --sizes 1000 --steps 7 --repeats 3 \
     -o "$TMP/steps.csv" > "$TMP/steps.log" 2>&1
+steps_rc=$?
 steps_rows=$(grep -v -e '^#' -e '^backend,' "$TMP/steps.csv" 2>/dev/null | awk -F, '$5 == 7' | wc -l)
-if [ "$steps_rows" -eq 6 ]; then
+if [ "$steps_rc" -eq 0 ] && [ "$steps_rows" -eq 6 ]; then
     pass "bench.sh --steps 7: 6 runs of 7 steps"
 else
-    fail "bench.sh --steps 7: 6 runs of 7 steps" "$steps_rows rows with 7 steps: $(tail -n 2 "$TMP/steps.log")"
+    fail "bench.sh --steps 7: 6 runs of 7 steps" "exit $steps_rc, $steps_rows rows with 7 steps: $(tail -n 2 "$TMP/steps.log")"
 fi
