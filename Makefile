@@ -85,7 +85,8 @@ accuracy: all
 # gnuplot-nox)
 # sweeps run in parts (the CPU's N = 1e6 again with longer runs; the H100's in tools/gpu_sweep.sh): a
 # point in several files is taken from the later one
-GPU_SUMMARIES = $(subst _ALL,,$(patsubst %,bench/gpu_h100%.summary.csv,_ALL _threads _cuda _1e7_random _1e7 _1e8 _1e8b))
+GPU_SUMMARIES = bench/gpu_h100.summary.csv \
+    $(patsubst %,bench/gpu_h100_%.summary.csv,threads cuda 1e7_random 1e7 1e8 1e8b)
 plots:
 	@bash tools/plot.sh --merge bench/cpu bench/cpu.summary.csv bench/cpu_1e6.summary.csv
 	@bash tools/plot.sh --merge bench/gpu_h100 $(GPU_SUMMARIES)

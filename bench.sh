@@ -222,7 +222,7 @@ run_once() {
     fi
     t1=$EPOCHREALTIME
     WALL=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.6f", b - a }')
-    SECONDS_LOOP=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$RUN_ERR" | tail -n 1)
+    SECONDS_LOOP=$(loop_seconds "$RUN_ERR")
     PAIR_TESTS=$(sed -n 's/^[a-z]*: \([0-9]*\) pair tests.*/\1/p' "$RUN_ERR" | tail -n 1)
     EVENTS=$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$RUN_ERR" | tail -n 1)
     [ -n "$SECONDS_LOOP" ] && [ -n "$PAIR_TESTS" ] && [ -n "$EVENTS" ] ||
@@ -329,6 +329,11 @@ START=$EPOCHREALTIME
 for scene in $SCENES; do
     for n in $ALL_SIZES; do
         if scene_lists_disks "$scene" && [ "$n" -gt "$FILE_MAX_N" ]; then continue; fi
+        if [ "$PREPARE" = 1 ]; then # every N here is some backend's to run
+            scene_file "$scene" "$n" > /dev/null
+            echo "bench.sh: scene $scene N = $n ready" >&2
+            continue
+        fi
         base=""
         geometry=""
         for b in $RUNNABLE; do
@@ -340,11 +345,6 @@ for scene in $SCENES; do
                     SKIPPED[$key]=1
                     echo "bench.sh: $key: N >= $n skipped (one step would take over $MAX_STEP_S s)" >&2
                     continue
-                fi
-                if [ "$PREPARE" = 1 ]; then
-                    scene_file "$scene" "$n" > /dev/null
-                    echo "bench.sh: scene $scene N = $n ready" >&2
-                    break 2
                 fi
                 if [ -z "$base" ]; then
                     base=$(scene_file "$scene" "$n")

@@ -196,6 +196,9 @@ run_prog() {
 # value KEY LINE: a value of tools/measure's key=value line.
 value() { echo "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
 
+# ns_per_step SECONDS STEPS: a step loop's time per particle-step of N disks, in ns
+ns_per_step() { awk -v x="$1" -v n="$N" -v s="$2" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }'; }
+
 # ---- provenance -----------------------------------------------------------------------------------
 provenance() {
     echo "# tools/accuracy.sh results (REPORT.md, What accuracy costs in time, explains the columns)"
@@ -249,12 +252,12 @@ for eta in $FRACTIONS; do
             with_header "$tag.next.in" "$BLOCK_STEPS" perf > "$tag.in"
             run_prog "$tag.in" "$tag.out" "$tag.err" --dump17 --pressure
             m=$(tools/measure "$tag.in" "$tag.out") || die "tools/measure failed on $tag.out"
-            seconds=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$tag.err" | tail -n 1)
+            seconds=$(loop_seconds "$tag.err")
             pressure=$(sed -n 's/.*: pressure: .* P = \([0-9.e+-]*\)$/\1/p' "$tag.err" | tail -n 1)
             [ -n "$seconds" ] && [ -n "$pressure" ] || die "$PROG: no timing or pressure line: $(tail -n 2 "$tag.err")"
             echo "$pressure $(value energy_first "$m") $(value energy_last "$m") $(value pair_collisions "$m")" \
                 "$(value wall_collisions "$m") $(value L "$m") $(value r "$m")" >> "$tag.rows"
-            awk -v x="$seconds" -v n="$N" -v s="$BLOCK_STEPS" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }' >> "$tag.times"
+            ns_per_step "$seconds" "$BLOCK_STEPS" >> "$tag.times"
             state_input "$tag.out" "$base" > "$tag.next.in"
         done
     done
@@ -268,9 +271,9 @@ for ((k = 1; k <= TIME_ROUNDS; k++)); do
             tag=$TMP_DIR/eta$eta-$rung
             with_header "$tag.eq.in" "$TIME_STEPS" perf > "$tag.in"
             run_prog "$tag.in" /dev/null "$tag.err" --pressure
-            seconds=$(sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$tag.err" | tail -n 1)
+            seconds=$(loop_seconds "$tag.err")
             [ -n "$seconds" ] || die "$PROG: no timing line: $(tail -n 2 "$tag.err")"
-            awk -v x="$seconds" -v n="$N" -v s="$TIME_STEPS" 'BEGIN { printf "%.6g\n", x * 1e9 / (n * s) }' >> "$tag.times"
+            ns_per_step "$seconds" "$TIME_STEPS" >> "$tag.times"
         done
     done
 done

@@ -7,6 +7,8 @@
 #   N=20000 FRACTIONS="0.4" STEPS=5 THREADS="1 2 4" tools/bench_exact.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
+die() { echo "bench_exact.sh: $*" >&2; exit 1; }
+. tools/script_lib.sh
 
 N=${N:-10000}
 FRACTIONS=${FRACTIONS:-"0.2 0.4"}
@@ -31,7 +33,7 @@ run() { # FRACTION PROGRAM MODE THREADS INPUT: prints the command and a CSV row
     for ((k = 0; k <= reps; k++)); do
         "${cmd[@]}" > "$WORK/last.out" 2> "$WORK/last.err"
         [ "$k" -eq 0 ] && [ "$reps" -gt 0 ] && continue
-        times+=("$(sed -n 's/.* \([0-9.]*\) s step loop.*/\1/p' "$WORK/last.err")")
+        times+=("$(loop_seconds "$WORK/last.err")")
     done
     local best events
     best=$(printf '%s\n' "${times[@]}" | sort -g | head -1)

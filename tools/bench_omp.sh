@@ -7,6 +7,8 @@
 #   BIG=1 tools/bench_omp.sh      also N = 1e7 (generates a 600 MB input; minutes)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+die() { echo "bench_omp.sh: $*" >&2; exit 1; }
+. tools/script_lib.sh
 
 REPEATS=${REPEATS:-3}
 THREADS=${THREADS:-"1 2"}
@@ -20,8 +22,7 @@ echo "# $(git rev-parse --short HEAD 2>/dev/null || echo unknown) $(uname -n) $(
      "$(${CC:-cc} --version | head -1); OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset}"
 echo "case,program,threads,n,steps,best_s,median_s,particle_steps_per_s,ns_per_particle_step,pair_tests,all_pairs_over_tests"
 
-# seconds of the step loop, pair tests: from a program's stderr
-loop_seconds() { sed -n 's/.* \([0-9.]*\) s step loop.*/\1/p' "$1"; }
+# pair tests: from a program's stderr (the step loop's seconds: loop_seconds)
 pair_tests() { sed -n 's/.*: \([0-9]*\) pair tests.*/\1/p' "$1"; }
 
 # measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row; leaves the

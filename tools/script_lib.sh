@@ -1,4 +1,4 @@
-# tools/script_lib.sh: helpers that bench.sh, tools/accuracy.sh and the GPU scripts share; sourced from
+# tools/script_lib.sh: helpers that bench.sh and the scripts under tools/ share; sourced from
 # the repository root after the script has defined die (its own name in messages), which integer needs.
 # Never run alone.
 
@@ -9,6 +9,9 @@ integer() {
     awk -v s="$1" 'BEGIN { if (s !~ /^[0-9.]+([eE][0-9]+)?$/ || s + 0 < 1) exit 1; printf "%.0f\n", s }' ||
         die "not a positive integer: '$1'"
 }
+
+# The step loop's seconds from a program's stderr in FILE (its last "X s step loop" line); empty if none.
+loop_seconds() { sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$1" | tail -n 1; }
 
 # A variable of the Makefile, as make sees it (CC, CFLAGS, ...).
 make_var() { make -s --no-print-directory --eval='script-print-%: ; @echo $($*)' "script-print-$1" 2>/dev/null; }
