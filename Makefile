@@ -37,8 +37,8 @@ io_f32.o: io.c common.h Makefile
 seq_f32: seq.c io_f32.o common.h exact.h Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c io_f32.o -o $@ $(LDLIBS)
 
-omp_f32: omp.c omp_exact.c io_f32.o common.h exact.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_exact.c io_f32.o -o $@ $(LDLIBS)
+omp_f32: omp.c omp_paths.c omp_exact.c io_f32.o common.h exact.h omp_step.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_paths.c omp_exact.c io_f32.o -o $@ $(LDLIBS)
 
 cuda_f32: cuda.cu io_f32.o common.h Makefile
 	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu io_f32.o -o $@ $(LDLIBS)
@@ -46,8 +46,8 @@ cuda_f32: cuda.cu io_f32.o common.h Makefile
 seq: seq.c io.o common.h exact.h Makefile
 	$(CC) $(CFLAGS) seq.c io.o -o $@ $(LDLIBS)
 
-omp: omp.c omp_exact.c io.o common.h exact.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_exact.c io.o -o $@ $(LDLIBS)
+omp: omp.c omp_paths.c omp_exact.c io.o common.h exact.h omp_step.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_paths.c omp_exact.c io.o -o $@ $(LDLIBS)
 
 cuda: cuda.cu io.o common.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu io.o -o $@ $(LDLIBS)

@@ -890,6 +890,13 @@ static void parse_args(int argc, char **argv, Options *opt)
             opt->threads = (int)option_value(argc, argv, &k, 1, 4096);
         } else if (own_threads && strcmp(a, "--check") == 0) {
             opt->check = 1;
+        } else if (own_threads && strcmp(a, "--broad") == 0) {
+            if (k + 1 >= argc) io_fail("--broad needs a value (see --help)");
+            const char *val = argv[++k];
+            if (strcmp(val, "grid") == 0) opt->broad = SIM_BROAD_GRID;
+            else if (strcmp(val, "paths") == 0) opt->broad = SIM_BROAD_PATHS;
+            else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
+            else io_fail("--broad must be grid, paths or auto (found '%s')", val);
         } else if (a[0] == '-' && a[1] != '\0') {
             io_fail("unknown option '%s' (see --help)", a);
         } else if (opt->path) {

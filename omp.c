@@ -3,14 +3,16 @@
  * Same bytes as seq.c for every input and thread count; only the search for pairs and the choice of
  * events are organised differently:
  * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort moves
- *   them at the start of a step, every step for fast scenes, every few steps for slow ones), so that
- *   neighbours are neighbours in memory; each slot remembers its disk's original index, which alone
- *   decides the event order and the output order.
- * - broad phase: the step is cut into K time slices (K from this step's fastest disk, 1 for slow
- *   scenes). In each slice every disk's swept box (its path over the slice, grown by r and a rounding
+ *   them every few steps), so that neighbours are neighbours in memory; each slot remembers its
+ *   disk's original index, which alone decides the event order and the output order.
+ * - broad phase, one of two, whichever the cost model expects to be cheaper this step:
+ *   grid (slow scenes): every disk's swept box (its path over the step, grown by r and a rounding
  *   margin) is binned by its centre into square cells at least as wide as two boxes can be apart and
- *   still overlap, so overlapping boxes lie in the same or neighbouring cells. A pair whose boxes
- *   overlap goes to the narrow phase (pair_time) if it approaches and is closest within that slice.
+ *   still overlap, so overlapping boxes lie in the same or neighbouring cells; a pair whose boxes
+ *   overlap goes to the narrow phase (pair_time).
+ *   paths (fast scenes, omp_paths.c): every disk's path is binned into the cells it crosses with the
+ *   interval of time it spends in each; pairs meet only in a shared cell at overlapping times.
+ *   Both find exactly the pair events that the choice can accept (before_walls in omp_step.h).
  * - choice: per-disk lists of candidate events (CSR), then rounds of "accept every event that is the
  *   smallest remaining event of all its disks", finished by a sort and walk once few disks remain.
  *   That is exactly the greedy choice of SPEC.md 3.3, whatever the thread count.
@@ -18,8 +20,8 @@
  *   anywhere; the one reduction, the fastest velocity component, is a maximum and exact.
  * All buffers are allocated once (event buffers grow geometrically when a step needs more).
  */
-#include "common.h"
 #include "exact.h"
+#include "omp_step.h"
 
 #include <omp.h>
 #include <stdio.h>
@@ -30,12 +32,14 @@ const char backend_name[] = "omp" SIM_SUFFIX;
 const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (with --exact: each time window; O(N^2)) and\n"
-    "               stop with a message if the broad phase missed an event; for testing\n";
+    "               stop with a message if the broad phase missed an event; for testing\n"
+    "  --broad B    the broad phase: grid (cells of the fastest disk's step), paths (each disk's\n"
+    "               path through the cells it crosses) or auto (default: the cheaper, per step)\n";
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
-#define K_MAX 65536      /* most time slices per step */
+#define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 #define SCAN_WIDTH 4     /* boxes one group of the scan tests at once */
 #if SCAN_WIDTH != 4
@@ -43,15 +47,16 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 #endif
 
 
-/* Relative costs of the broad phase per step, for choosing K: binning one disk, clearing and summing
- * one cell of one thread's histogram, testing one pair of boxes. */
+/* Relative costs of the grid's broad phase per step, against those of the paths' (omp_paths.c):
+ * binning one disk, clearing and summing one cell of one thread's histogram, testing one pair of
+ * boxes. */
 #define COST_BIN 1.0
 #define COST_CELL 0.3
 #define COST_BOX 0.25
 
 /* ==== types ========================================================================================== */
 
-/* The box swept by one disk over one slice, grown by the radius and the rounding margin. */
+/* The box swept by one disk over the step, grown by the radius and the rounding margin. */
 typedef struct {
     real xlo, xhi, ylo, yhi;
 } Span;
@@ -64,26 +69,6 @@ typedef struct {
     float xlo, xhi, ylo, yhi;
 } Box;
 
-/* A disk's state at the start of the step, stored in the cell order of the boxes, so that the
- * narrow phase of a slice reads memory next to what its scan streams through. */
-typedef struct {
-    real x, y, vx, vy;
-    int32_t slot, id; /* slot and original index of the disk */
-} Body;
-
-typedef struct {
-    real t;     /* time of the event, 0..1 */
-    int32_t i, j; /* original indices, i < j: the event's key */
-    int32_t a, b; /* their slots */
-} PairEvent;
-
-/* The disks in slot order: SoA like Sim, plus each slot's original index. */
-typedef struct {
-    real *x, *y, *vx, *vy;
-    int32_t *id, *pc, *wc;
-    double *wi; /* --pressure only, else NULL */
-} Slots;
-
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
 typedef struct {
     real t;
@@ -92,9 +77,9 @@ typedef struct {
     int32_t a, b; /* slots */
 } SeqEvent;
 
-/* The geometry of one step's broad phase. */
+/* The geometry of one step's grid. */
 typedef struct {
-    int k;        /* time slices */
+    int paths;    /* 1: this step uses the paths' broad phase (omp_paths.c), not the grid */
     int64_t g;    /* cells per side; g * g cells */
     double x0, y0; /* lower corner of the grid */
     double inv_h; /* 1 / cell side */
@@ -103,15 +88,15 @@ typedef struct {
 
 /* Per-thread state, padded so that threads never share a cache line. */
 typedef struct {
-    PairEvent *ev;    /* pair events found by this thread this step */
-    size_t len, cap;
+    Found found;      /* pair events found by this thread this step */
     char *text;       /* formatted lines (print mode) */
     size_t text_len, text_cap;
     int64_t n_active; /* undecided disks of this thread's range, at active + range start */
     int64_t partial;  /* this thread's part of a prefix sum */
     size_t ev_off;    /* where this thread's events go in the gathered list */
-    uint64_t tests, events;
+    uint64_t events;
     real vmax;
+    int64_t s1;       /* the axis lengths of its disks' steps, in units of the box / 2^20 */
     char pad[64];
 } Thread;
 
@@ -124,13 +109,13 @@ typedef struct {
     int nt;           /* threads in the parallel region */
     Plan plan;
     Thread *th;
-    int32_t *cell_of; /* n: cell of each slot in the current slice */
+    Paths *paths;     /* the broad phase of fast scenes */
+    int32_t *cell_of; /* n: cell of each slot */
     int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
     int32_t *cell_start; /* max cells + 1: first box of each cell */
     int64_t max_cells;
-    Box *boxes;       /* n: the slice's boxes in cell order */
-    Body *bodies;     /* n: the disks of those boxes (slices after the first) */
-    int32_t *box_slot; /* n: the slots of those boxes (first slice) */
+    Box *boxes;       /* n: the boxes in cell order */
+    int32_t *box_slot; /* n: the slots of those boxes */
     /* the rest is indexed by slot */
     real *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
@@ -145,8 +130,11 @@ typedef struct {
     real *acc_t;    /* n: time of the accepted event */
     unsigned char *taken; /* n: 1 once the disk has an accepted event */
     int64_t undecided;   /* disks left after a round of the choice */
+    int64_t path_steps;  /* steps that used the paths' broad phase (--stats) */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
+    SeqEvent *fin_tmp; /* sort_events' buffer */
+    size_t fin_tmp_cap;
 } Work;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -155,10 +143,10 @@ static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
     *to = n * (tid + 1) / nt;
 }
 
-static void *grow(void *ptr, size_t *cap, size_t need, size_t size)
+void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap) return ptr;
-    size_t c = *cap ? *cap : 1024;
+    size_t c = *cap ? *cap : 64;
     while (c < need) c *= 2;
     void *p = realloc(ptr, c * size);
     if (!p) io_fail("out of memory (%zu x %zu bytes)", c, size);
@@ -166,7 +154,8 @@ static void *grow(void *ptr, size_t *cap, size_t need, size_t size)
     return p;
 }
 
-/* ==== broad phase ==================================================================================== */
+/* ==== slots ========================================================================================= */
+
 static void slots_alloc(Slots *s, int64_t n, int with_wi)
 {
     s->wi = with_wi ? io_alloc((size_t)n, sizeof *s->wi) : NULL;
@@ -225,13 +214,15 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== broad phase ==================================================================================== */
 
-/* Chooses K and the cells for a step whose fastest disk moves vm per step along an axis. Two disks
- * that touch at a time of slice k have boxes that overlap in slice k; the margin m (broad_margin)
- * covers, with a wide factor to spare, the rounding of positions (about eps * scale) and that of
- * pair_time near a graze. A pair with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs
- * c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
-static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max_cells)
+/* Chooses this step's broad phase: the grid or the paths (omp_paths.c), whichever the cost model
+ * expects to be cheaper, for a step whose fastest disk moves vm along an axis and whose disks' steps
+ * add up to about s1 along the axes. The grid's cells are as wide as two boxes can be apart and still
+ * overlap; the margin m (broad_margin) covers, with a wide factor to spare, the rounding of positions
+ * (about eps * scale) and that of pair_time near a graze. A pair with an event has
+ * dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
+static Plan plan_step(Work *w, double vm, double s1, int nt)
 {
+    const Params *p = w->p;
     Plan pl;
     double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
     double m = broad_margin(r, scale, reach, SIM_REL_MARGIN);
@@ -239,35 +230,27 @@ static Plan plan_step(const Params *p, double vm, int64_t n, int nt, int64_t max
     double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
     pl.x0 = p->lo - vm - pl.grow;
     pl.y0 = pl.x0;
-    int64_t gcap = (int64_t)sqrt((double)max_cells);
-    while (gcap > 1 && gcap * gcap > max_cells) gcap--;
-    while ((gcap + 1) * (gcap + 1) <= max_cells) gcap++;
-    double best = -1;
-    pl.k = 1;
-    pl.g = 1;
-    for (int k = 1; k <= K_MAX; k = k < 8 ? k + 1 : k + k / 8) {
-        /* centres of two overlapping boxes are at most 2 * grow + (displacement in a slice) apart */
-        double h = (2 * pl.grow + vm / k) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
-        double gd = extent / h;
-        int64_t g = gd < (double)gcap ? (int64_t)gd : gcap;
-        if (g < 1) g = 1;
-        double cells = (double)g * (double)g, nd = (double)n;
-        double cost = k * (nd * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nd * nd / cells);
-        if (best < 0 || cost < best) {
-            best = cost;
-            pl.k = k;
-            pl.g = g;
-        }
-        if (vm / k < 1e-3 * pl.grow) break; /* slices no longer shrink the cells */
-    }
+    int64_t gcap = (int64_t)sqrt((double)w->max_cells);
+    while (gcap > 1 && gcap * gcap > w->max_cells) gcap--;
+    while ((gcap + 1) * (gcap + 1) <= w->max_cells) gcap++;
+    /* centres of two overlapping boxes are at most 2 * grow + (displacement in a step) apart */
+    double h = (2 * pl.grow + vm) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
+    double gd = extent / h;
+    pl.g = gd < (double)gcap ? (int64_t)gd : gcap;
+    if (pl.g < 1) pl.g = 1;
     pl.inv_h = (double)pl.g / extent;
+    double cells = (double)pl.g * (double)pl.g, nd = (double)p->n;
+    double grid = nd * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nd * nd / cells;
+    double paths = paths_plan(w->paths, p, p->n, vm, s1, nt);
+    pl.paths = w->opt->broad == SIM_BROAD_AUTO ? paths < grid : w->opt->broad == SIM_BROAD_PATHS;
+    if (pl.paths) paths_ready(w->paths, p->n, nt);
     return pl;
 }
 
-static inline void slice_span(const Slots *s, int64_t q, real ta, real tb, real grow, Span *b)
+static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
 {
-    real xa = s->x[q] + s->vx[q] * ta, xb = s->x[q] + s->vx[q] * tb;
-    real ya = s->y[q] + s->vy[q] * ta, yb = s->y[q] + s->vy[q] * tb;
+    real xa = s->x[q], xb = s->x[q] + s->vx[q];
+    real ya = s->y[q], yb = s->y[q] + s->vy[q];
     b->xlo = (xa < xb ? xa : xb) - grow;
     b->xhi = (xa < xb ? xb : xa) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
@@ -280,16 +263,6 @@ static inline void span_box(const Span *a, const Plan *pl, Box *b)
     b->xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
     b->ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h);
     b->yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
-}
-
-static inline void slot_body(const Slots *s, int64_t q, Body *b)
-{
-    b->x = s->x[q];
-    b->y = s->y[q];
-    b->vx = s->vx[q];
-    b->vy = s->vy[q];
-    b->slot = (int32_t)q;
-    b->id = s->id[q];
 }
 
 static inline int boxes_overlap(const Box *a, const Box *b)
@@ -306,32 +279,13 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
 }
 
 /* What a binning writes in cell order besides the boxes. */
-enum { BIN_BODIES, BIN_SLOTS, BIN_REORDER };
+enum { BIN_SLOTS, BIN_REORDER };
 
-/* 3.1: the wall event of the disk in slot q, stored for slot dst. Most disks are farther from every
- * wall than they move in a step (with SIM_REL_MARGIN to spare, so the quotient is surely > 1): they
- * need no division. */
-static inline void wall_event(Work *w, int64_t q, int64_t dst)
-{
-    const Slots *s = &w->s;
-    const Params *p = w->p;
-    real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
-    double ax = fabs((double)vx) * (1 + SIM_REL_MARGIN);
-    double ay = fabs((double)vy) * (1 + SIM_REL_MARGIN);
-    if ((double)x - p->lo > ax && p->hi - (double)x > ax && (double)y - p->lo > ay &&
-        p->hi - (double)y > ay) {
-        w->wall_t[dst] = -1;
-        return;
-    }
-    real tw = min_time(wall_time(x, vx, p->lo, p->hi), wall_time(y, vy, p->lo, p->hi));
-    w->wall_t[dst] = tw <= 1 ? tw : -1;
-}
-
-/* Counting sort of the slots into the cells of their slice boxes: per-thread histograms, a prefix sum
- * over cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell
- * order with their disks' bodies (BIN_BODIES) or slots (BIN_SLOTS); BIN_REORDER moves the disks
- * themselves to the new order (into spare). The first slice finds the wall events (3.1) on the way. */
-static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
+/* Counting sort of the slots into the cells of their boxes: per-thread histograms, a prefix sum over
+ * cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell order
+ * with their slots (BIN_SLOTS); BIN_REORDER moves the disks themselves to the new order (into spare).
+ * The wall events (3.1) are found on the way. */
+static void bin_grid(Work *w, int tid, int mode)
 {
     const Plan *pl = &w->plan;
     const Slots *s = &w->s;
@@ -342,12 +296,12 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
     range_of(w->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         Span b;
-        slice_span(s, q, ta, tb, pl->grow, &b);
+        step_span(s, q, pl->grow, &b);
         int64_t c = cell_coord(b.ylo, b.yhi, pl->y0, pl->inv_h, pl->g) * pl->g +
                     cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
         w->cell_of[q] = (int32_t)c;
         h[c]++;
-        if (mode == BIN_SLOTS) wall_event(w, q, q);
+        if (mode == BIN_SLOTS) w->wall_t[q] = slot_wall_time(s, w->p, q);
     }
 #pragma omp barrier
     int64_t c0, c1, sum = 0;
@@ -379,10 +333,10 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
             Span b;
-            slice_span(s, q, ta, tb, pl->grow, &b);
+            step_span(s, q, pl->grow, &b);
             span_box(&b, pl, &w->boxes[pos]);
             w->box_slot[pos] = pos;
-            wall_event(w, q, pos);
+            w->wall_t[pos] = slot_wall_time(s, w->p, q);
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -397,10 +351,9 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
             Span b;
-            slice_span(s, q, ta, tb, pl->grow, &b);
+            step_span(s, q, pl->grow, &b);
             span_box(&b, pl, &w->boxes[pos]);
-            if (mode == BIN_SLOTS) w->box_slot[pos] = (int32_t)q;
-            else slot_body(s, q, &w->bodies[pos]);
+            w->box_slot[pos] = (int32_t)q;
         }
     }
 #pragma omp barrier
@@ -414,65 +367,38 @@ static void bin_slice(Work *w, int tid, real ta, real tb, int mode)
     }
 }
 
-static void push_event(Thread *th, real t, int32_t i, int32_t j, int32_t a, int32_t b)
-{
-    th->ev = grow(th->ev, &th->cap, th->len + 1, sizeof *th->ev);
-    PairEvent e = {t, i, j, a, b};
-    th->ev[th->len++] = e;
-}
-
-/* Narrow phase for two disks whose boxes overlap in slice k. A pair can meet only while it
- * approaches (b < 0, as in pair_time) and is closest at tau = -b / a clamped to [0, 1]; if it meets at
- * all it is within reach at tau, so its boxes overlap in tau's slice, and that slice alone tests it.
- * (Rounding moves tau by about eps * |dx| / |dv|, which moves the disks by about eps * |dx|, far
- * inside the margin.) The disk with the lower original index is always pair_time's first. */
-static inline void try_pair(const Work *w, Thread *th, const Body *p, const Body *q, int k)
-{
-    real dx = q->x - p->x, dy = q->y - p->y;
-    real dvx = q->vx - p->vx, dvy = q->vy - p->vy;
-    real b = dx * dvx + dy * dvy;
-    if (!(b < 0)) return;
-    int K = w->plan.k;
-    if (K > 1) {
-        real tau = -b / (dvx * dvx + dvy * dvy);
-        int ks = tau < 1 ? (int)(tau * K) : K - 1;
-        if (ks > K - 1) ks = K - 1;
-        if (ks != k) return;
-    }
-    if (q->id < p->id) {
-        const Body *t = p;
-        p = q;
-        q = t;
-    }
-    th->tests++;
-    real t = pair_time(p->x, p->y, p->vx, p->vy, q->x, q->y, q->vx, q->vy, w->p->sigma2);
-    if (t >= 0) push_event(th, t, p->id, q->id, p->slot, q->slot);
-}
-
-/* The same for the first slice, which reads the disks from their slots. */
-static inline void try_slots(const Work *w, Thread *th, int32_t a, int32_t b)
+/* Narrow phase for two disks whose boxes overlap: the disk with the lower original index is always
+ * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. */
+static inline void try_pair(const Work *w, Thread *th, int32_t a, int32_t b)
 {
     const Slots *s = &w->s;
-    Body p = {s->x[a], s->y[a], s->vx[a], s->vy[a], a, s->id[a]};
-    Body q = {s->x[b], s->y[b], s->vx[b], s->vy[b], b, s->id[b]};
-    try_pair(w, th, &p, &q, 0);
+    real dx = s->x[b] - s->x[a], dy = s->y[b] - s->y[a];
+    real dvx = s->vx[b] - s->vx[a], dvy = s->vy[b] - s->vy[a];
+    if (!(dx * dvx + dy * dvy < 0)) return;
+    if (s->id[b] < s->id[a]) {
+        int32_t t = a;
+        a = b;
+        b = t;
+    }
+    th->found.tests++;
+    real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
+                       w->p->sigma2);
+    if (t >= 0 && before_walls(t, w->wall_t[a], w->wall_t[b]))
+        found_push(&th->found, t, s->id[a], s->id[b], a, b);
 }
 
 /* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
-static void scan_hits(const Work *w, Thread *th, int32_t a, int32_t b, unsigned m, int k)
+static void scan_hits(const Work *w, Thread *th, int32_t a, int32_t b, unsigned m)
 {
-    for (int u = 0; u < SCAN_WIDTH; u++) {
-        if (!(m >> u & 1)) continue;
-        if (k == 0) try_slots(w, th, w->box_slot[a], w->box_slot[b + u]);
-        else try_pair(w, th, &w->bodies[a], &w->bodies[b + u], k);
-    }
+    for (int u = 0; u < SCAN_WIDTH; u++)
+        if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
 }
 
 /* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
  * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
  * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
  * entries) and masks them off. */
-static inline void scan_range(const Work *w, Thread *th, int32_t a, int32_t b0, int32_t b1, int k)
+static inline void scan_range(const Work *w, Thread *th, int32_t a, int32_t b0, int32_t b1)
 {
     const Box *bx = w->boxes, *ba = &w->boxes[a];
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
@@ -482,14 +408,14 @@ static inline void scan_range(const Work *w, Thread *th, int32_t a, int32_t b0, 
                      (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
         int32_t rest = b1 - b;
         m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
-        if (m) scan_hits(w, th, a, b, m, k);
+        if (m) scan_hits(w, th, a, b, m);
     }
 }
 
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
  * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
  * memory and the three northern cells are contiguous, so two ranges cover them. */
-static void scan_slice(Work *w, int tid, int k)
+static void scan_grid(Work *w, int tid)
 {
     const Plan *pl = &w->plan;
     Thread *th = &w->th[tid];
@@ -509,8 +435,8 @@ static void scan_slice(Work *w, int tid, int k)
                 end2 = cs[last + 1];
             }
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                scan_range(w, th, a, a + 1, end1, k);
-                scan_range(w, th, a, lo2, end2, k);
+                scan_range(w, th, a, a + 1, end1);
+                scan_range(w, th, a, lo2, end2);
             }
         }
     }
@@ -526,28 +452,48 @@ static int pair_cmp(const void *pa, const void *pb)
     return 0;
 }
 
+/* The wall event time of the disk in slot q straight from 3.1 (-1: none), for --check. */
+static real check_wall_time(const Slots *s, const Params *p, int64_t q)
+{
+    real tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
+                       wall_time(s->y[q], s->vy[q], p->lo, p->hi));
+    return tw <= 1 ? tw : -1;
+}
+
+/* Every pair event that the choice can accept (before_walls), found by testing all pairs, must be
+ * among the broad phase's events, and nothing else. */
 static void check_broad_phase(Work *w, int64_t step)
 {
     const Slots *s = &w->s;
     int64_t n = w->p->n;
-    PairEvent *mine = io_alloc(w->n_ev, sizeof *mine);
-    if (w->n_ev) {
-        memcpy(mine, w->ev, w->n_ev * sizeof *mine);
-        qsort(mine, w->n_ev, sizeof *mine, pair_cmp);
+    for (int64_t q = 0; q < n; q++)
+        if (w->wall_t[q] != check_wall_time(s, w->p, q))
+            io_fail("--check: step %lld: disk %d has the wall event time %.17g, not %.17g",
+                    (long long)step, s->id[q], (double)w->wall_t[q],
+                    (double)check_wall_time(s, w->p, q));
+    size_t n_ev = 0;
+    for (int t = 0; t < w->nt; t++) n_ev += w->th[t].found.len;
+    PairEvent *mine = io_alloc(n_ev, sizeof *mine);
+    n_ev = 0;
+    for (int t = 0; t < w->nt; t++) {
+        const Found *f = &w->th[t].found;
+        if (f->len) memcpy(mine + n_ev, f->ev, f->len * sizeof *mine);
+        n_ev += f->len;
     }
+    if (n_ev) qsort(mine, n_ev, sizeof *mine, pair_cmp);
     size_t uniq = 0;
-    for (size_t e = 0; e < w->n_ev; e++)
+    for (size_t e = 0; e < n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
-    if (uniq != w->n_ev)
+    if (uniq != n_ev)
         io_fail("--check: step %lld: the broad phase found %zu events more than once",
-                (long long)step, w->n_ev - uniq);
+                (long long)step, n_ev - uniq);
     size_t found = 0;
     for (int64_t qa = 0; qa < n; qa++)
         for (int64_t qb = qa + 1; qb < n; qb++) {
             int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
             real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
                                  s->vy[b], w->p->sigma2);
-            if (t < 0) continue;
+            if (t < 0 || !before_walls(t, w->wall_t[a], w->wall_t[b])) continue;
             PairEvent key = {t, s->id[a], s->id[b], 0, 0};
             PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
             if (!hit || hit->t != t)
@@ -575,15 +521,15 @@ static void build_lists(Work *w, int tid)
         size_t total = 0;
         for (int t = 0; t < nt; t++) {
             w->th[t].ev_off = total;
-            total += w->th[t].len;
+            total += w->th[t].found.len;
         }
         w->n_ev = total;
-        w->ev = grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
-        w->adj = grow(w->adj, &w->adj_cap, 2 * total, sizeof *w->adj);
+        w->ev = omp_grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
+        w->adj = omp_grow(w->adj, &w->adj_cap, 2 * total, sizeof *w->adj);
         w->off[n] = (int64_t)(2 * total);
     }
     Thread *th = &w->th[tid];
-    if (th->len) memcpy(w->ev + th->ev_off, th->ev, th->len * sizeof *th->ev);
+    if (th->found.len) memcpy(w->ev + th->ev_off, th->found.ev, th->found.len * sizeof *w->ev);
     range_of(n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         w->off[q] = 0;
@@ -591,7 +537,7 @@ static void build_lists(Work *w, int tid)
         w->acc_p[q] = -1;
     }
 #pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
+    for (size_t e = th->ev_off; e < th->ev_off + th->found.len; e++) {
 #pragma omp atomic
         w->off[w->ev[e].a]++;
 #pragma omp atomic
@@ -611,7 +557,6 @@ static void build_lists(Work *w, int tid)
             w->taken[q] = 1;
             w->acc_p[q] = (int32_t)q;
             w->acc_t[q] = w->wall_t[q];
-            th->events++;
         }
     }
     th->n_active = na;
@@ -625,7 +570,7 @@ static void build_lists(Work *w, int tid)
         w->off[q] = sum;
     }
 #pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + th->len; e++) {
+    for (size_t e = th->ev_off; e < th->ev_off + th->found.len; e++) {
         int64_t pos;
 #pragma omp atomic capture
         pos = --w->off[w->ev[e].a];
@@ -637,12 +582,85 @@ static void build_lists(Work *w, int tid)
 #pragma omp barrier
 }
 
-static int seq_event_cmp(const void *pa, const void *pb)
+static inline int seq_before(const SeqEvent *a, const SeqEvent *b)
 {
-    const SeqEvent *a = pa, *b = pb;
-    if (event_before(a->t, a->kind, a->i, a->j, b->t, b->kind, b->i, b->j)) return -1;
-    if (event_before(b->t, b->kind, b->i, b->j, a->t, a->kind, a->i, a->j)) return 1;
-    return 0;
+    return event_before(a->t, a->kind, a->i, a->j, b->t, b->kind, b->i, b->j);
+}
+
+/* Sorts the events by key: runs of 16 by insertion, then merged in rounds through tmp (no function
+ * pointer per comparison, as qsort would take: a step's choice sorts a few hundred events). */
+static void sort_events(SeqEvent *a, size_t n, SeqEvent *tmp)
+{
+    for (size_t r = 0; r < n; r += 16) {
+        size_t end = r + 16 < n ? r + 16 : n;
+        for (size_t k = r + 1; k < end; k++) {
+            SeqEvent x = a[k];
+            size_t u = k;
+            while (u > r && seq_before(&x, &a[u - 1])) {
+                a[u] = a[u - 1];
+                u--;
+            }
+            a[u] = x;
+        }
+    }
+    SeqEvent *src = a, *dst = tmp;
+    for (size_t width = 16; width < n; width *= 2) {
+        for (size_t lo = 0; lo < n; lo += 2 * width) {
+            size_t mid = lo + width < n ? lo + width : n, hi = lo + 2 * width < n ? lo + 2 * width : n;
+            size_t i = lo, j = mid, k = lo;
+            while (i < mid && j < hi) dst[k++] = seq_before(&src[j], &src[i]) ? src[j++] : src[i++];
+            while (i < mid) dst[k++] = src[i++];
+            while (j < hi) dst[k++] = src[j++];
+        }
+        SeqEvent *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+}
+
+/* The greedy walk of SPEC.md 3.3 over the len events of w->fin, as seq.c does: sorted by key, each
+ * accepted when its disks are still free. */
+static void walk_events(Work *w, size_t len)
+{
+    w->fin_tmp = omp_grow(w->fin_tmp, &w->fin_tmp_cap, len, sizeof *w->fin_tmp);
+    sort_events(w->fin, len, w->fin_tmp);
+    for (size_t u = 0; u < len; u++) {
+        const SeqEvent *e = &w->fin[u];
+        if (w->taken[e->a] || w->taken[e->b]) continue;
+        w->taken[e->a] = w->taken[e->b] = 1;
+        w->acc_p[e->a] = e->b;
+        w->acc_p[e->b] = e->a;
+        w->acc_t[e->a] = w->acc_t[e->b] = e->t;
+    }
+}
+
+/* The whole choice on one thread, for steps with few pair events (the barriers and passes over all
+ * disks of the parallel rounds would cost more). Every disk starts with its wall event accepted, if
+ * it has one (choice_defaults); only disks with pair events can end otherwise, so the walk takes
+ * their pair events and their wall events. */
+static void choose_small(Work *w)
+{
+    size_t len = 0;
+    for (int t = 0; t < w->nt; t++) {
+        const Found *f = &w->th[t].found;
+        w->fin = omp_grow(w->fin, &w->fin_cap, len + 3 * f->len, sizeof *w->fin);
+        for (size_t k = 0; k < f->len; k++) {
+            const PairEvent *pe = &f->ev[k];
+            SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
+            w->fin[len++] = e;
+            int32_t ends[2] = {pe->a, pe->b};
+            for (int u = 0; u < 2; u++) {
+                int32_t q = ends[u];
+                if (w->taken[q] || w->wall_t[q] < 0) continue;
+                w->taken[q] = 1; /* marks the wall event as listed; cleared before the walk */
+                SeqEvent x = {w->wall_t[q], 0, w->s.id[q], w->s.id[q], q, q};
+                w->fin[len++] = x;
+            }
+        }
+    }
+    for (size_t u = 0; u < len; u++) w->taken[w->fin[u].a] = w->taken[w->fin[u].b] = 0;
+    walk_events(w, len);
 }
 
 /* The last undecided disks: their remaining events sorted and walked, as seq.c does. */
@@ -655,7 +673,7 @@ static void finish_sequential(Work *w)
         range_of(w->p->n, t, w->nt, &from, &to);
         for (int64_t k = 0; k < w->th[t].n_active; k++) {
             int32_t q = w->active[from + k];
-            w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+            w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
             if (w->wall_t[q] >= 0) {
                 SeqEvent e = {w->wall_t[q], 0, s->id[q], s->id[q], q, q};
                 w->fin[len++] = e;
@@ -663,24 +681,13 @@ static void finish_sequential(Work *w)
             for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
                 const PairEvent *pe = &w->ev[w->adj[u]];
                 if (pe->a != q || w->taken[pe->b]) continue;
-                w->fin = grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+                w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
                 SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
                 w->fin[len++] = e;
             }
         }
     }
-    if (len) qsort(w->fin, len, sizeof *w->fin, seq_event_cmp);
-    uint64_t accepted = 0;
-    for (size_t u = 0; u < len; u++) {
-        const SeqEvent *e = &w->fin[u];
-        if (w->taken[e->a] || w->taken[e->b]) continue;
-        w->taken[e->a] = w->taken[e->b] = 1;
-        w->acc_p[e->a] = e->b;
-        w->acc_p[e->b] = e->a;
-        w->acc_t[e->a] = w->acc_t[e->b] = e->t;
-        accepted++;
-    }
-    w->th[0].events += accepted;
+    walk_events(w, len);
 }
 
 /* Rounds: every undecided disk finds its smallest event among those whose disks are all free; an
@@ -727,14 +734,12 @@ static void choose_events(Work *w, int tid)
                 w->taken[q] = 1;
                 w->acc_p[q] = q;
                 w->acc_t[q] = w->best_t[q];
-                th->events++;
             } else if (w->best_p[bp] == q) {
                 if (q < bp) {
                     w->taken[q] = w->taken[bp] = 1;
                     w->acc_p[q] = bp;
                     w->acc_p[bp] = q;
                     w->acc_t[q] = w->acc_t[bp] = w->best_t[q];
-                    th->events++;
                 }
             } else {
                 act[kept++] = q;
@@ -754,6 +759,18 @@ static void choose_events(Work *w, int tid)
     }
 }
 
+/* Every disk of this thread's range starts the choice free, its wall event accepted if it has one. */
+static void choice_defaults(Work *w, int tid)
+{
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t q = from; q < to; q++) {
+        w->taken[q] = 0;
+        w->acc_p[q] = w->wall_t[q] >= 0 ? (int32_t)q : -1;
+        w->acc_t[q] = w->wall_t[q];
+    }
+}
+
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
 
 static inline real fastest(real vm, real vx, real vy)
@@ -763,12 +780,28 @@ static inline real fastest(real vm, real vx, real vy)
     return ay > vm ? ay : vm;
 }
 
+/* The axis lengths of the next step of a disk at (x, y), each at most the way to the wall ahead on
+ * that axis (where the path of omp_paths.c ends, about), in units of the box / 2^20: summed as
+ * integers for the plan, so that the plan (and --stats) is the same at every thread count. */
+static inline int64_t step_length(real x, real y, real vx, real vy, const Params *p,
+                                  double inv_span)
+{
+    double ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+    double wx = vx > 0 ? p->hi - x : x - p->lo, wy = vy > 0 ? p->hi - y : y - p->lo;
+    return (int64_t)((ax < wx ? ax : wx) * inv_span * 1048576) +
+           (int64_t)((ay < wy ? ay : wy) * inv_span * 1048576);
+}
+
 /* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
- * notes the largest velocity component it leaves, for the next step's plan. */
+ * notes the largest velocity component it leaves and the lengths of the disks' next steps, for the
+ * next step's plan. */
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->s;
     real lo = w->p->lo, hi = w->p->hi, vm = 0;
+    double inv_span = 1 / ((double)hi - (double)lo);
+    int64_t s1 = 0;
+    uint64_t events = 0;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
@@ -783,22 +816,28 @@ static void move_range(Work *w, int tid)
             if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
+            events++;
         } else if (s->id[i] < s->id[j]) {
             pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
                          &s->vy[j], t, lo, hi);
             s->pc[i]++;
             s->pc[j]++;
+            events++;
             s->x[j] = clamp_coord(s->x[j], lo, hi);
             s->y[j] = clamp_coord(s->y[j], lo, hi);
             vm = fastest(vm, s->vx[j], s->vy[j]);
+            s1 += step_length(s->x[j], s->y[j], s->vx[j], s->vy[j], w->p, inv_span);
         } else {
             continue;
         }
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);
         vm = fastest(vm, s->vx[i], s->vy[i]);
+        s1 += step_length(s->x[i], s->y[i], s->vx[i], s->vy[i], w->p, inv_span);
     }
     w->th[tid].vmax = vm;
+    w->th[tid].s1 = s1;
+    w->th[tid].events += events;
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -815,7 +854,7 @@ static void print_state(Work *w, int tid, int64_t step)
         if (to > n) to = n;
         th->text_len = 0;
         for (int64_t i = from; i < to; i++) {
-            th->text = grow(th->text, &th->text_cap, th->text_len + IO_LINE_MAX, 1);
+            th->text = omp_grow(th->text, &th->text_cap, th->text_len + IO_LINE_MAX, 1);
             th->text_len += io_format_line(th->text + th->text_len, step, i, w->sim, 0, dump17);
         }
 #pragma omp barrier
@@ -833,32 +872,49 @@ static void step_run(Work *w, int tid, int64_t step)
     const Params *p = w->p;
     Thread *th = &w->th[tid];
 
-    /* the fastest disk (found by the last move) sets the plan of the broad phase */
-    th->len = 0;
+    /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
+    th->found.len = 0;
 #pragma omp single
     {
         real v = 0;
-        for (int t = 0; t < w->nt; t++)
+        int64_t s1 = 0;
+        for (int t = 0; t < w->nt; t++) {
             if (w->th[t].vmax > v) v = w->th[t].vmax;
-        w->plan = plan_step(p, v, p->n, w->nt, w->max_cells);
+            s1 += w->th[t].s1;
+        }
+        w->plan = plan_step(w, v, (double)s1 / 1048576 * ((double)p->hi - (double)p->lo), w->nt);
+        w->path_steps += w->plan.paths;
     }
 
-    /* wall events (3.1) and pair events (3.2): the broad phase slice by slice, each slice's
-     * surviving pairs through the narrow phase */
-    int K = w->plan.k;
-    bin_slice(w, tid, 0, 1.0 / K, K > 1 || step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
-    scan_slice(w, tid, 0);
-    for (int k = 1; k < K; k++) {
-        bin_slice(w, tid, (real)k / K, (real)(k + 1) / K, BIN_BODIES);
-        scan_slice(w, tid, k);
+    /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
+     * narrow phase */
+    if (w->plan.paths) {
+        paths_find(w->paths, &w->s, p, w->wall_t, &th->found, tid, w->nt);
+    } else {
+        bin_grid(w, tid, step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
+        scan_grid(w, tid);
     }
-    build_lists(w, tid);
+    if (w->opt->check) {
 #pragma omp single
-    if (w->opt->check) check_broad_phase(w, step);
+        check_broad_phase(w, step);
+    }
 
-    /* the greedy choice (3.3), then the moves (3.4, 3.5) */
-    choose_events(w, tid);
+    /* the greedy choice (3.3): on one thread when there are few pair events, else in rounds (every
+     * thread counts the events itself, so all take the same branch) */
+    size_t total = 0;
+    for (int t = 0; t < w->nt; t++) total += w->th[t].found.len;
+    if (total <= SMALL_CHOICE) {
+        choice_defaults(w, tid);
 #pragma omp barrier
+#pragma omp single
+        choose_small(w);
+    } else {
+        build_lists(w, tid);
+        choose_events(w, tid);
+#pragma omp barrier
+    }
+
+    /* the moves (3.4, 3.5) */
     move_range(w, tid);
 #pragma omp barrier
     int64_t k = p->substeps;
@@ -887,7 +943,7 @@ void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, i
             if (to > n) to = n;
             len[t] = 0;
             for (int64_t i = from; i < to; i++) {
-                text[t] = grow(text[t], &cap[t], len[t] + IO_LINE_MAX, 1);
+                text[t] = omp_grow(text[t], &cap[t], len[t] + IO_LINE_MAX, 1);
                 len[t] += io_format_line(text[t] + len[t], step, i, sim, with_counts, dump17);
             }
         }
@@ -940,7 +996,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
     w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
     w.boxes = io_alloc((size_t)n + SCAN_WIDTH, sizeof *w.boxes);
-    w.bodies = io_alloc((size_t)n, sizeof *w.bodies);
     w.wall_t = io_alloc((size_t)n, sizeof *w.wall_t);
     w.off = io_alloc((size_t)n + 1, sizeof *w.off);
     w.active = io_alloc((size_t)n, sizeof *w.active);
@@ -950,7 +1005,12 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.acc_t = io_alloc((size_t)n, sizeof *w.acc_t);
     w.taken = io_alloc((size_t)n, sizeof *w.taken);
     w.box_slot = io_alloc((size_t)n, sizeof *w.box_slot);
-    for (int64_t i = 0; i < n; i++) w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
+    w.paths = paths_new(nt_max);
+    double inv_span = 1 / ((double)par->hi - (double)par->lo);
+    for (int64_t i = 0; i < n; i++) {
+        w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
+        w.th[0].s1 += step_length(sim->x[i], sim->y[i], sim->vx[i], sim->vy[i], par, inv_span);
+    }
 
     double t0 = io_now();
 #pragma omp parallel
@@ -963,11 +1023,23 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     st->seconds = io_now() - t0;
 
+    uint64_t visits = 0, overlaps = 0;
     for (int t = 0; t < nt_max; t++) {
-        st->pair_tests += w.th[t].tests;
+        visits += w.th[t].found.visits;
+        overlaps += w.th[t].found.overlaps;
+        st->pair_tests += w.th[t].found.tests;
         st->events += w.th[t].events;
-        free(w.th[t].ev);
+        free(w.th[t].found.ev);
         free(w.th[t].text);
+    }
+    int64_t steps = par->steps * par->substeps;
+    if (opt->stats) {
+        double ps = (double)w.path_steps * (double)n;
+        fprintf(stderr,
+                "%s: broad phase: paths in %lld of %lld steps (%.4g cells visited, %.4g pairs of "
+                "visits overlapping in time per particle-step), grid in the others\n",
+                backend_name, (long long)w.path_steps, (long long)steps, ps > 0 ? visits / ps : 0.0,
+                ps > 0 ? overlaps / ps : 0.0);
     }
     slots_free(&w.s);
     slots_free(&w.spare);
@@ -976,7 +1048,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.hist);
     free(w.cell_start);
     free(w.boxes);
-    free(w.bodies);
+    paths_free(w.paths);
     free(w.wall_t);
     free(w.ev);
     free(w.off);
@@ -989,6 +1061,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.taken);
     free(w.box_slot);
     free(w.fin);
+    free(w.fin_tmp);
     return 0;
 }
 

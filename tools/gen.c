@@ -29,7 +29,10 @@ static const char usage_text[] =
     "  --steps S      steps (default 100)\n"
     "  --mode M       print or perf (default perf)\n"
     "  --seed N       seed (default 1)\n"
-    "  --overlap      centres uniform, overlaps allowed\n";
+    "  --overlap      centres uniform, overlaps allowed\n"
+    "  --fast F       a fraction F of the disks, drawn at random, moves --fast-speed instead: a\n"
+    "                 mixed scene (with --fast 0 the same scene, every disk at its own speed)\n"
+    "  --fast-speed K speed of the fast disks: K*L per step (default 0.25, a quarter of the box)\n";
 
 static void die(const char *msg, const char *arg)
 {
@@ -61,6 +64,7 @@ typedef struct {
     int64_t n, cells, bands;
     double lo, hi, sigma2, cell, smin, smax;
     int overlap;
+    double fast, fast_speed; /* --fast: fraction of fast disks (-1: option not given), their speed */
     int32_t *head, *next; /* disks by cell: first disk of each cell, next disk of each disk */
     double *x, *y;
     Band *band;
@@ -140,6 +144,7 @@ static void place_band(Scene *sc, int64_t b, uint64_t seed)
         sc->next[i] = sc->head[cy * cells + cx];
         sc->head[cy * cells + cx] = (int32_t)i;
         double s = sc->smin + (sc->smax - sc->smin) * rng_unit(&state), a = 6.283185307179586 * rng_unit(&state);
+        if (sc->fast >= 0 && rng_unit(&state) < sc->fast) s = sc->fast_speed; /* drawn only with --fast */
         printed(s * cos(a), text[2]);
         printed(s * sin(a), text[3]);
         snprintf(line, sizeof line, "%lld %s %s %s %s\n", (long long)i, text[0], text[1], text[2], text[3]);
@@ -156,7 +161,7 @@ int main(int argc, char **argv)
     double n_real = number(argv[1]);
     if (n_real < 1 || n_real > 2147483647.0 || n_real != floor(n_real)) die("bad N:", argv[1]);
     int64_t n = (int64_t)n_real;
-    double r = 1, fraction = 0.2, L = 0, speed = 0.5;
+    double r = 1, fraction = 0.2, L = 0, speed = 0.5, fast = -1, fast_speed = 0.25;
     long long steps = 100;
     uint64_t seed = 1;
     int assignment = 0, overlap = 0;
@@ -174,6 +179,8 @@ int main(int argc, char **argv)
         else if (strcmp(a, "--steps") == 0) steps = (long long)number(argv[++k]);
         else if (strcmp(a, "--mode") == 0) mode = argv[++k];
         else if (strcmp(a, "--seed") == 0) seed = (uint64_t)number(argv[++k]);
+        else if (strcmp(a, "--fast") == 0) fast = number(argv[++k]);
+        else if (strcmp(a, "--fast-speed") == 0) fast_speed = number(argv[++k]);
         else die("unknown option", a);
     }
     if (L == 0) L = sqrt((double)n * 3.141592653589793 * r * r / fraction);
@@ -190,6 +197,9 @@ int main(int argc, char **argv)
     sc.sigma2 = (r + r) * (r + r);
     sc.overlap = overlap;
     sc.smax = speed * r;
+    if (fast != -1 && !(fast >= 0 && fast <= 1)) die("--fast must be a fraction between 0 and 1", NULL);
+    sc.fast = fast;
+    sc.fast_speed = fast_speed * L;
     if (assignment) {
         sc.smin = fmin(L / 4, L / (8 * r));
         sc.smax = fmax(L / 4, L / (8 * r));

@@ -1,0 +1,674 @@
+/* omp_paths.c: omp's broad phase for fast scenes: every disk's path over the step is binned into the
+ * cells it crosses, with the interval of time it spends in each, and two disks are tested only where
+ * they share a cell at overlapping times.
+ *
+ * Why: in the assignment's random scenes a disk crosses up to a quarter of the box per step. A grid of
+ * cells wide enough for the fastest disk prunes nothing there; binning each disk once per cell of its
+ * path costs what the path needs (a slow disk one or a few cells, a fast one a cell per h of its
+ * path), and the time intervals prune the pairs that cross the same cell at different times.
+ *
+ * A path ends at the disk's wall event. SPEC.md 3.3 orders a wall event (kind 0) before every pair
+ * event of the same disk at the same or a later time, so the greedy walk takes the disk at its wall
+ * event or earlier: pair events from then on are never accepted and need not be found (before_walls
+ * in omp_step.h; the all-pairs --check drops them too). A disk's path is thus c + v t for t in
+ * [0, T], T = min(1, wall time), and it stays inside the box: the grid covers [lo, hi]^2 alone.
+ *
+ * The step, on every thread of the team, with one barrier:
+ * A. over the disks (static ranges): the wall event, a body record, and the cells of the path, row by
+ *    row: in each row of cells (grown by G) the interval of time the centre spends there gives the
+ *    row's cells, and in each cell (grown by G) the interval the centre spends there. Each (cell,
+ *    interval) goes to this thread's bucket of the cell's tile (a square of tc x tc cells).
+ * B. over the tiles (dynamic): the tile's entries are counted into their cells, each cell's entries
+ *    sorted by entry time and swept: an entry meets the later ones that enter before it leaves. A pair
+ *    is tested only in the cell holding the midpoint of its two centres at its time of closest
+ *    approach within [0, min(T_a, T_b)] (symmetric in the two disks, bit for bit), so it is tested at
+ *    most once, whatever the number of cells the two paths share.
+ * Why that is enough: if the pair has an event at t < min(T_a, T_b), its distance at the time of
+ * closest approach tau is at most 2r, so each centre is within r of the midpoint M(tau): both paths
+ * visit M's cell grown by r at time tau. The filter asks for distance <= 2 G_TEST and the grid grows
+ * cells by G > G_TEST: the difference (at least SIM_REL_MARGIN of the box) covers the rounding of
+ * every position, time and cell index here, and broad_margin's graze term the rounding of pair_time.
+ * Intervals are stored as floats widened by T_PAD, far more than a float's rounding of [0, 1].
+ */
+#include "omp_step.h"
+
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
+#define T_PAD 1e-6f          /* widening of a float time interval, both ends */
+#define TILE_ENTRIES 16384.0 /* entries of a tile that fit a core's cache with room to spare */
+#define CELL_FEW 16          /* cells of more visits than this are sorted by time, not paired all */
+
+/* Relative costs for the plan, in the units of omp.c's grid cost model (binning one disk = 1, about
+ * 20 ns): a disk's fixed work (wall event, body record, the path's set-up), one visit of a cell
+ * (rasterised, stored, counted, placed, paired), one pair of visits that overlap in time (screened
+ * in float, rarely tested further), one cell. Measured on the assignment's scenes, N = 1e3 to 1e5. */
+#define COST_DISK 2.5
+#define COST_ENTRY 1.5
+#define COST_PAIR 0.03
+#define COST_CELL 0.1
+
+/* A disk as phase B reads it: its state, its wall event time (+inf when none within the step) and the
+ * end of its path, min(1, wall time). */
+typedef struct {
+    real x, y, vx, vy;
+    real wt, cap;
+    int32_t id, pad;
+} Body;
+
+/* A path's visit of one cell as phase A writes it: where phase B counts it (the cell's index within
+ * its tile, row * tc + col, then its bin of entry time), the interval of time and the disk. */
+typedef struct {
+    int32_t key;
+    float t0, t1;
+    int32_t slot;
+} Entry;
+
+typedef struct {
+    Entry *e;
+    size_t len, cap;
+} Bucket;
+
+/* Per-thread scratch of phase B, padded so that threads never share a cache line. */
+typedef struct {
+    int32_t *start;      /* tc * tc + 1: first visit of each cell of the tile */
+    size_t start_cap;
+    float *t0, *t1;      /* the tile's visits in cell order, 4 spare entries: the interval, */
+    int32_t *slot;       /* the disk, */
+    float *x, *y, *vx, *vy; /* and its state in float for line_filter4 */
+    size_t v_cap;
+    int64_t *order;      /* the tiles in the order phase B takes them (tile_order) */
+    size_t order_cap;
+    char pad[64];
+} Scratch;
+
+struct Paths {
+    int64_t g;         /* cells per side */
+    double x0, h;      /* the grid: lower corner (lo, lo), cell side */
+    double inv_h;
+    double last;       /* g - 1 */
+    double grow;       /* G: how far the cells are grown for the paths */
+    double reach2;     /* (2 G_TEST)^2: the closest-approach filter */
+    int flt;           /* 1: line_filter4 screens pairs in float (the coordinates and speeds allow) */
+    float flt_s, flt_c; /* its bound |cr| <= flt_s sqrt(a) + flt_c */
+    int64_t tc, gt;    /* tile side in cells, tiles per side */
+    int64_t tiles;
+    int32_t bins;      /* bins of entry time per cell in phase B's counting sort: a power of 2 */
+    int32_t *tile_of;  /* g: tile coordinate of a cell coordinate */
+    int32_t *in_tile;  /* g: the cell coordinate within its tile */
+    size_t coord_cap;
+    Body *body;        /* n, by slot */
+    size_t body_cap;
+    Bucket *bk;        /* nt_max * tiles: bk[tid * tiles + tile] */
+    size_t bk_cap;
+    int nt_max;
+    Scratch *sc;       /* nt_max */
+};
+
+Paths *paths_new(int nt_max)
+{
+    Paths *pp = io_alloc(1, sizeof *pp);
+    pp->nt_max = nt_max;
+    pp->sc = io_alloc((size_t)nt_max, sizeof *pp->sc);
+    return pp;
+}
+
+void paths_free(Paths *pp)
+{
+    if (!pp) return;
+    for (size_t k = 0; k < pp->bk_cap; k++) free(pp->bk[k].e);
+    for (int t = 0; t < pp->nt_max; t++) {
+        free(pp->sc[t].start);
+        free(pp->sc[t].t0);
+        free(pp->sc[t].t1);
+        free(pp->sc[t].slot);
+        free(pp->sc[t].x);
+        free(pp->sc[t].y);
+        free(pp->sc[t].vx);
+        free(pp->sc[t].vy);
+        free(pp->sc[t].order);
+    }
+    free(pp->bk);
+    free(pp->sc);
+    free(pp->tile_of);
+    free(pp->in_tile);
+    free(pp->body);
+    free(pp);
+}
+
+/* ==== the plan ======================================================================================= */
+
+/* Cells of side h: about n q^2 + q s1 / h entries (q = 1 + 2G/h: a disk at rest overlaps q^2 cells
+ * on average, and a path adds a cell per h of its axis lengths), spending D = n q^2 cell-steps of
+ * time in all; pairs of entries in one cell whose intervals overlap, about 0.85 E D / cells (each
+ * entry meets the others' time in its cell; the factor measured), at most all pairs of each cell. */
+double paths_plan(Paths *pp, const Params *p, int64_t n, double vm, double s1, int nt)
+{
+    double r = p->r, span = p->hi - p->lo, nd = (double)n;
+    double reach = 2 * r + 2 * 1.4142135623730951 * vm;
+    if (reach > 1.4142135623730951 * span + 2 * r) reach = 1.4142135623730951 * span + 2 * r;
+    double m = broad_margin(r, p->L, reach, SIM_REL_MARGIN);
+    double g_test = r + m;
+    pp->grow = r + 2 * m;
+    pp->reach2 = 4 * g_test * g_test;
+    /* line_filter4's bounds (see there): positions within X, velocity components within vm */
+    double X = fabs((double)p->lo) > fabs((double)p->hi + pp->grow) ? fabs((double)p->lo)
+                                                                     : fabs((double)p->hi + pp->grow);
+    double u = 5.9604644775390625e-8; /* 2^-24, a float's unit roundoff */
+    pp->flt = X < 1e17 && vm < 1e17;
+    if (pp->flt) {
+        double s = 2 * g_test;
+        pp->flt_s = (float)(s * (1 + 1e-6));
+        pp->flt_c = (float)((6 * u * s * vm + 64 * u * X * vm) * (1 + 1e-6) + 1e-30);
+    }
+    /* at most 4 cells per disk and 2^26 in all */
+    double gmax = sqrt(4 * nd + 16);
+    if (gmax > 8192) gmax = 8192;
+    double best = -1;
+    int64_t best_g = 1;
+    for (double gd = 1; gd <= gmax; gd = gd < 8 ? gd + 1 : gd * 1.125) {
+        int64_t g = (int64_t)gd;
+        double h = span / (double)g, q = 1 + 2 * pp->grow / h;
+        double cells = (double)g * (double)g;
+        double e = nd * q * q + q * s1 / h, d = nd * q * q;
+        double pairs = 0.85 * e * d < e * e / 2 ? 0.85 * e * d : e * e / 2;
+        double cost = COST_ENTRY * e + COST_PAIR * pairs / cells + COST_CELL * cells;
+        if (best < 0 || cost < best) {
+            best = cost;
+            best_g = g;
+        }
+    }
+    int64_t g = best_g;
+    pp->g = g;
+    pp->x0 = p->lo;
+    pp->h = span / (double)g;
+    pp->inv_h = (double)g / span;
+    pp->last = (double)(g - 1);
+    /* tiles: enough for dynamic scheduling over the threads, small enough for the cache */
+    double h = pp->h, q = 1 + 2 * pp->grow / h;
+    double entries = nd * q * q + q * s1 / h;
+    double want = entries / TILE_ENTRIES;
+    if (nt > 1 && want < 4.0 * nt) want = 4.0 * nt;
+    int64_t gt = (int64_t)ceil(sqrt(want));
+    if (gt < 1) gt = 1;
+    if (gt > g) gt = g;
+    pp->tc = (g + gt - 1) / gt;
+    pp->gt = (g + pp->tc - 1) / pp->tc;
+    pp->tiles = pp->gt * pp->gt;
+    /* about one visit per bin, so that a cell's visits come out of the count nearly sorted */
+    double per_cell = entries / ((double)g * (double)g);
+    pp->bins = 1;
+    while (pp->bins < 64 && pp->bins < per_cell) pp->bins *= 2;
+    return COST_DISK * nd + best;
+}
+
+void paths_ready(Paths *pp, int64_t n, int nt)
+{
+    int64_t g = pp->g;
+    if ((size_t)g > pp->coord_cap) {
+        free(pp->tile_of);
+        free(pp->in_tile);
+        pp->tile_of = io_alloc((size_t)g, sizeof *pp->tile_of);
+        pp->in_tile = io_alloc((size_t)g, sizeof *pp->in_tile);
+        pp->coord_cap = (size_t)g;
+    }
+    for (int64_t k = 0; k < g; k++) {
+        pp->tile_of[k] = (int32_t)(k / pp->tc);
+        pp->in_tile[k] = (int32_t)(k % pp->tc);
+    }
+    size_t need = (size_t)nt * (size_t)pp->tiles;
+    if (need > pp->bk_cap) {
+        pp->bk = realloc(pp->bk, need * sizeof *pp->bk);
+        if (!pp->bk) io_fail("out of memory (%zu buckets)", need);
+        memset(pp->bk + pp->bk_cap, 0, (need - pp->bk_cap) * sizeof *pp->bk);
+        pp->bk_cap = need;
+    }
+    if ((size_t)n > pp->body_cap) {
+        free(pp->body);
+        pp->body = io_alloc((size_t)n, sizeof *pp->body);
+        pp->body_cap = (size_t)n;
+    }
+}
+
+/* ==== phase A: the cells of each path ================================================================= */
+
+/* Cell coordinate of a position, the edge cells reaching out to infinity (minimum and maximum: no
+ * branch). */
+static inline int64_t cell_of(const Paths *pp, double c)
+{
+    double k = (c - pp->x0) * pp->inv_h;
+    k = k > 0 ? k : 0;
+    return (int64_t)(k < pp->last ? k : pp->last);
+}
+
+/* 1 / v, or 0 when v is 0 or so small that 1 / v overflows (the disk then moves less than a
+ * rounding unit of the box in a step, far inside the margins, and is binned as at rest). */
+static inline double inverse(double v)
+{
+    double iv = v != 0 ? 1 / v : 0;
+    return isinf(iv) ? 0 : iv;
+}
+
+/* The times at which a centre at c with 1 / v = iv enters and leaves cell 0 of an axis, grown by G
+ * (*ea, *eb), and how both move from one cell to the next (*dt): cell k is visited during
+ * [ea + k dt, eb + k dt]. A centre at rest on the axis (iv = 0) is in every cell it is in at all
+ * times: (-inf, +inf). */
+static inline void crossing(const Paths *pp, double c, double iv, double *ea, double *eb, double *dt)
+{
+    double lo = (pp->x0 - pp->grow - c) * iv, hi = (pp->x0 + pp->h + pp->grow - c) * iv;
+    *ea = iv > 0 ? lo : (iv < 0 ? hi : -INFINITY);
+    *eb = iv > 0 ? hi : (iv < 0 ? lo : INFINITY);
+    *dt = pp->h * iv;
+}
+
+/* The cells of one path, into this thread's buckets (bk: its row of tiles). The outer loop runs over
+ * the lines of cells across the path's shorter axis, the inner one along each line: the fewer
+ * lines, the fewer loop exits, which a processor mispredicts about once per line. The times at
+ * which the centre crosses the grown edges of consecutive cells step by h / v: each entry is a few
+ * additions, a minimum and a maximum. (The steps add rounding errors of about g units of the
+ * box's, far inside the margin.) The grid's edge cells need no extension: a path never leaves
+ * [lo, hi] by more than a few rounding units (it ends at the wall), and G exceeds r by far more. */
+static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
+{
+    double G = pp->grow, T = b->cap;
+    float bins = (float)pp->bins;
+    int32_t last = pp->bins - 1;
+    Entry x = {0, 0, 0, slot};
+    double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, iv[2];
+    for (int k = 0; k < 2; k++) {
+        iv[k] = inverse(v[k]);
+        if (iv[k] == 0) v[k] = 0;
+    }
+    int o = fabs(v[1]) <= fabs(v[0]), in = 1 - o; /* outer axis: 1 (rows) or 0 (columns) */
+    int64_t tc = pp->tc;
+    int32_t si = o ? 1 : (int32_t)tc;                 /* stride of the inner axis in a tile's cells */
+    int64_t so = o ? tc : 1;
+    int64_t to = o ? pp->gt : 1, ti = o ? 1 : pp->gt; /* strides of the tile index */
+    double oa = c[o], ob = c[o] + v[o] * T;
+    int64_t l0 = cell_of(pp, (oa < ob ? oa : ob) - G), l1 = cell_of(pp, (oa < ob ? ob : oa) + G);
+    double la, lb, ldt, ea, eb, dt;
+    crossing(pp, c[o], iv[o], &la, &lb, &ldt);
+    crossing(pp, c[in], iv[in], &ea, &eb, &dt);
+    for (int64_t l = l0; l <= l1; l++) {
+        double ta = la + (double)l * ldt, tb = lb + (double)l * ldt;
+        ta = ta > 0 ? ta : 0;
+        tb = tb < T ? tb : T;
+        if (ta > tb) continue;
+        double ia = c[in] + v[in] * ta, ib = c[in] + v[in] * tb;
+        int64_t c0 = cell_of(pp, (ia < ib ? ia : ib) - G), c1 = cell_of(pp, (ia < ib ? ib : ia) + G);
+        Bucket *line = bk + (size_t)pp->tile_of[l] * (size_t)to;
+        int64_t lpart = (int64_t)pp->in_tile[l] * so;
+        double ua = ea + (double)c0 * dt, ub = eb + (double)c0 * dt;
+        while (c0 <= c1) { /* a piece of the line within one tile */
+            int64_t end = ((int64_t)pp->tile_of[c0] + 1) * tc - 1;
+            if (end > c1) end = c1;
+            Bucket *q = line + (size_t)pp->tile_of[c0] * (size_t)ti;
+            size_t cnt = (size_t)(end - c0 + 1);
+            if (q->len + cnt > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + cnt, sizeof *q->e);
+            Entry *e = q->e + q->len;
+            int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[c0] * si) * pp->bins;
+            for (size_t k = 0; k < cnt; k++) {
+                double sa = ua > ta ? ua : ta, sb = ub < tb ? ub : tb;
+                x.t0 = (float)sa - T_PAD;
+                x.t1 = (float)sb + T_PAD;
+                int32_t bin = (int32_t)(x.t0 * bins); /* t0 >= -T_PAD: truncates to 0 or more */
+                x.key = key + (bin < last ? bin : last);
+                e[k] = x;
+                key += si * pp->bins;
+                ua += dt;
+                ub += dt;
+            }
+            q->len += cnt;
+            c0 = end + 1;
+        }
+    }
+}
+
+static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t, Found *mine,
+                        int tid, int nt)
+{
+    int64_t n = p->n, from = n * tid / nt, to = n * (tid + 1) / nt;
+    Bucket *bk = pp->bk + (size_t)tid * (size_t)pp->tiles;
+    for (int64_t k = 0; k < pp->tiles; k++) bk[k].len = 0;
+    for (int64_t q = from; q < to; q++) {
+        real wt = slot_wall_time(s, p, q);
+        wall_t[q] = wt;
+        Body *b = &pp->body[q];
+        b->x = s->x[q];
+        b->y = s->y[q];
+        b->vx = s->vx[q];
+        b->vy = s->vy[q];
+        b->wt = wt < 0 ? (real)INFINITY : wt;
+        b->cap = wt < 0 ? 1 : wt;
+        b->id = s->id[q];
+        /* a disk whose wall event is at t = 0 has no pair event that can be accepted */
+        if (b->cap > 0) path_cells(pp, b, (int32_t)q, bk);
+    }
+    for (int64_t k = 0; k < pp->tiles; k++) mine->visits += bk[k].len;
+}
+
+/* ==== phase B: the tiles ============================================================================= */
+
+/* ---- four pairs at a time ---------------------------------------------------------------------- *
+ * Phase B screens the pairs of a cell's visits four at a time, with SSE2 where the compiler has it
+ * (every x86-64 compiler does; else one pair at a time): no branch per pair, whose outcome would be a
+ * coin toss to a processor. A pair survives if its intervals overlap and, in float, the lines its
+ * two disks move on come close enough (line_filter4); the few survivors go through meet in double. */
+
+/* How many of the low bits of a 4-bit mask are set in a row, and the first k bits (k = 0..4). */
+static const unsigned char low_ones[16] = {0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0, 1, 0, 4};
+static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+static const unsigned first_bits[5] = {0, 1, 3, 7, 15};
+
+/* A tile's visits in cell order (Scratch), as the pairing reads them. */
+typedef struct {
+    const float *t0, *t1, *x, *y, *vx, *vy;
+    const int32_t *slot;
+} Visits;
+
+#ifdef __SSE2__
+typedef __m128 F4;
+#define F4_LOAD(a) _mm_loadu_ps(a)
+#define F4_SET(a) _mm_set1_ps(a)
+#define F4_LE(a, b) ((unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b)))
+#else
+typedef float F4; /* one lane: the scalar code reads the arrays itself */
+#define F4_SET(a) (a)
+#endif
+
+/* Visit i as its pairs with four others at a time need it, each value in every lane. */
+typedef struct {
+    F4 t0, t1, x, y, vx, vy;
+    float s0, s1, s, c; /* scalar t0, t1; line4's bound */
+    int flt;
+} Probe;
+
+static inline void probe_of(const Paths *pp, const Visits *v, int32_t i, Probe *q)
+{
+    q->s0 = v->t0[i];
+    q->s1 = v->t1[i];
+    q->t0 = F4_SET(v->t0[i]);
+    q->t1 = F4_SET(v->t1[i]);
+    q->x = F4_SET(v->x[i]);
+    q->y = F4_SET(v->y[i]);
+    q->vx = F4_SET(v->vx[i]);
+    q->vy = F4_SET(v->vy[i]);
+    q->s = pp->flt_s;
+    q->c = pp->flt_c;
+    q->flt = pp->flt;
+}
+
+/* The bits k of visits j + k whose intervals overlap the probe's. */
+static inline unsigned overlap4(const Visits *v, const Probe *q, int32_t j)
+{
+#ifdef __SSE2__
+    return F4_LE(F4_LOAD(v->t0 + j), q->t1) & F4_LE(q->t0, F4_LOAD(v->t1 + j));
+#else
+    unsigned m = 0;
+    for (int k = 0; k < 4; k++) m |= (unsigned)((v->t0[j + k] <= q->s1) & (q->s0 <= v->t1[j + k])) << k;
+    return m;
+#endif
+}
+
+/* The bits k of visits j + k that enter no later than the probe leaves. */
+static inline unsigned enter4(const Visits *v, const Probe *q, int32_t j)
+{
+#ifdef __SSE2__
+    return F4_LE(F4_LOAD(v->t0 + j), q->t1);
+#else
+    unsigned m = 0;
+    for (int k = 0; k < 4; k++) m |= (unsigned)(v->t0[j + k] <= q->s1) << k;
+    return m;
+#endif
+}
+
+/* The bits k of visits j + k whose disk's line of motion may come within 2 G_TEST of the probe's:
+ * the distance of closest approach of two lines is |cr| / sqrt(a), cr = dx dvy - dy dvx, a = |dv|^2,
+ * and in float, with positions rounded (at most u X off, X the largest coordinate) and velocity
+ * components (u vm), |cr| stays within 64 u X vm of its exact value and sqrt(a) within 6 u vm: the
+ * bound |cr| <= s sqrt(a) + c (plan: s = 2 G_TEST, c those terms, both rounded up) lets through every
+ * pair that meets. Where coordinates or speeds are too large for float, every pair goes through. */
+static inline unsigned line4(const Visits *v, const Probe *q, int32_t j)
+{
+    if (!q->flt) return 15u;
+#ifdef __SSE2__
+    F4 dx = _mm_sub_ps(F4_LOAD(v->x + j), q->x), dy = _mm_sub_ps(F4_LOAD(v->y + j), q->y);
+    F4 dvx = _mm_sub_ps(F4_LOAD(v->vx + j), q->vx), dvy = _mm_sub_ps(F4_LOAD(v->vy + j), q->vy);
+    F4 cr = _mm_sub_ps(_mm_mul_ps(dx, dvy), _mm_mul_ps(dy, dvx));
+    F4 a = _mm_add_ps(_mm_mul_ps(dvx, dvx), _mm_mul_ps(dvy, dvy));
+    F4 acr = _mm_andnot_ps(_mm_set1_ps(-0.0f), cr);
+    return F4_LE(acr, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(q->s), _mm_sqrt_ps(a)), _mm_set1_ps(q->c)));
+#else
+    unsigned m = 0;
+    for (int k = 0; k < 4; k++) {
+        float dx = v->x[j + k] - q->x, dy = v->y[j + k] - q->y;
+        float dvx = v->vx[j + k] - q->vx, dvy = v->vy[j + k] - q->vy;
+        float cr = dx * dvy - dy * dvx, a = dvx * dvx + dvy * dvy;
+        m |= (unsigned)(fabsf(cr) <= q->s * sqrtf(a) + q->c) << k;
+    }
+    return m;
+#endif
+}
+
+/* A pair that passed the filter: its time of closest approach within [0, tm] and the cell of its
+ * midpoint then, and in that cell alone the exact test with the lower original index first. */
+static void meet_near(const Paths *pp, const Body *A, const Body *B, int32_t qa, int32_t qb,
+                      int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    /* dx, dvx, b, a and tau: the same bits whichever disk is A (the differences negate exactly) */
+    double dx = (double)B->x - (double)A->x, dy = (double)B->y - (double)A->y;
+    double dvx = (double)B->vx - (double)A->vx, dvy = (double)B->vy - (double)A->vy;
+    double b = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy;
+    double tm = A->cap < B->cap ? (double)A->cap : (double)B->cap;
+    double tau = -b > a * tm ? tm : -b / a;
+    double mx = ((double)A->x + (double)A->vx * tau + ((double)B->x + (double)B->vx * tau)) * 0.5;
+    double my = ((double)A->y + (double)A->vy * tau + ((double)B->y + (double)B->vy * tau)) * 0.5;
+    if (cell_of(pp, mx) != cx || cell_of(pp, my) != cy) return;
+    if (B->id < A->id) {
+        const Body *t = A;
+        A = B;
+        B = t;
+        int32_t u = qa;
+        qa = qb;
+        qb = u;
+    }
+    mine->tests++;
+    real t = pair_time(A->x, A->y, A->vx, A->vy, B->x, B->y, B->vx, B->vy, p->sigma2);
+    if (t >= 0 && t < A->wt && t < B->wt) found_push(mine, t, A->id, B->id, qa, qb);
+}
+
+/* Two disks in cell (cx, cy) at overlapping times. The filter: they approach (b < 0, as in
+ * pair_time), and the lines they move on come within 2 G_TEST of each other: the squared distance
+ * of closest approach is cr^2 / a, cr = dx dvy - dy dvx (by Lagrange's identity, without the
+ * cancellation of dd - b^2 / a). Whether that closest approach comes within the step is left to
+ * meet_near: few pairs get that far. No branch until then: the outcome is a coin toss to a
+ * processor. */
+static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t qa, int32_t qb,
+                        int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    double dx = (double)B->x - (double)A->x, dy = (double)B->y - (double)A->y;
+    double dvx = (double)B->vx - (double)A->vx, dvy = (double)B->vy - (double)A->vy;
+    double b = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy, cr = dx * dvy - dy * dvx;
+    if ((b < 0) & (cr * cr <= pp->reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
+}
+
+/* The survivors among the pairs (i, j + k) of mask m, through meet. */
+static void meet_mask(const Paths *pp, const Visits *v, int32_t i, int32_t j, unsigned m,
+                      int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    const Body *A = &pp->body[v->slot[i]];
+    for (int k = 0; k < 4; k++)
+        if (m >> k & 1)
+            meet(pp, A, &pp->body[v->slot[j + k]], v->slot[i], v->slot[j + k], cx, cy, p, mine);
+}
+
+/* The pairs of the visits [lo, hi) of cell (cx, cy), few: each visit against the later ones, four
+ * at a time. v holds 4 spare entries past hi. */
+static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
+                       int64_t cy, const Params *p, Found *mine)
+{
+    uint64_t overlaps = 0;
+    Probe q;
+    for (int32_t i = lo; i + 1 < hi; i++) {
+        probe_of(pp, v, i, &q);
+        for (int32_t j = i + 1; j < hi; j += 4) {
+            int32_t left = hi - j;
+            unsigned ov = overlap4(v, &q, j) & first_bits[left < 4 ? left : 4];
+            unsigned m = ov & line4(v, &q, j);
+            overlaps += bits_count[ov];
+            if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
+        }
+    }
+    mine->overlaps += overlaps;
+}
+
+/* Sorts the visits [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
+ * entry time), so insertion moves few of them, by a place or two. */
+static void sort_cell(Scratch *sc, int32_t lo, int32_t hi)
+{
+    for (int32_t k = lo + 1; k < hi; k++) {
+        float a0 = sc->t0[k];
+        if (!(a0 < sc->t0[k - 1])) continue;
+        float a1 = sc->t1[k], x = sc->x[k], y = sc->y[k], vx = sc->vx[k], vy = sc->vy[k];
+        int32_t s = sc->slot[k], u = k;
+        do {
+            sc->t0[u] = sc->t0[u - 1];
+            sc->t1[u] = sc->t1[u - 1];
+            sc->slot[u] = sc->slot[u - 1];
+            sc->x[u] = sc->x[u - 1];
+            sc->y[u] = sc->y[u - 1];
+            sc->vx[u] = sc->vx[u - 1];
+            sc->vy[u] = sc->vy[u - 1];
+            u--;
+        } while (u > lo && a0 < sc->t0[u - 1]);
+        sc->t0[u] = a0;
+        sc->t1[u] = a1;
+        sc->slot[u] = s;
+        sc->x[u] = x;
+        sc->y[u] = y;
+        sc->vx[u] = vx;
+        sc->vy[u] = vy;
+    }
+}
+
+/* The pairs of the visits [lo, hi) of cell (cx, cy), many: sorted by entry time, visit i overlaps
+ * exactly the run of later visits that enter before it leaves, taken four at a time. */
+static void cell_sweep(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
+                       int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    sort_cell(sc, lo, hi);
+    uint64_t overlaps = 0;
+    Probe q;
+    for (int32_t i = lo; i + 1 < hi; i++) {
+        probe_of(pp, v, i, &q);
+        for (int32_t j = i + 1; j < hi; j += 4) {
+            int32_t left = hi - j;
+            int run = low_ones[enter4(v, &q, j) & first_bits[left < 4 ? left : 4]];
+            unsigned m = first_bits[run] & line4(v, &q, j);
+            overlaps += (uint64_t)run;
+            if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
+            if (run < 4) break;
+        }
+    }
+    mine->overlaps += overlaps;
+}
+
+static void scratch_grow(Scratch *sc, size_t need)
+{
+    if (need <= sc->v_cap) return;
+    float **f[6] = {&sc->t0, &sc->t1, &sc->x, &sc->y, &sc->vx, &sc->vy};
+    for (int k = 0; k < 6; k++) {
+        size_t cap = sc->v_cap;
+        *f[k] = omp_grow(*f[k], &cap, need, sizeof **f[k]);
+    }
+    sc->slot = omp_grow(sc->slot, &sc->v_cap, need, sizeof *sc->slot);
+}
+
+/* Phase B for one tile: its entries (from every thread's bucket) counted into its cells and, within
+ * a cell, into bins of entry time, placed in that order with their disks' states in float; then the
+ * pairs of each cell. */
+static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch *sc, Found *mine)
+{
+    int64_t tc = pp->tc, cells = tc * tc, keys = cells * pp->bins;
+    sc->start = omp_grow(sc->start, &sc->start_cap, (size_t)keys + 1, sizeof *sc->start);
+    int32_t *start = sc->start;
+    memset(start, 0, ((size_t)keys + 1) * sizeof *start);
+    size_t total = 0;
+    for (int t = 0; t < nt; t++) {
+        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)tile];
+        for (size_t k = 0; k < q->len; k++) start[q->e[k].key + 1]++;
+        total += q->len;
+    }
+    if (total < 2) return;
+    for (int64_t c = 0; c < keys; c++) start[c + 1] += start[c];
+    scratch_grow(sc, total + 4);
+    for (size_t k = total; k < total + 4; k++) { /* spare entries: read four at a time, never paired */
+        sc->t0[k] = sc->t1[k] = sc->x[k] = sc->y[k] = sc->vx[k] = sc->vy[k] = 0;
+        sc->slot[k] = 0;
+    }
+    const Body *body = pp->body;
+    for (int t = 0; t < nt; t++) {
+        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)tile];
+        for (size_t k = 0; k < q->len; k++) {
+            const Entry *e = &q->e[k];
+            const Body *b = &body[e->slot];
+            int32_t pos = start[e->key]++;
+            sc->t0[pos] = e->t0;
+            sc->t1[pos] = e->t1;
+            sc->slot[pos] = e->slot;
+            sc->x[pos] = (float)b->x;
+            sc->y[pos] = (float)b->y;
+            sc->vx[pos] = (float)b->vx;
+            sc->vy[pos] = (float)b->vy;
+        }
+    }
+    /* start[key] is now the end of key, which is the start of key + 1 */
+    Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot};
+    int64_t ty = tile / pp->gt, tx = tile % pp->gt;
+    int32_t lo = 0;
+    for (int64_t c = 0; c < cells; c++) {
+        int32_t hi = start[(c + 1) * pp->bins - 1];
+        int64_t cx = tx * tc + c % tc, cy = ty * tc + c / tc;
+        if (hi - lo > CELL_FEW) cell_sweep(pp, sc, &v, lo, hi, cx, cy, p, mine);
+        else if (hi - lo >= 2) cell_pairs(pp, &v, lo, hi, cx, cy, p, mine);
+        lo = hi;
+    }
+}
+
+static int load_cmp(const void *pa, const void *pb)
+{
+    const int64_t *a = pa, *b = pb; /* (entries, tile): most entries first, then by tile */
+    if (a[0] != b[0]) return a[0] > b[0] ? -1 : 1;
+    return (a[1] > b[1]) - (a[1] < b[1]);
+}
+
+/* The tiles, those with the most entries first, so that the dynamic schedule of phase B ends with
+ * small tiles and the threads finish together. Every thread computes the same order for itself. */
+static const int64_t *tile_order(Paths *pp, Scratch *sc, int nt)
+{
+    sc->order = omp_grow(sc->order, &sc->order_cap, 2 * (size_t)pp->tiles, sizeof *sc->order);
+    int64_t *o = sc->order;
+    for (int64_t k = 0; k < pp->tiles; k++) {
+        int64_t load = 0;
+        for (int t = 0; t < nt; t++) load += (int64_t)pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)k].len;
+        o[2 * k] = load;
+        o[2 * k + 1] = k;
+    }
+    qsort(o, (size_t)pp->tiles, 2 * sizeof *o, load_cmp);
+    for (int64_t k = 0; k < pp->tiles; k++) o[k] = o[2 * k + 1];
+    return o;
+}
+
+void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, Found *mine, int tid,
+                int nt)
+{
+    phase_paths(pp, s, p, wall_t, mine, tid, nt);
+#pragma omp barrier
+    const int64_t *order = tile_order(pp, &pp->sc[tid], nt);
+#pragma omp for schedule(dynamic, 1)
+    for (int64_t k = 0; k < pp->tiles; k++) tile_sweep(pp, order[k], nt, p, &pp->sc[tid], mine);
+}
