@@ -112,12 +112,14 @@ typedef struct {
     int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
     int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
     int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
-    int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID, _PATHS */
+    int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
+                          _PATHS, _MIXED */
 } Options;
 
 #define SIM_BROAD_AUTO 0
 #define SIM_BROAD_GRID 1
 #define SIM_BROAD_PATHS 2
+#define SIM_BROAD_MIXED 3
 
 /* What a backend reports about its run, printed on stderr by the driver. */
 typedef struct {

@@ -895,8 +895,9 @@ static void parse_args(int argc, char **argv, Options *opt)
             const char *val = argv[++k];
             if (strcmp(val, "grid") == 0) opt->broad = SIM_BROAD_GRID;
             else if (strcmp(val, "paths") == 0) opt->broad = SIM_BROAD_PATHS;
+            else if (strcmp(val, "mixed") == 0) opt->broad = SIM_BROAD_MIXED;
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
-            else io_fail("--broad must be grid, paths or auto (found '%s')", val);
+            else io_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
         } else if (a[0] == '-' && a[1] != '\0') {
             io_fail("unknown option '%s' (see --help)", a);
         } else if (opt->path) {

@@ -33,8 +33,9 @@ const char backend_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (with --exact: each time window; O(N^2)) and\n"
     "               stop with a message if the broad phase missed an event; for testing\n"
-    "  --broad B    the broad phase: grid (cells of the fastest disk's step), paths (each disk's\n"
-    "               path through the cells it crosses) or auto (default: the cheaper, per step)\n";
+    "  --broad B    the broad phase: grid (cells as wide as the fastest disk's step), paths (each\n"
+    "               disk's path through the cells it crosses), mixed (slow disks in a grid, the\n"
+    "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n";
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
@@ -61,14 +62,6 @@ typedef struct {
     real xlo, xhi, ylo, yhi;
 } Span;
 
-/* A Span as the scan reads it: in cell units from the grid's corner, rounded to float, half the bytes
- * to stream. Subtracting, scaling by a positive factor and rounding never reverse the order of two
- * coordinates, so spans that overlap still overlap as Boxes (a few more may): the scan only gets more
- * conservative. */
-typedef struct {
-    float xlo, xhi, ylo, yhi;
-} Box;
-
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
 typedef struct {
     real t;
@@ -77,14 +70,34 @@ typedef struct {
     int32_t a, b; /* slots */
 } SeqEvent;
 
-/* The geometry of one step's grid. */
+/* The broad phases of a step. */
+enum { MODE_GRID, MODE_PATHS, MODE_MIXED };
+
+/* The plan of one step: its broad phase and the geometry of its grid (MODE_GRID, MODE_MIXED) and
+ * paths (MODE_PATHS, MODE_MIXED). */
 typedef struct {
-    int paths;    /* 1: this step uses the paths' broad phase (omp_paths.c), not the grid */
+    int mode;
+    double v_cut; /* MODE_MIXED: disks with a velocity component of v_cut or more are fast */
     int64_t g;    /* cells per side; g * g cells */
     double x0, y0; /* lower corner of the grid */
     double inv_h; /* 1 / cell side */
     double grow;  /* r plus the rounding margin: half the size of a box at rest */
+    double reach; /* MODE_MIXED: SlowGrid's */
+    PathsPlan paths;
 } Plan;
+
+/* Disks by their fastest velocity component a, for the plan: bin k (1..62) holds a / span in
+ * [2^(k-48), 2^(k-47)); bin 0 the disks at rest, bins 1 and 63 everything below and above. */
+#define SPEED_BINS 64
+static inline int speed_bin(double a, double inv_span)
+{
+    double f = a * inv_span;
+    if (!(f > 0)) return 0;
+    uint64_t bits;
+    memcpy(&bits, &f, sizeof bits); /* the binary exponent, without a call to ilogb */
+    int k = (int)(bits >> 52 & 0x7ff) - 1023 + 48;
+    return k < 1 ? 1 : (k > SPEED_BINS - 1 ? SPEED_BINS - 1 : k);
+}
 
 /* Per-thread state, padded so that threads never share a cache line. */
 typedef struct {
@@ -96,7 +109,10 @@ typedef struct {
     size_t ev_off;    /* where this thread's events go in the gathered list */
     uint64_t events;
     real vmax;
-    int64_t s1;       /* the axis lengths of its disks' steps, in units of the box / 2^20 */
+    /* the changes this step to Work's speed_n and speed_s1 */
+    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
+    int32_t *fast;    /* MODE_MIXED: the fast slots this thread binned */
+    size_t fast_len, fast_cap;
     char pad[64];
 } Thread;
 
@@ -130,7 +146,12 @@ typedef struct {
     real *acc_t;    /* n: time of the accepted event */
     unsigned char *taken; /* n: 1 once the disk has an accepted event */
     int64_t undecided;   /* disks left after a round of the choice */
+    /* the disks by speed_bin, for the plan: how many, and the sum of their axis speeds (each at
+     * most the box) in units of the box / 2^20; kept up to date through the threads' changes, as
+     * only pair collisions change the size of a velocity component */
+    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
     int64_t path_steps;  /* steps that used the paths' broad phase (--stats) */
+    int64_t mixed_steps; /* steps that used the mixed one (--stats) */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
     SeqEvent *fin_tmp; /* sort_events' buffer */
@@ -214,37 +235,96 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== broad phase ==================================================================================== */
 
-/* Chooses this step's broad phase: the grid or the paths (omp_paths.c), whichever the cost model
- * expects to be cheaper, for a step whose fastest disk moves vm along an axis and whose disks' steps
- * add up to about s1 along the axes. The grid's cells are as wide as two boxes can be apart and still
- * overlap; the margin m (broad_margin) covers, with a wide factor to spare, the rounding of positions
- * (about eps * scale) and that of pair_time near a graze. A pair with an event has
- * dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs c <= -2b <= 2 |dx| |dv|), and |dv| <= 2 sqrt(2) vm. */
-static Plan plan_step(Work *w, double vm, double s1, int nt)
+/* The grid for disks moving at most v along an axis, boxes grown by grow: cells as wide as two boxes
+ * can be apart and still overlap (so overlapping boxes lie in the same or neighbouring cells), at
+ * most max_cells. Returns its cost: n disks binned, n_box of them with boxes. */
+static double grid_plan(const Work *w, double v, double grow, int64_t n_box, int nt, Plan *pl)
 {
     const Params *p = w->p;
-    Plan pl;
-    double r = p->r, scale = p->L + 2 * vm, reach = 6 * vm + 2 * r;
-    double m = broad_margin(r, scale, reach, SIM_REL_MARGIN);
-    pl.grow = r + m;
-    double extent = (p->hi - p->lo) + 2 * vm + 2 * pl.grow;
-    pl.x0 = p->lo - vm - pl.grow;
-    pl.y0 = pl.x0;
+    double scale = p->L + 2 * v;
+    pl->grow = grow;
+    double extent = (p->hi - p->lo) + 2 * v + 2 * grow;
+    pl->x0 = p->lo - v - grow;
+    pl->y0 = pl->x0;
     int64_t gcap = (int64_t)sqrt((double)w->max_cells);
     while (gcap > 1 && gcap * gcap > w->max_cells) gcap--;
     while ((gcap + 1) * (gcap + 1) <= w->max_cells) gcap++;
     /* centres of two overlapping boxes are at most 2 * grow + (displacement in a step) apart */
-    double h = (2 * pl.grow + vm) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
+    double h = (2 * grow + v) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
     double gd = extent / h;
-    pl.g = gd < (double)gcap ? (int64_t)gd : gcap;
-    if (pl.g < 1) pl.g = 1;
-    pl.inv_h = (double)pl.g / extent;
-    double cells = (double)pl.g * (double)pl.g, nd = (double)p->n;
-    double grid = nd * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nd * nd / cells;
-    double paths = paths_plan(w->paths, p, p->n, vm, s1, nt);
-    pl.paths = w->opt->broad == SIM_BROAD_AUTO ? paths < grid : w->opt->broad == SIM_BROAD_PATHS;
-    if (pl.paths) paths_ready(w->paths, p->n, nt);
-    return pl;
+    pl->g = gd < (double)gcap ? (int64_t)gd : gcap;
+    if (pl->g < 1) pl->g = 1;
+    pl->inv_h = (double)pl->g / extent;
+    double cells = (double)pl->g * (double)pl->g, nb = (double)n_box;
+    return (double)p->n * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nb * nb / cells;
+}
+
+/* The grid's margin for disks moving at most v along an axis: it covers, with a wide factor to
+ * spare, the rounding of positions (about eps * scale) and that of pair_time near a graze. A pair
+ * with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs c <= -2b <= 2 |dx| |dv|), and
+ * |dv| <= 2 sqrt(2) v. */
+static double grid_grow(const Params *p, double v)
+{
+    return p->r + broad_margin(p->r, p->L + 2 * v, 6 * v + 2 * p->r, SIM_REL_MARGIN);
+}
+
+/* Chooses this step's broad phase, whichever the cost model expects to be cheapest (or the one
+ * --broad names): the grid, for the fastest disk's displacement vm (slow scenes); the paths of every
+ * disk (fast scenes); or mixed, slow disks in the grid and the paths of the fast ones across its
+ * cells (omp_paths.c), for each cut between slow and fast at a bin of the disks' speeds. */
+static Plan plan_step(Work *w, int nt)
+{
+    const Params *p = w->p;
+    double span = (double)p->hi - (double)p->lo, unit = span / 1048576;
+    real vm = 0;
+    int64_t n_k[SPEED_BINS] = {0}, s1_k[SPEED_BINS] = {0}, s1 = 0;
+    for (int t = 0; t < nt; t++) {
+        Thread *th = &w->th[t];
+        if (th->vmax > vm) vm = th->vmax;
+        for (int k = 0; k < SPEED_BINS; k++) {
+            w->speed_n[k] += th->speed_n[k];
+            w->speed_s1[k] += th->speed_s1[k];
+            th->speed_n[k] = th->speed_s1[k] = 0;
+        }
+    }
+    for (int k = 0; k < SPEED_BINS; k++) {
+        n_k[k] = w->speed_n[k];
+        s1_k[k] = w->speed_s1[k];
+        s1 += s1_k[k];
+    }
+    int broad = w->opt->broad;
+    Plan best, pl;
+    double cost = grid_plan(w, vm, grid_grow(p, vm), p->n, nt, &best);
+    best.mode = MODE_GRID;
+    best.v_cut = INFINITY;
+    if (broad == SIM_BROAD_GRID) return best;
+    if (broad != SIM_BROAD_AUTO) cost = INFINITY; /* the grid only where nothing else can run */
+    PathsPlan all;
+    double c = paths_plan(p, p->n, vm, (double)s1 * unit, nt, &all);
+    if (c < cost && broad != SIM_BROAD_MIXED) {
+        cost = c;
+        best.mode = MODE_PATHS;
+        best.paths = all;
+    }
+    int64_t n_slow = 0, s1_fast = s1;
+    for (int k = 1; k < SPEED_BINS && broad != SIM_BROAD_PATHS; k++) {
+        n_slow += n_k[k - 1];
+        s1_fast -= s1_k[k - 1];
+        if ((n_slow == 0 && broad == SIM_BROAD_AUTO) || n_slow == p->n) continue;
+        double v = ldexp(span, k - 48);
+        if (v >= vm) break;
+        c = grid_plan(w, v, grid_grow(p, v), n_slow, nt, &pl);
+        pl.reach = all.grow + (pl.grow + v / 2) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * p->L;
+        c += paths_plan_grid(p, p->n - n_slow, n_slow, vm, (double)s1_fast * unit, pl.reach,
+                             1 / pl.inv_h, pl.g, nt, &pl.paths);
+        if (c < cost) {
+            cost = c;
+            best = pl;
+            best.mode = MODE_MIXED;
+            best.v_cut = v;
+        }
+    }
+    return best;
 }
 
 static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
@@ -265,10 +345,6 @@ static inline void span_box(const Span *a, const Plan *pl, Box *b)
     b->yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
 }
 
-static inline int boxes_overlap(const Box *a, const Box *b)
-{
-    return (a->xlo <= b->xhi) & (b->xlo <= a->xhi) & (a->ylo <= b->yhi) & (b->ylo <= a->yhi);
-}
 
 static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
 {
@@ -281,6 +357,23 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
 /* What a binning writes in cell order besides the boxes. */
 enum { BIN_SLOTS, BIN_REORDER };
 
+/* A fast disk's slot (as it will be) goes to this thread's list. */
+static void note_fast(Thread *th, int32_t slot)
+{
+    th->fast = omp_grow(th->fast, &th->fast_cap, th->fast_len + 1, sizeof *th->fast);
+    th->fast[th->fast_len++] = slot;
+}
+
+/* Whether the disk in slot q is fast in a mixed step: its box is empty then (it meets the others
+ * along its path, omp_paths.c). */
+static inline int is_fast(const Work *w, int64_t q)
+{
+    real cut = (real)w->plan.v_cut;
+    return SIM_FABS(w->s.vx[q]) >= cut || SIM_FABS(w->s.vy[q]) >= cut;
+}
+
+static const Box empty_box = {INFINITY, -INFINITY, INFINITY, -INFINITY};
+
 /* Counting sort of the slots into the cells of their boxes: per-thread histograms, a prefix sum over
  * cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell order
  * with their slots (BIN_SLOTS); BIN_REORDER moves the disks themselves to the new order (into spare).
@@ -292,6 +385,9 @@ static void bin_grid(Work *w, int tid, int mode)
     int nt = w->nt;
     int64_t cells = pl->g * pl->g, from, to;
     int32_t *h = w->hist + (size_t)tid * (size_t)cells;
+    Thread *th = &w->th[tid];
+    int mixed = pl->mode == MODE_MIXED;
+    th->fast_len = 0;
     memset(h, 0, (size_t)cells * sizeof *h);
     range_of(w->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
@@ -332,9 +428,14 @@ static void bin_grid(Work *w, int tid, int mode)
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
-            Span b;
-            step_span(s, q, pl->grow, &b);
-            span_box(&b, pl, &w->boxes[pos]);
+            if (mixed && is_fast(w, q)) {
+                w->boxes[pos] = empty_box;
+                note_fast(th, pos);
+            } else {
+                Span b;
+                step_span(s, q, pl->grow, &b);
+                span_box(&b, pl, &w->boxes[pos]);
+            }
             w->box_slot[pos] = pos;
             w->wall_t[pos] = slot_wall_time(s, w->p, q);
             d->x[pos] = s->x[q];
@@ -350,9 +451,14 @@ static void bin_grid(Work *w, int tid, int mode)
         for (int64_t q = from; q < to; q++) {
             int32_t c = w->cell_of[q];
             int32_t pos = w->cell_start[c] + h[c]++;
-            Span b;
-            step_span(s, q, pl->grow, &b);
-            span_box(&b, pl, &w->boxes[pos]);
+            if (mixed && is_fast(w, q)) {
+                w->boxes[pos] = empty_box;
+                note_fast(th, (int32_t)q);
+            } else {
+                Span b;
+                step_span(s, q, pl->grow, &b);
+                span_box(&b, pl, &w->boxes[pos]);
+            }
             w->box_slot[pos] = (int32_t)q;
         }
     }
@@ -780,27 +886,25 @@ static inline real fastest(real vm, real vx, real vy)
     return ay > vm ? ay : vm;
 }
 
-/* The axis lengths of the next step of a disk at (x, y), each at most the way to the wall ahead on
- * that axis (where the path of omp_paths.c ends, about), in units of the box / 2^20: summed as
- * integers for the plan, so that the plan (and --stats) is the same at every thread count. */
-static inline int64_t step_length(real x, real y, real vx, real vy, const Params *p,
-                                  double inv_span)
+/* Adds a disk of velocity (vx, vy) to a histogram of speeds (sign -1: removes it): its speed_bin and
+ * its axis speeds, each at most the box, in units of the box / 2^20. */
+static inline void note_speed(int64_t *n, int64_t *s1, real vx, real vy, double inv_span, int sign)
 {
-    double ax = SIM_FABS(vx), ay = SIM_FABS(vy);
-    double wx = vx > 0 ? p->hi - x : x - p->lo, wy = vy > 0 ? p->hi - y : y - p->lo;
-    return (int64_t)((ax < wx ? ax : wx) * inv_span * 1048576) +
-           (int64_t)((ay < wy ? ay : wy) * inv_span * 1048576);
+    double ax = SIM_FABS(vx) * inv_span, ay = SIM_FABS(vy) * inv_span;
+    int k = speed_bin((double)fastest(0, vx, vy), inv_span);
+    n[k] += sign;
+    s1[k] += sign * ((int64_t)((ax < 1 ? ax : 1) * 1048576) + (int64_t)((ay < 1 ? ay : 1) * 1048576));
 }
 
 /* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
- * notes the largest velocity component it leaves and the lengths of the disks' next steps, for the
- * next step's plan. */
+ * notes the largest velocity component it leaves and the disks' next steps, for the next step's
+ * plan. */
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->s;
     real lo = w->p->lo, hi = w->p->hi, vm = 0;
     double inv_span = 1 / ((double)hi - (double)lo);
-    int64_t s1 = 0;
+    Thread *th = &w->th[tid];
     uint64_t events = 0;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
@@ -818,6 +922,8 @@ static void move_range(Work *w, int tid)
             s->wc[i]++;
             events++;
         } else if (s->id[i] < s->id[j]) {
+            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
+            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
             pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
                          &s->vy[j], t, lo, hi);
             s->pc[i]++;
@@ -826,18 +932,17 @@ static void move_range(Work *w, int tid)
             s->x[j] = clamp_coord(s->x[j], lo, hi);
             s->y[j] = clamp_coord(s->y[j], lo, hi);
             vm = fastest(vm, s->vx[j], s->vy[j]);
-            s1 += step_length(s->x[j], s->y[j], s->vx[j], s->vy[j], w->p, inv_span);
+            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, 1);
+            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, 1);
         } else {
             continue;
         }
         s->x[i] = clamp_coord(s->x[i], lo, hi);
         s->y[i] = clamp_coord(s->y[i], lo, hi);
         vm = fastest(vm, s->vx[i], s->vy[i]);
-        s1 += step_length(s->x[i], s->y[i], s->vx[i], s->vy[i], w->p, inv_span);
     }
-    w->th[tid].vmax = vm;
-    w->th[tid].s1 = s1;
-    w->th[tid].events += events;
+    th->vmax = vm;
+    th->events += events;
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -876,23 +981,26 @@ static void step_run(Work *w, int tid, int64_t step)
     th->found.len = 0;
 #pragma omp single
     {
-        real v = 0;
-        int64_t s1 = 0;
-        for (int t = 0; t < w->nt; t++) {
-            if (w->th[t].vmax > v) v = w->th[t].vmax;
-            s1 += w->th[t].s1;
-        }
-        w->plan = plan_step(w, v, (double)s1 / 1048576 * ((double)p->hi - (double)p->lo), w->nt);
-        w->path_steps += w->plan.paths;
+        w->plan = plan_step(w, w->nt);
+        if (w->plan.mode != MODE_GRID) paths_ready(w->paths, &w->plan.paths, p->n, w->nt);
+        w->path_steps += w->plan.mode == MODE_PATHS;
+        w->mixed_steps += w->plan.mode == MODE_MIXED;
     }
 
     /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
      * narrow phase */
-    if (w->plan.paths) {
-        paths_find(w->paths, &w->s, p, w->wall_t, &th->found, tid, w->nt);
+    if (w->plan.mode == MODE_PATHS) {
+        paths_find(w->paths, &w->s, p, w->wall_t, NULL, NULL, 0, &th->found, tid, w->nt);
     } else {
         bin_grid(w, tid, step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
         scan_grid(w, tid);
+        if (w->plan.mode == MODE_MIXED) {
+            const Plan *pl = &w->plan;
+            SlowGrid slow = {w->boxes, w->cell_start, w->box_slot, pl->g, pl->x0, pl->inv_h,
+                             pl->reach};
+            paths_find(w->paths, &w->s, p, w->wall_t, &slow, th->fast, (int64_t)th->fast_len,
+                       &th->found, tid, w->nt);
+        }
     }
     if (w->opt->check) {
 #pragma omp single
@@ -1009,7 +1117,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     double inv_span = 1 / ((double)par->hi - (double)par->lo);
     for (int64_t i = 0; i < n; i++) {
         w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
-        w.th[0].s1 += step_length(sim->x[i], sim->y[i], sim->vx[i], sim->vy[i], par, inv_span);
+        note_speed(w.speed_n, w.speed_s1, sim->vx[i], sim->vy[i], inv_span, 1);
     }
 
     double t0 = io_now();
@@ -1030,16 +1138,18 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         st->pair_tests += w.th[t].found.tests;
         st->events += w.th[t].events;
         free(w.th[t].found.ev);
+        free(w.th[t].fast);
         free(w.th[t].text);
     }
     int64_t steps = par->steps * par->substeps;
     if (opt->stats) {
-        double ps = (double)w.path_steps * (double)n;
+        double ps = (double)(w.path_steps + w.mixed_steps) * (double)n;
         fprintf(stderr,
-                "%s: broad phase: paths in %lld of %lld steps (%.4g cells visited, %.4g pairs of "
-                "visits overlapping in time per particle-step), grid in the others\n",
-                backend_name, (long long)w.path_steps, (long long)steps, ps > 0 ? visits / ps : 0.0,
-                ps > 0 ? overlaps / ps : 0.0);
+                "%s: broad phase: grid in %lld, paths in %lld, mixed in %lld of %lld steps; paths: "
+                "%.4g cells visited and %.4g pairs of visits overlapping in time per particle-step\n",
+                backend_name, (long long)(steps - w.path_steps - w.mixed_steps),
+                (long long)w.path_steps, (long long)w.mixed_steps, (long long)steps,
+                ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
     }
     slots_free(&w.s);
     slots_free(&w.spare);

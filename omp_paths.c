@@ -51,6 +51,8 @@
 #define COST_ENTRY 1.5
 #define COST_PAIR 0.03
 #define COST_CELL 0.1
+#define COST_SLOW 0.15 /* one slow disk's box tested against a fast disk's row of cells */
+#define COST_ROW 1.0   /* one row of cells of a fast disk's path across the slow grid */
 
 /* A disk as phase B reads it: its state, its wall event time (+inf when none within the step) and the
  * end of its path, min(1, wall time). */
@@ -87,17 +89,7 @@ typedef struct {
 } Scratch;
 
 struct Paths {
-    int64_t g;         /* cells per side */
-    double x0, h;      /* the grid: lower corner (lo, lo), cell side */
-    double inv_h;
-    double last;       /* g - 1 */
-    double grow;       /* G: how far the cells are grown for the paths */
-    double reach2;     /* (2 G_TEST)^2: the closest-approach filter */
-    int flt;           /* 1: line_filter4 screens pairs in float (the coordinates and speeds allow) */
-    float flt_s, flt_c; /* its bound |cr| <= flt_s sqrt(a) + flt_c */
-    int64_t tc, gt;    /* tile side in cells, tiles per side */
-    int64_t tiles;
-    int32_t bins;      /* bins of entry time per cell in phase B's counting sort: a power of 2 */
+    PathsPlan pl;      /* this step's */
     int32_t *tile_of;  /* g: tile coordinate of a cell coordinate */
     int32_t *in_tile;  /* g: the cell coordinate within its tile */
     size_t coord_cap;
@@ -142,29 +134,69 @@ void paths_free(Paths *pp)
 
 /* ==== the plan ======================================================================================= */
 
-/* Cells of side h: about n q^2 + q s1 / h entries (q = 1 + 2G/h: a disk at rest overlaps q^2 cells
- * on average, and a path adds a cell per h of its axis lengths), spending D = n q^2 cell-steps of
- * time in all; pairs of entries in one cell whose intervals overlap, about 0.85 E D / cells (each
- * entry meets the others' time in its cell; the factor measured), at most all pairs of each cell. */
-double paths_plan(Paths *pp, const Params *p, int64_t n, double vm, double s1, int nt)
+/* The margins of a step whose fastest velocity component is vm, and line4's float bounds (see there:
+ * positions within X, velocity components within vm). */
+static void plan_margins(const Params *p, double vm, PathsPlan *pl)
 {
-    double r = p->r, span = p->hi - p->lo, nd = (double)n;
+    double r = p->r, span = p->hi - p->lo;
     double reach = 2 * r + 2 * 1.4142135623730951 * vm;
     if (reach > 1.4142135623730951 * span + 2 * r) reach = 1.4142135623730951 * span + 2 * r;
     double m = broad_margin(r, p->L, reach, SIM_REL_MARGIN);
     double g_test = r + m;
-    pp->grow = r + 2 * m;
-    pp->reach2 = 4 * g_test * g_test;
-    /* line_filter4's bounds (see there): positions within X, velocity components within vm */
-    double X = fabs((double)p->lo) > fabs((double)p->hi + pp->grow) ? fabs((double)p->lo)
-                                                                     : fabs((double)p->hi + pp->grow);
+    pl->grow = r + 2 * m;
+    pl->reach2 = 4 * g_test * g_test;
+    double X = fabs((double)p->lo) > fabs((double)p->hi + pl->grow) ? fabs((double)p->lo)
+                                                                     : fabs((double)p->hi + pl->grow);
     double u = 5.9604644775390625e-8; /* 2^-24, a float's unit roundoff */
-    pp->flt = X < 1e17 && vm < 1e17;
-    if (pp->flt) {
-        double s = 2 * g_test;
-        pp->flt_s = (float)(s * (1 + 1e-6));
-        pp->flt_c = (float)((6 * u * s * vm + 64 * u * X * vm) * (1 + 1e-6) + 1e-30);
-    }
+    pl->flt = X < 1e17 && vm < 1e17;
+    pl->flt_s = pl->flt ? (float)(2 * g_test * (1 + 1e-6)) : 0;
+    pl->flt_c = pl->flt ? (float)((12 * u * g_test * vm + 64 * u * X * vm) * (1 + 1e-6) + 1e-30) : 0;
+}
+
+/* The cells (g from x0 with side h) and, for `entries` visits, the tiles: enough for dynamic
+ * scheduling over the threads, small enough for a core's cache; and about one visit per bin of entry
+ * time, so that a cell's visits come out of phase B's count nearly sorted. */
+static void plan_cells(PathsPlan *pl, int64_t g, double x0, double h, double entries, int nt)
+{
+    pl->g = g;
+    pl->x0 = x0;
+    pl->h = h;
+    pl->inv_h = 1 / h;
+    pl->last = (double)(g - 1);
+    double want = entries / TILE_ENTRIES;
+    if (nt > 1 && want < 4.0 * nt) want = 4.0 * nt;
+    int64_t gt = (int64_t)ceil(sqrt(want));
+    if (gt < 1) gt = 1;
+    if (gt > g) gt = g;
+    pl->tc = (g + gt - 1) / gt;
+    pl->gt = (g + pl->tc - 1) / pl->tc;
+    pl->tiles = pl->gt * pl->gt;
+    double per_cell = entries / ((double)g * (double)g);
+    pl->bins = 1;
+    while (pl->bins < 64 && pl->bins < per_cell) pl->bins *= 2;
+}
+
+/* Visits and pairs of visits overlapping in time for n disks whose steps' axis lengths add up to s1,
+ * on cells of side h, g * g of them: about n q^2 + q s1 / h visits (q = 1 + 2G/h: a disk at rest
+ * overlaps q^2 cells on average, and a path adds a cell per h of its axis lengths), spending
+ * D = n q^2 cell-steps of time in all; pairs, about 0.85 E D / cells (each visit meets the others'
+ * time in its cell; the factor measured), at most all pairs of each cell. */
+static double visits(double n, double s1, double h, double grow)
+{
+    double q = 1 + 2 * grow / h;
+    return n * q * q + q * s1 / h;
+}
+
+static double overlaps(double e, double n, double h, double grow, double cells)
+{
+    double q = 1 + 2 * grow / h, d = n * q * q;
+    return (0.85 * e * d < e * e / 2 ? 0.85 * e * d : e * e / 2) / cells;
+}
+
+double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, PathsPlan *pl)
+{
+    double span = p->hi - p->lo, nd = (double)n;
+    plan_margins(p, vm, pl);
     /* at most 4 cells per disk and 2^26 in all */
     double gmax = sqrt(4 * nd + 16);
     if (gmax > 8192) gmax = 8192;
@@ -172,43 +204,36 @@ double paths_plan(Paths *pp, const Params *p, int64_t n, double vm, double s1, i
     int64_t best_g = 1;
     for (double gd = 1; gd <= gmax; gd = gd < 8 ? gd + 1 : gd * 1.125) {
         int64_t g = (int64_t)gd;
-        double h = span / (double)g, q = 1 + 2 * pp->grow / h;
-        double cells = (double)g * (double)g;
-        double e = nd * q * q + q * s1 / h, d = nd * q * q;
-        double pairs = 0.85 * e * d < e * e / 2 ? 0.85 * e * d : e * e / 2;
-        double cost = COST_ENTRY * e + COST_PAIR * pairs / cells + COST_CELL * cells;
+        double h = span / (double)g, cells = (double)g * (double)g;
+        double e = visits(nd, s1, h, pl->grow);
+        double cost = COST_ENTRY * e + COST_PAIR * overlaps(e, nd, h, pl->grow, cells) +
+                      COST_CELL * cells;
         if (best < 0 || cost < best) {
             best = cost;
             best_g = g;
         }
     }
-    int64_t g = best_g;
-    pp->g = g;
-    pp->x0 = p->lo;
-    pp->h = span / (double)g;
-    pp->inv_h = (double)g / span;
-    pp->last = (double)(g - 1);
-    /* tiles: enough for dynamic scheduling over the threads, small enough for the cache */
-    double h = pp->h, q = 1 + 2 * pp->grow / h;
-    double entries = nd * q * q + q * s1 / h;
-    double want = entries / TILE_ENTRIES;
-    if (nt > 1 && want < 4.0 * nt) want = 4.0 * nt;
-    int64_t gt = (int64_t)ceil(sqrt(want));
-    if (gt < 1) gt = 1;
-    if (gt > g) gt = g;
-    pp->tc = (g + gt - 1) / gt;
-    pp->gt = (g + pp->tc - 1) / pp->tc;
-    pp->tiles = pp->gt * pp->gt;
-    /* about one visit per bin, so that a cell's visits come out of the count nearly sorted */
-    double per_cell = entries / ((double)g * (double)g);
-    pp->bins = 1;
-    while (pp->bins < 64 && pp->bins < per_cell) pp->bins *= 2;
+    double h = span / (double)best_g;
+    plan_cells(pl, best_g, p->lo, h, visits(nd, s1, h, pl->grow), nt);
     return COST_DISK * nd + best;
 }
 
-void paths_ready(Paths *pp, int64_t n, int nt)
+/* The fast disks of a mixed step meet each other along their paths (a plan of their own) and the
+ * slow disks across the rows of the slow grid (fast_slow): about n q + s1 / (2 h) rows and
+ * visits(s1, h, Gs) cells, n_slow / cells boxes each. */
+double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double vm, double s1,
+                       double slow_reach, double h, int64_t g, int nt, PathsPlan *pl)
 {
-    int64_t g = pp->g;
+    double nf = (double)n_fast, cells = (double)g * (double)g;
+    double cost = paths_plan(p, n_fast, vm, s1, nt, pl);
+    double rows = nf * (1 + 2 * slow_reach / h) + s1 / (2 * h);
+    return cost + COST_ROW * rows + COST_SLOW * visits(nf, s1, h, slow_reach) * (double)n_slow / cells;
+}
+
+void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt)
+{
+    pp->pl = *pl;
+    int64_t g = pp->pl.g;
     if ((size_t)g > pp->coord_cap) {
         free(pp->tile_of);
         free(pp->in_tile);
@@ -217,10 +242,10 @@ void paths_ready(Paths *pp, int64_t n, int nt)
         pp->coord_cap = (size_t)g;
     }
     for (int64_t k = 0; k < g; k++) {
-        pp->tile_of[k] = (int32_t)(k / pp->tc);
-        pp->in_tile[k] = (int32_t)(k % pp->tc);
+        pp->tile_of[k] = (int32_t)(k / pp->pl.tc);
+        pp->in_tile[k] = (int32_t)(k % pp->pl.tc);
     }
-    size_t need = (size_t)nt * (size_t)pp->tiles;
+    size_t need = (size_t)nt * (size_t)pp->pl.tiles;
     if (need > pp->bk_cap) {
         pp->bk = realloc(pp->bk, need * sizeof *pp->bk);
         if (!pp->bk) io_fail("out of memory (%zu buckets)", need);
@@ -240,9 +265,9 @@ void paths_ready(Paths *pp, int64_t n, int nt)
  * branch). */
 static inline int64_t cell_of(const Paths *pp, double c)
 {
-    double k = (c - pp->x0) * pp->inv_h;
+    double k = (c - pp->pl.x0) * pp->pl.inv_h;
     k = k > 0 ? k : 0;
-    return (int64_t)(k < pp->last ? k : pp->last);
+    return (int64_t)(k < pp->pl.last ? k : pp->pl.last);
 }
 
 /* 1 / v, or 0 when v is 0 or so small that 1 / v overflows (the disk then moves less than a
@@ -259,10 +284,10 @@ static inline double inverse(double v)
  * times: (-inf, +inf). */
 static inline void crossing(const Paths *pp, double c, double iv, double *ea, double *eb, double *dt)
 {
-    double lo = (pp->x0 - pp->grow - c) * iv, hi = (pp->x0 + pp->h + pp->grow - c) * iv;
+    double lo = (pp->pl.x0 - pp->pl.grow - c) * iv, hi = (pp->pl.x0 + pp->pl.h + pp->pl.grow - c) * iv;
     *ea = iv > 0 ? lo : (iv < 0 ? hi : -INFINITY);
     *eb = iv > 0 ? hi : (iv < 0 ? lo : INFINITY);
-    *dt = pp->h * iv;
+    *dt = pp->pl.h * iv;
 }
 
 /* The cells of one path, into this thread's buckets (bk: its row of tiles). The outer loop runs over
@@ -274,9 +299,9 @@ static inline void crossing(const Paths *pp, double c, double iv, double *ea, do
  * [lo, hi] by more than a few rounding units (it ends at the wall), and G exceeds r by far more. */
 static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
 {
-    double G = pp->grow, T = b->cap;
-    float bins = (float)pp->bins;
-    int32_t last = pp->bins - 1;
+    double G = pp->pl.grow, T = b->cap;
+    float bins = (float)pp->pl.bins;
+    int32_t last = pp->pl.bins - 1;
     Entry x = {0, 0, 0, slot};
     double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, iv[2];
     for (int k = 0; k < 2; k++) {
@@ -284,10 +309,10 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
         if (iv[k] == 0) v[k] = 0;
     }
     int o = fabs(v[1]) <= fabs(v[0]), in = 1 - o; /* outer axis: 1 (rows) or 0 (columns) */
-    int64_t tc = pp->tc;
+    int64_t tc = pp->pl.tc;
     int32_t si = o ? 1 : (int32_t)tc;                 /* stride of the inner axis in a tile's cells */
     int64_t so = o ? tc : 1;
-    int64_t to = o ? pp->gt : 1, ti = o ? 1 : pp->gt; /* strides of the tile index */
+    int64_t to = o ? pp->pl.gt : 1, ti = o ? 1 : pp->pl.gt; /* strides of the tile index */
     double oa = c[o], ob = c[o] + v[o] * T;
     int64_t l0 = cell_of(pp, (oa < ob ? oa : ob) - G), l1 = cell_of(pp, (oa < ob ? ob : oa) + G);
     double la, lb, ldt, ea, eb, dt;
@@ -310,7 +335,7 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
             size_t cnt = (size_t)(end - c0 + 1);
             if (q->len + cnt > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + cnt, sizeof *q->e);
             Entry *e = q->e + q->len;
-            int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[c0] * si) * pp->bins;
+            int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[c0] * si) * pp->pl.bins;
             for (size_t k = 0; k < cnt; k++) {
                 double sa = ua > ta ? ua : ta, sb = ub < tb ? ub : tb;
                 x.t0 = (float)sa - T_PAD;
@@ -318,7 +343,7 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
                 int32_t bin = (int32_t)(x.t0 * bins); /* t0 >= -T_PAD: truncates to 0 or more */
                 x.key = key + (bin < last ? bin : last);
                 e[k] = x;
-                key += si * pp->bins;
+                key += si * pp->pl.bins;
                 ua += dt;
                 ub += dt;
             }
@@ -328,27 +353,116 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
     }
 }
 
-static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t, Found *mine,
+/* The record phase B reads of the disk in slot q, whose wall event time is wt (-1: none). */
+static inline void body_of(const Slots *s, int64_t q, real wt, Body *b)
+{
+    b->x = s->x[q];
+    b->y = s->y[q];
+    b->vx = s->vx[q];
+    b->vy = s->vy[q];
+    b->wt = wt < 0 ? (real)INFINITY : wt;
+    b->cap = wt < 0 ? 1 : wt;
+    b->id = s->id[q];
+}
+
+static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, const Params *p,
+                      Found *mine);
+
+/* A fast disk of a mixed step against the slow disks: its path is rasterised across the slow disks'
+ * grid, lines of cells across its shorter axis, with its cells grown by the half-size of a slow box
+ * besides the paths' G (slow->reach), so that it visits the cell of every slow box it can meet. In
+ * each line, the boxes of the line's run of cells (together in cell order along a row; cell by cell
+ * along a column) are tested against the box of the path during the line's interval of time (grown
+ * by the paths' G); survivors go through the filter of meet and the exact test. Each slow box lies
+ * in one cell, which a straight path visits once: each pair is tested once. */
+static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s,
+                      const real *wall_t, const SlowGrid *slow, const Params *p, Found *mine)
+{
+    int64_t g = slow->g;
+    double x0 = slow->x0, k = slow->inv_h, h = 1 / slow->inv_h, Gs = slow->reach;
+    double Gf = pp->pl.grow, gl = (double)(g - 1), T = (double)A->cap;
+    double c[2] = {(double)A->x, (double)A->y}, v[2] = {(double)A->vx, (double)A->vy}, iv[2];
+    for (int u = 0; u < 2; u++) {
+        iv[u] = inverse(v[u]);
+        if (iv[u] == 0) v[u] = 0;
+    }
+    int o = fabs(v[1]) <= fabs(v[0]), in = 1 - o; /* outer axis: 1 (rows) or 0 (columns) */
+    int64_t so = o ? g : 1, si = o ? 1 : g;        /* strides of the cell index */
+    double ob = c[o] + v[o] * T;
+    double l0d = ((c[o] < ob ? c[o] : ob) - Gs - x0) * k, l1d = ((c[o] < ob ? ob : c[o]) + Gs - x0) * k;
+    int64_t l0 = (int64_t)(l0d > 0 ? (l0d < gl ? l0d : gl) : 0);
+    int64_t l1 = (int64_t)(l1d > 0 ? (l1d < gl ? l1d : gl) : 0);
+    for (int64_t l = l0; l <= l1; l++) {
+        double ta = 0, tb = T;
+        if (iv[o] != 0) {
+            double e0 = (x0 + (double)l * h - Gs - c[o]) * iv[o];
+            double e1 = (x0 + (double)(l + 1) * h + Gs - c[o]) * iv[o];
+            double lo = e0 < e1 ? e0 : e1, hi = e0 < e1 ? e1 : e0;
+            ta = lo > 0 ? lo : 0;
+            tb = hi < T ? hi : T;
+            if (ta > tb) continue;
+        }
+        double ia = c[in] + v[in] * ta, ib = c[in] + v[in] * tb;
+        double oa = c[o] + v[o] * ta, oc = c[o] + v[o] * tb;
+        double il = ia < ib ? ia : ib, ih = ia < ib ? ib : ia;
+        double ol = oa < oc ? oa : oc, oh = oa < oc ? oc : oa;
+        double m0d = (il - Gs - x0) * k, m1d = (ih + Gs - x0) * k;
+        int64_t m0 = (int64_t)(m0d > 0 ? (m0d < gl ? m0d : gl) : 0);
+        int64_t m1 = (int64_t)(m1d > 0 ? (m1d < gl ? m1d : gl) : 0);
+        float bil = (float)((il - Gf - x0) * k), bih = (float)((ih + Gf - x0) * k);
+        float bol = (float)((ol - Gf - x0) * k), boh = (float)((oh + Gf - x0) * k);
+        Box vb = {o ? bil : bol, o ? bih : boh, o ? bol : bil, o ? boh : bih};
+        /* along a row the run's boxes lie together; along a column, cell by cell */
+        int64_t runs = o ? 1 : m1 - m0 + 1, len = o ? m1 - m0 + 1 : 1;
+        for (int64_t u = 0; u < runs; u++) {
+            int64_t first = l * so + (m0 + u) * si;
+            int32_t b1 = slow->cell_start[first + len];
+            for (int32_t b = slow->cell_start[first]; b < b1; b++) {
+                if (!boxes_overlap(&vb, &slow->boxes[b])) continue;
+                int32_t q = slow->box_slot[b];
+                double dx = (double)s->x[q] - c[0], dy = (double)s->y[q] - c[1];
+                double dvx = (double)s->vx[q] - (double)A->vx, dvy = (double)s->vy[q] - (double)A->vy;
+                double bb = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy, cr = dx * dvy - dy * dvx;
+                if ((bb < 0) & (cr * cr <= pp->pl.reach2 * a)) {
+                    Body B;
+                    body_of(s, q, wall_t[q], &B);
+                    test_pair(A, &B, qa, q, p, mine);
+                }
+            }
+        }
+    }
+}
+
+/* Phase A for this thread's disks: those of its range of slots (slow = NULL), their wall events
+ * found on the way, or those of its list of fast slots, each first against the slow disks. A disk
+ * whose wall event is at t = 0 has no pair event that can be accepted: no path. */
+static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t,
+                        const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine,
                         int tid, int nt)
 {
-    int64_t n = p->n, from = n * tid / nt, to = n * (tid + 1) / nt;
-    Bucket *bk = pp->bk + (size_t)tid * (size_t)pp->tiles;
-    for (int64_t k = 0; k < pp->tiles; k++) bk[k].len = 0;
-    for (int64_t q = from; q < to; q++) {
-        real wt = slot_wall_time(s, p, q);
-        wall_t[q] = wt;
-        Body *b = &pp->body[q];
-        b->x = s->x[q];
-        b->y = s->y[q];
-        b->vx = s->vx[q];
-        b->vy = s->vy[q];
-        b->wt = wt < 0 ? (real)INFINITY : wt;
-        b->cap = wt < 0 ? 1 : wt;
-        b->id = s->id[q];
-        /* a disk whose wall event is at t = 0 has no pair event that can be accepted */
-        if (b->cap > 0) path_cells(pp, b, (int32_t)q, bk);
+    Bucket *bk = pp->bk + (size_t)tid * (size_t)pp->pl.tiles;
+    for (int64_t k = 0; k < pp->pl.tiles; k++) bk[k].len = 0;
+    if (!slow) {
+        int64_t n = p->n, from = n * tid / nt, to = n * (tid + 1) / nt;
+        for (int64_t q = from; q < to; q++) {
+            real wt = slot_wall_time(s, p, q);
+            wall_t[q] = wt;
+            Body *b = &pp->body[q];
+            body_of(s, q, wt, b);
+            if (b->cap > 0) path_cells(pp, b, (int32_t)q, bk);
+        }
+    } else {
+        for (int64_t k = 0; k < n_fast; k++) {
+            int32_t q = fast[k];
+            Body *b = &pp->body[q];
+            body_of(s, q, wall_t[q], b);
+            if (b->cap > 0) {
+                fast_slow(pp, b, q, s, wall_t, slow, p, mine);
+                path_cells(pp, b, q, bk);
+            }
+        }
     }
-    for (int64_t k = 0; k < pp->tiles; k++) mine->visits += bk[k].len;
+    for (int64_t k = 0; k < pp->pl.tiles; k++) mine->visits += bk[k].len;
 }
 
 /* ==== phase B: the tiles ============================================================================= */
@@ -397,9 +511,9 @@ static inline void probe_of(const Paths *pp, const Visits *v, int32_t i, Probe *
     q->y = F4_SET(v->y[i]);
     q->vx = F4_SET(v->vx[i]);
     q->vy = F4_SET(v->vy[i]);
-    q->s = pp->flt_s;
-    q->c = pp->flt_c;
-    q->flt = pp->flt;
+    q->s = pp->pl.flt_s;
+    q->c = pp->pl.flt_c;
+    q->flt = pp->pl.flt;
 }
 
 /* The bits k of visits j + k whose intervals overlap the probe's. */
@@ -468,6 +582,14 @@ static void meet_near(const Paths *pp, const Body *A, const Body *B, int32_t qa,
     double mx = ((double)A->x + (double)A->vx * tau + ((double)B->x + (double)B->vx * tau)) * 0.5;
     double my = ((double)A->y + (double)A->vy * tau + ((double)B->y + (double)B->vy * tau)) * 0.5;
     if (cell_of(pp, mx) != cx || cell_of(pp, my) != cy) return;
+    test_pair(A, B, qa, qb, p, mine);
+}
+
+/* The exact test of SPEC.md 3.2, the lower original index first, and the event if the choice can
+ * accept it. */
+static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, const Params *p,
+                      Found *mine)
+{
     if (B->id < A->id) {
         const Body *t = A;
         A = B;
@@ -493,7 +615,7 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
     double dx = (double)B->x - (double)A->x, dy = (double)B->y - (double)A->y;
     double dvx = (double)B->vx - (double)A->vx, dvy = (double)B->vy - (double)A->vy;
     double b = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy, cr = dx * dvy - dy * dvx;
-    if ((b < 0) & (cr * cr <= pp->reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
+    if ((b < 0) & (cr * cr <= pp->pl.reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
 }
 
 /* The survivors among the pairs (i, j + k) of mask m, through meet. */
@@ -593,13 +715,13 @@ static void scratch_grow(Scratch *sc, size_t need)
  * pairs of each cell. */
 static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch *sc, Found *mine)
 {
-    int64_t tc = pp->tc, cells = tc * tc, keys = cells * pp->bins;
+    int64_t tc = pp->pl.tc, cells = tc * tc, keys = cells * pp->pl.bins;
     sc->start = omp_grow(sc->start, &sc->start_cap, (size_t)keys + 1, sizeof *sc->start);
     int32_t *start = sc->start;
     memset(start, 0, ((size_t)keys + 1) * sizeof *start);
     size_t total = 0;
     for (int t = 0; t < nt; t++) {
-        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)tile];
+        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->pl.tiles + (size_t)tile];
         for (size_t k = 0; k < q->len; k++) start[q->e[k].key + 1]++;
         total += q->len;
     }
@@ -612,7 +734,7 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch
     }
     const Body *body = pp->body;
     for (int t = 0; t < nt; t++) {
-        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)tile];
+        const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->pl.tiles + (size_t)tile];
         for (size_t k = 0; k < q->len; k++) {
             const Entry *e = &q->e[k];
             const Body *b = &body[e->slot];
@@ -628,10 +750,10 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch
     }
     /* start[key] is now the end of key, which is the start of key + 1 */
     Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot};
-    int64_t ty = tile / pp->gt, tx = tile % pp->gt;
+    int64_t ty = tile / pp->pl.gt, tx = tile % pp->pl.gt;
     int32_t lo = 0;
     for (int64_t c = 0; c < cells; c++) {
-        int32_t hi = start[(c + 1) * pp->bins - 1];
+        int32_t hi = start[(c + 1) * pp->pl.bins - 1];
         int64_t cx = tx * tc + c % tc, cy = ty * tc + c / tc;
         if (hi - lo > CELL_FEW) cell_sweep(pp, sc, &v, lo, hi, cx, cy, p, mine);
         else if (hi - lo >= 2) cell_pairs(pp, &v, lo, hi, cx, cy, p, mine);
@@ -650,25 +772,26 @@ static int load_cmp(const void *pa, const void *pb)
  * small tiles and the threads finish together. Every thread computes the same order for itself. */
 static const int64_t *tile_order(Paths *pp, Scratch *sc, int nt)
 {
-    sc->order = omp_grow(sc->order, &sc->order_cap, 2 * (size_t)pp->tiles, sizeof *sc->order);
+    sc->order = omp_grow(sc->order, &sc->order_cap, 2 * (size_t)pp->pl.tiles, sizeof *sc->order);
     int64_t *o = sc->order;
-    for (int64_t k = 0; k < pp->tiles; k++) {
+    for (int64_t k = 0; k < pp->pl.tiles; k++) {
         int64_t load = 0;
-        for (int t = 0; t < nt; t++) load += (int64_t)pp->bk[(size_t)t * (size_t)pp->tiles + (size_t)k].len;
+        for (int t = 0; t < nt; t++) load += (int64_t)pp->bk[(size_t)t * (size_t)pp->pl.tiles + (size_t)k].len;
         o[2 * k] = load;
         o[2 * k + 1] = k;
     }
-    qsort(o, (size_t)pp->tiles, 2 * sizeof *o, load_cmp);
-    for (int64_t k = 0; k < pp->tiles; k++) o[k] = o[2 * k + 1];
+    qsort(o, (size_t)pp->pl.tiles, 2 * sizeof *o, load_cmp);
+    for (int64_t k = 0; k < pp->pl.tiles; k++) o[k] = o[2 * k + 1];
     return o;
 }
 
-void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, Found *mine, int tid,
-                int nt)
+void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
+                const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt)
 {
-    phase_paths(pp, s, p, wall_t, mine, tid, nt);
+    phase_paths(pp, s, p, wall_t, slow, fast, n_fast, mine, tid, nt);
 #pragma omp barrier
     const int64_t *order = tile_order(pp, &pp->sc[tid], nt);
 #pragma omp for schedule(dynamic, 1)
-    for (int64_t k = 0; k < pp->tiles; k++) tile_sweep(pp, order[k], nt, p, &pp->sc[tid], mine);
+    for (int64_t k = 0; k < pp->pl.tiles; k++)
+        tile_sweep(pp, order[k], nt, p, &pp->sc[tid], mine);
 }

@@ -66,20 +66,67 @@ static inline int before_walls(real t, real wa, real wb)
     return (wa < 0 || t < wa) && (wb < 0 || t < wb);
 }
 
-/* ---- omp_paths.c: the broad phase of fast scenes ------------------------------------------------ */
+/* ---- the grid of slow disks (omp.c), as the paths of fast ones meet it --------------------------- */
+
+/* A disk's swept box in cell units of the grid ((c - x0) / h, rounded to float: spans that overlap
+ * still overlap as Boxes, since subtracting, scaling by a positive factor and rounding never reverse
+ * the order of two coordinates). An empty box (+inf, -inf) overlaps nothing. */
+typedef struct {
+    float xlo, xhi, ylo, yhi;
+} Box;
+
+static inline int boxes_overlap(const Box *a, const Box *b)
+{
+    return (a->xlo <= b->xhi) & (b->xlo <= a->xhi) & (a->ylo <= b->yhi) & (b->ylo <= a->yhi);
+}
+
+/* The slow disks of a mixed step, binned by the centres of their boxes into g x g square cells of
+ * side 1 / inv_h from (x0, x0). Fast disks are binned with empty boxes. */
+typedef struct {
+    const Box *boxes;          /* in cell order */
+    const int32_t *cell_start; /* g * g + 1: first box of each cell */
+    const int32_t *box_slot;   /* the slot of each box */
+    int64_t g;
+    double x0, inv_h;
+    double reach; /* how far from a fast centre the centre of a box it can meet may lie (per axis) */
+} SlowGrid;
+
+/* ---- omp_paths.c: the broad phase of fast disks --------------------------------------------------- */
 
 typedef struct Paths Paths;
 
+/* The geometry of a step's paths: cells, tiles, margins. */
+typedef struct {
+    int64_t g;       /* cells per side */
+    double x0, h;    /* lower corner (x0, x0) and side of the cells */
+    double inv_h, last; /* 1 / h and g - 1 */
+    double grow;     /* G: how far the cells are grown for the paths */
+    double reach2;   /* (2 G_TEST)^2: meet's filter */
+    int flt;         /* 1: line4 screens pairs in float (the coordinates and speeds allow) */
+    float flt_s, flt_c; /* its bound |cr| <= flt_s sqrt(a) + flt_c */
+    int64_t tc, gt, tiles; /* tile side in cells, tiles per side, tiles */
+    int32_t bins;    /* bins of entry time per cell in phase B's counting sort: a power of 2 */
+} PathsPlan;
+
 Paths *paths_new(int nt_max);
 void paths_free(Paths *pp);
-/* Plans a step of n disks with fastest velocity component vm whose steps' axis lengths add up to
- * about s1 (length) on nt threads; returns the estimated cost in the units of omp.c's cost model. */
-double paths_plan(Paths *pp, const Params *p, int64_t n, double vm, double s1, int nt);
-/* Makes the buffers ready for the plan, once it is chosen. */
-void paths_ready(Paths *pp, int64_t n, int nt);
-/* Finds every pair event of the step that before_walls admits, into mine, and fills wall_t (by slot:
- * the wall event time, or -1). Called by every thread of the team (tid of nt) after paths_ready. */
-void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, Found *mine, int tid,
-                int nt);
+/* Plans the paths of all n disks of a step (fastest velocity component vm, the steps' axis lengths
+ * adding up to about s1) on cells of their own, nt threads; returns the estimated cost in the units
+ * of omp.c's cost model. */
+double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, PathsPlan *pl);
+/* The same for the n_fast fast disks of a mixed step (s1 theirs), which also meet the n_slow slow
+ * disks of a grid of g x g cells of side h (SlowGrid, its reach slow_reach): the cost of the fast
+ * disks' part. */
+double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double vm, double s1,
+                       double slow_reach, double h, int64_t g, int nt, PathsPlan *pl);
+/* Adopts a plan and makes the buffers ready for it. */
+void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt);
+/* Finds every pair event of the step that before_walls admits into mine. Called by every thread of
+ * the team (tid of nt) after paths_ready, with slow = NULL: the paths of all disks, wall_t (by slot:
+ * the wall event time, or -1) filled here; or in a mixed step with the slow disks' grid and this
+ * thread's list of fast slots, wall_t filled already: the fast disks' pairs, with each other and
+ * with the slow disks. */
+void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
+                const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
 
 #endif /* OMP_STEP_H */
