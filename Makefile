@@ -56,6 +56,14 @@ cuda: cuda.cu io.o common.h Makefile
 seq_san: seq.c io.c common.h exact.h Makefile
 	$(CC) $(SANFLAGS) seq.c io.c -o $@ $(LDLIBS)
 
+# omp under ThreadSanitizer (tests/t_62_tsan.sh), built by clang with LLVM's OpenMP runtime (libomp),
+# whose Archer tool tells the sanitizer about OpenMP's own synchronisation (gcc's libgomp would give
+# false reports); needs clang and libomp-dev
+TSAN_CC ?= clang
+omp_tsan: omp.c omp_paths.c omp_exact.c io.c common.h exact.h omp_step.h Makefile
+	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp omp.c omp_paths.c \
+	    omp_exact.c io.c -o $@ $(LDLIBS)
+
 tools/%: tools/%.c common.h tools/output_error.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
 
@@ -93,4 +101,4 @@ plots:
 	@if [ -f bench/accuracy.csv ]; then bash tools/accuracy.sh --plot bench/accuracy.csv; fi
 
 clean:
-	rm -f seq omp cuda seq_san io.o io_f32.o $(PROGRAMS_F32) $(TOOLS)
+	rm -f seq omp cuda seq_san omp_tsan io.o io_f32.o $(PROGRAMS_F32) $(TOOLS)

@@ -1,0 +1,78 @@
+# omp's broad phases (omp.c's grid, omp_paths.c's paths, and mixed: slow disks in the grid, the paths
+# of fast ones across it): each forced with --broad, and as the cost model chooses them, against seq,
+# byte for byte, at 1, 2, 3 and 7 threads, on fast scenes (the assignment's speeds), mixed ones (a few
+# disks a quarter of the box per step among slow ones), small N, disks at the walls and paths cut
+# short by them, tiny radii; the float build likewise. Then --check (every step against all pairs:
+# the events must be exactly those the choice can accept) on scenes of thousands of disks.
+B=$TMP/broad
+SUF=""
+mkdir -p "$B"
+
+broad_scenes() {
+    cat <<'SCENES'
+fast_walls       300 --assignment --L 150 --steps 20 --mode print
+fast_mid         2000 --assignment --L 6000 --steps 10
+fast_seed9       700 --assignment --L 2000 --steps 15 --seed 9 --mode print
+mixed_gas        2000 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 8 --mode print
+mixed_dilute     1500 --fraction 0.02 --speed 2 --fast 0.05 --fast-speed 0.5 --steps 12
+mixed_overlap    800 --fraction 0.4 --overlap --speed 1 --fast 0.1 --steps 6 --mode print
+tiny_radius      500 --r 1e-4 --L 10 --speed 5e4 --fast 0.1 --steps 10
+huge_speed       200 --fraction 0.1 --speed 1e7 --steps 10 --mode print
+one_fast         1 --assignment --L 100 --steps 30 --mode print
+three_fast       3 --assignment --L 30 --steps 30 --mode print
+SCENES
+}
+
+# broad_compare NAME INPUT [OPTIONS]: seq's output against omp's with every --broad at 1, 2, 3, 7
+# threads; SUF selects the build
+broad_compare() {
+    local name=$1$SUF in=$2 mode bad=""
+    shift 2
+    if ! ./seq$SUF "$in" --quiet "$@" > "$B/$name.ref" 2> "$B/err"; then
+        fail "broad/$name seq$SUF" "$(head -c 300 "$B/err")"
+        return
+    fi
+    for mode in auto grid paths mixed; do
+        local m
+        m=$(threads_mismatch "1 2 3 7" "$B/$name.ref" ./omp$SUF "$in" --quiet --broad "$mode" "$@")
+        [ -z "$m" ] || bad="$bad $mode:$m"
+    done
+    if [ -z "$bad" ]; then
+        pass "broad/$name: omp$SUF --broad auto, grid, paths, mixed at 1 2 3 7 threads: seq's bytes"
+    else
+        fail "broad/$name" "$bad"
+    fi
+}
+
+while read -r name args; do
+    # shellcheck disable=SC2086
+    tools/gen $args > "$B/$name.in"
+    broad_compare "$name" "$B/$name.in"
+    SUF=_f32 broad_compare "$name" "$B/$name.in"
+done < <(broad_scenes)
+
+# the assignment's own random scene (no particle lines) at the sample's density, small N and print
+printf '120\n2400\n1\n25\nprint\n' > "$B/random.in"
+broad_compare random "$B/random.in" --seed 11
+broad_compare "random --substeps 4" "$B/random.in" --seed 11 --substeps 4
+
+# --check: every step against all pairs, each broad phase
+for args in "3000 --assignment --L 6000 --steps 4" \
+            "3000 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 4" \
+            "2000 --fraction 0.05 --speed 3 --fast 0.2 --fast-speed 0.1 --steps 4" \
+            "2000 --r 1e-6 --L 1 --speed 1e5 --steps 3"; do
+    # shellcheck disable=SC2086
+    tools/gen $args > "$B/check.in"
+    for prog in omp omp_f32; do
+        bad=""
+        for mode in auto paths mixed; do
+            ./$prog "$B/check.in" --quiet --check --threads 3 --broad "$mode" > /dev/null 2> "$B/err" ||
+                bad="$bad $mode: $(head -c 200 "$B/err")"
+        done
+        if [ -z "$bad" ]; then
+            pass "broad $prog --check (auto, paths, mixed): $args"
+        else
+            fail "broad $prog --check: $args" "$bad"
+        fi
+    done
+done
