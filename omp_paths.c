@@ -497,8 +497,8 @@ typedef float F4; /* one lane: the scalar code reads the arrays itself */
 /* Visit i as its pairs with four others at a time need it, each value in every lane. */
 typedef struct {
     F4 t0, t1, x, y, vx, vy;
-    float s0, s1, s, c; /* scalar t0, t1; line4's bound */
-    int flt;
+    F4 s, c, sign; /* line4's bound, and the sign bit */
+    float s0, s1;  /* scalar t0, t1 */
 } Probe;
 
 static inline void probe_of(const Paths *pp, const Visits *v, int32_t i, Probe *q)
@@ -511,9 +511,9 @@ static inline void probe_of(const Paths *pp, const Visits *v, int32_t i, Probe *
     q->y = F4_SET(v->y[i]);
     q->vx = F4_SET(v->vx[i]);
     q->vy = F4_SET(v->vy[i]);
-    q->s = pp->pl.flt_s;
-    q->c = pp->pl.flt_c;
-    q->flt = pp->pl.flt;
+    q->s = F4_SET(pp->pl.flt_s);
+    q->c = F4_SET(pp->pl.flt_c);
+    q->sign = F4_SET(-0.0f);
 }
 
 /* The bits k of visits j + k whose intervals overlap the probe's. */
@@ -548,14 +548,12 @@ static inline unsigned enter4(const Visits *v, const Probe *q, int32_t j)
  * pair that meets. Where coordinates or speeds are too large for float, every pair goes through. */
 static inline unsigned line4(const Visits *v, const Probe *q, int32_t j)
 {
-    if (!q->flt) return 15u;
 #ifdef __SSE2__
     F4 dx = _mm_sub_ps(F4_LOAD(v->x + j), q->x), dy = _mm_sub_ps(F4_LOAD(v->y + j), q->y);
     F4 dvx = _mm_sub_ps(F4_LOAD(v->vx + j), q->vx), dvy = _mm_sub_ps(F4_LOAD(v->vy + j), q->vy);
     F4 cr = _mm_sub_ps(_mm_mul_ps(dx, dvy), _mm_mul_ps(dy, dvx));
     F4 a = _mm_add_ps(_mm_mul_ps(dvx, dvx), _mm_mul_ps(dvy, dvy));
-    F4 acr = _mm_andnot_ps(_mm_set1_ps(-0.0f), cr);
-    return F4_LE(acr, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(q->s), _mm_sqrt_ps(a)), _mm_set1_ps(q->c)));
+    return F4_LE(_mm_andnot_ps(q->sign, cr), _mm_add_ps(_mm_mul_ps(q->s, _mm_sqrt_ps(a)), q->c));
 #else
     unsigned m = 0;
     for (int k = 0; k < 4; k++) {
@@ -629,23 +627,31 @@ static void meet_mask(const Paths *pp, const Visits *v, int32_t i, int32_t j, un
 }
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy), few: each visit against the later ones, four
- * at a time. v holds 4 spare entries past hi. */
-static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
-                       int64_t cy, const Params *p, Found *mine)
+ * at a time; line4 screens them where flt (a constant where inlined). v holds 4 spare entries past
+ * hi. */
+static inline void cell_pairs_of(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                 int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
 {
     uint64_t overlaps = 0;
     Probe q;
     for (int32_t i = lo; i + 1 < hi; i++) {
         probe_of(pp, v, i, &q);
         for (int32_t j = i + 1; j < hi; j += 4) {
-            int32_t left = hi - j;
-            unsigned ov = overlap4(v, &q, j) & first_bits[left < 4 ? left : 4];
-            unsigned m = ov & line4(v, &q, j);
+            unsigned ov = overlap4(v, &q, j);
+            if (hi - j < 4) ov &= first_bits[hi - j];
+            unsigned m = flt ? ov & line4(v, &q, j) : ov;
             overlaps += bits_count[ov];
             if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
         }
     }
     mine->overlaps += overlaps;
+}
+
+static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
+                       int64_t cy, const Params *p, Found *mine)
+{
+    if (pp->pl.flt) cell_pairs_of(pp, v, lo, hi, cx, cy, p, mine, 1);
+    else cell_pairs_of(pp, v, lo, hi, cx, cy, p, mine, 0);
 }
 
 /* Sorts the visits [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
@@ -678,25 +684,34 @@ static void sort_cell(Scratch *sc, int32_t lo, int32_t hi)
 }
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy), many: sorted by entry time, visit i overlaps
- * exactly the run of later visits that enter before it leaves, taken four at a time. */
-static void cell_sweep(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
-                       int64_t cx, int64_t cy, const Params *p, Found *mine)
+ * exactly the run of later visits that enter before it leaves, taken four at a time; line4 screens
+ * them where flt (a constant where inlined). */
+static inline void cell_sweep_of(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                 int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
 {
-    sort_cell(sc, lo, hi);
     uint64_t overlaps = 0;
     Probe q;
     for (int32_t i = lo; i + 1 < hi; i++) {
         probe_of(pp, v, i, &q);
         for (int32_t j = i + 1; j < hi; j += 4) {
-            int32_t left = hi - j;
-            int run = low_ones[enter4(v, &q, j) & first_bits[left < 4 ? left : 4]];
-            unsigned m = first_bits[run] & line4(v, &q, j);
+            unsigned e = enter4(v, &q, j);
+            if (hi - j < 4) e &= first_bits[hi - j];
+            int run = low_ones[e];
+            unsigned m = flt ? first_bits[run] & line4(v, &q, j) : first_bits[run];
             overlaps += (uint64_t)run;
             if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
             if (run < 4) break;
         }
     }
     mine->overlaps += overlaps;
+}
+
+static void cell_sweep(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
+                       int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    sort_cell(sc, lo, hi);
+    if (pp->pl.flt) cell_sweep_of(pp, v, lo, hi, cx, cy, p, mine, 1);
+    else cell_sweep_of(pp, v, lo, hi, cx, cy, p, mine, 0);
 }
 
 static void scratch_grow(Scratch *sc, size_t need)

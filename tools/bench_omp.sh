@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# tools/bench_omp.sh: measures the omp backend on the scenes its targets name, printing every command
-# it runs and one CSV row per measurement. Times are the programs' own step-loop seconds (stderr),
-# best and median of REPEATS runs after one discarded warm-up.
-#   tools/bench_omp.sh            all cases below
-#   CASES="dense fixed" tools/bench_omp.sh
-#   BIG=1 tools/bench_omp.sh      also N = 1e7 (generates a 600 MB input; minutes)
+# tools/bench_omp.sh: measures omp on the scenes its targets name, printing every command it runs, one
+# CSV row per measurement, and at the end one line per target with the measured ratio or rate. Each
+# measurement is REPEATS runs after one discarded warm-up (seq: one run); rows give the best and the
+# median of the whole process (wall clock around the command: input, placement, steps, output) and of
+# the step loop (the program's own seconds on stderr).
+#   tools/bench_omp.sh                     all cases below
+#   CASES="random1e3 mixed" tools/bench_omp.sh
+#   BIG=1 tools/bench_omp.sh               also a gas of N = 1e7 (generates a 600 MB input; minutes)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 die() { echo "bench_omp.sh: $*" >&2; exit 1; }
@@ -12,45 +14,48 @@ die() { echo "bench_omp.sh: $*" >&2; exit 1; }
 
 REPEATS=${REPEATS:-3}
 THREADS=${THREADS:-"1 2"}
-CASES=${CASES:-"dense fixed print assignment assignment1e5"}
+CASES=${CASES:-"random1e3 random1e4 random1e5 mixed dense fixed print"}
 WORK=${WORK:-bench/tmp}
 BIG=${BIG:-0}
 
 make -s seq omp tools/gen >/dev/null
 mkdir -p "$WORK"
-echo "# $(git rev-parse --short HEAD 2>/dev/null || echo unknown) $(uname -n) $(nproc) cores;" \
-     "$(${CC:-cc} --version | head -1); OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset}"
-echo "case,program,threads,n,steps,best_s,median_s,particle_steps_per_s,ns_per_particle_step,pair_tests,all_pairs_over_tests"
+machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
+echo "# OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset} REPEATS=$REPEATS"
+echo "case,program,threads,n,steps,best_wall_s,median_wall_s,best_loop_s,median_loop_s,wall_particle_steps_per_s,loop_particle_steps_per_s,pair_tests"
 
-# pair tests: from a program's stderr (the step loop's seconds: loop_seconds)
 pair_tests() { sed -n 's/.*: \([0-9]*\) pair tests.*/\1/p' "$1"; }
+now_ns() { date +%s%N; }
+best_of() { printf '%s\n' "$@" | sort -g | head -1; }
+median_of() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
 
 # measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row; leaves the
-# output in $WORK/last.out
+# output in $WORK/last.out and the best times in BEST_WALL and BEST_LOOP
 measure() {
     local name=$1 prog=$2 threads=$3 n=$4 steps=$5 input=$6
     shift 6
     local cmd=(./"$prog" "$input" --stats "$@")
-    [ "$prog" = omp ] && cmd+=(--threads "$threads")
+    [ "${prog%_f32}" = omp ] && cmd+=(--threads "$threads")
     echo "# ${cmd[*]}"
-    local times=() k reps=$REPEATS
+    local walls=() loops=() k reps=$REPEATS s e
     [ "$prog" = seq ] && reps=1
     for ((k = 0; k <= reps; k++)); do
+        [ "$k" -eq 0 ] && [ "$prog" = seq ] && continue
+        s=$(now_ns)
         "${cmd[@]}" > "$WORK/last.out" 2> "$WORK/last.err"
-        [ "$k" -eq 0 ] && [ "$prog" = omp ] && continue
-        times+=("$(loop_seconds "$WORK/last.err")")
+        e=$(now_ns)
+        [ "$k" -eq 0 ] && continue
+        walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')")
+        loops+=("$(loop_seconds "$WORK/last.err")")
     done
-    local sorted best median tests
-    sorted=$(printf '%s\n' "${times[@]}" | sort -g)
-    best=$(echo "$sorted" | head -1)
-    median=$(echo "$sorted" | sed -n "$(((${#times[@]} + 1) / 2))p")
-    tests=$(pair_tests "$WORK/last.err")
-    awk -v c="$name" -v p="$prog" -v t="$threads" -v n="$n" -v s="$steps" -v b="$best" -v m="$median" \
-        -v pt="$tests" 'BEGIN {
-            ps = n * s; all = n * (n - 1) / 2 * s
-            printf "%s,%s,%s,%d,%d,%.4f,%.4f,%.4g,%.1f,%s,%.1f\n", c, p, t, n, s, b, m,
-                   ps / b, 1e9 * b / ps, pt, (pt > 0 ? all / pt : 0) }'
-    LAST_BEST=$best
+    BEST_WALL=$(best_of "${walls[@]}")
+    BEST_LOOP=$(best_of "${loops[@]}")
+    awk -v c="$name" -v p="$prog" -v t="$threads" -v n="$n" -v s="$steps" -v bw="$BEST_WALL" \
+        -v mw="$(median_of "${walls[@]}")" -v bl="$BEST_LOOP" -v ml="$(median_of "${loops[@]}")" \
+        -v pt="$(pair_tests "$WORK/last.err")" 'BEGIN {
+            ps = n * s
+            printf "%s,%s,%s,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4g,%.4g,%s\n", c, p, t, n, s, bw, mw, bl, ml,
+                   ps / bw, ps / bl, pt }'
 }
 
 same_output() { # REFERENCE: the last output must equal it
@@ -58,20 +63,83 @@ same_output() { # REFERENCE: the last output must equal it
 }
 
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a / b }'; }
+rate() { awk -v n="$1" -v s="$2" -v t="$3" 'BEGIN { printf "%.3g", n * s / t }'; }
+TARGETS=()
+target() { TARGETS+=("# target: $*"); }
+
+# random N STEPS WITH_SEQ NAME: the assignment's random scene (no particle lines) in its sample's box
+# (L = 20000, r = 1): the disks cross up to a quarter of it per step, and it gets denser with N
+random() {
+    local n=$1 steps=$2 with_seq=$3 name=random$4 in=$WORK/random_$1.in
+    printf '%s\n20000\n1\n%s\nperf\n' "$n" "$steps" > "$in"
+    echo "# printf '$n\\n20000\\n1\\n$steps\\nperf\\n' > $in"
+    if [ "$with_seq" = 1 ]; then
+        measure "$name" seq 1 "$n" "$steps" "$in"
+        cp "$WORK/last.out" "$WORK/$name.ref"
+        SEQ_WALL=$BEST_WALL
+    fi
+    for t in $THREADS; do
+        measure "$name" omp "$t" "$n" "$steps" "$in"
+        [ "$with_seq" = 1 ] && same_output "$WORK/$name.ref"
+        eval "${name}_$t=\$BEST_WALL ${name}_loop_$t=\$BEST_LOOP"
+    done
+}
 
 for c in $CASES; do
     case $c in
+    random1e3)
+        random 1000 1000 1 1e3
+        for t in $THREADS; do
+            eval "w=\$random1e3_$t"
+            target "random N=1e3 (1000 20000 1 1000 perf), omp $t threads: $(ratio "$SEQ_WALL" "$w")x seq," \
+                "whole process ($SEQ_WALL s against $w s), same bytes (goal >= 40x on 2 threads)"
+        done
+        ;;
+    random1e4)
+        random 10000 100 0 1e4
+        for t in $THREADS; do
+            eval "w=\$random1e4_$t l=\$random1e4_loop_$t"
+            target "random N=1e4 (10000 20000 1 100 perf), omp $t threads: $(rate 10000 100 "$w")" \
+                "particle-steps/s whole process, $(rate 10000 100 "$l") step loop (goal >= 5e6 on 2 threads)"
+        done
+        ;;
+    random1e5)
+        random 100000 20 0 1e5
+        for t in $THREADS; do
+            eval "w=\$random1e5_$t l=\$random1e5_loop_$t"
+            target "random N=1e5 (100000 20000 1 20 perf), omp $t threads: $(rate 100000 20 "$w")" \
+                "particle-steps/s whole process, $(rate 100000 20 "$l") step loop (goal >= 1e6 on 2 threads)"
+        done
+        ;;
+    mixed)
+        # a gas with 1% of its disks a quarter of the box per step, and the same gas at its own speeds
+        # (--fast 0 draws the same numbers); the fast disks heat the gas, so the run is short
+        for f in 0.01 0; do
+            in=$WORK/mixed_$f.in
+            echo "# tools/gen 100000 --fraction 0.2 --speed 0.5 --fast $f --steps 5 > $in"
+            tools/gen 100000 --fraction 0.2 --speed 0.5 --fast "$f" --steps 5 > "$in"
+        done
+        for t in $THREADS; do
+            measure mixed_base omp "$t" 100000 5 "$WORK/mixed_0.in"
+            base=$BEST_WALL base_loop=$BEST_LOOP
+            measure mixed omp "$t" 100000 5 "$WORK/mixed_0.01.in"
+            target "mixed gas (1e5 disks, 1% at L/4 per step, 5 steps), omp $t threads:" \
+                "$(ratio "$BEST_WALL" "$base")x the same gas without fast disks, whole process" \
+                "($BEST_WALL s against $base s; step loop $(ratio "$BEST_LOOP" "$base_loop")x) (goal <= 2x)"
+        done
+        ;;
     dense)
         in=$WORK/dense.in
         echo "# tools/gen 2000 --r 5 --fraction 0.05 --speed 4 --steps 200 > $in"
         tools/gen 2000 --r 5 --fraction 0.05 --speed 4 --steps 200 > "$in"
         measure dense seq 1 2000 200 "$in"
         cp "$WORK/last.out" "$WORK/dense.ref"
-        seq_s=$LAST_BEST
+        seq_s=$BEST_WALL
         for t in $THREADS; do
             measure dense omp "$t" 2000 200 "$in"
             same_output "$WORK/dense.ref"
-            echo "# dense: omp $t threads is $(ratio "$seq_s" "$LAST_BEST")x seq, same bytes"
+            target "dense gas (2000 disks, r = 5, fraction 0.05, speeds up to 4r), omp $t threads:" \
+                "$(ratio "$seq_s" "$BEST_WALL")x seq, whole process, same bytes (goal >= 80x on 2 threads)"
         done
         ;;
     fixed)
@@ -81,12 +149,14 @@ for c in $CASES; do
             tools/gen "$n" --fraction 0.2 --speed 0.5 --steps 20 > "$in"
             for t in $THREADS; do
                 measure fixed omp "$t" "$n" 20 "$in"
-                eval "fixed_${n}_$t=$LAST_BEST"
+                eval "fixed_${n}_$t=$BEST_LOOP"
             done
         done
         for t in $THREADS; do
             eval "a=\$fixed_100000_$t b=\$fixed_400000_$t"
-            echo "# fixed density, $t threads: 4x the disks costs $(ratio "$b" "$a")x the time"
+            target "gas (fraction 0.2, speeds up to r/2), omp $t threads: 4e5 disks $(rate 400000 20 "$b")" \
+                "particle-steps/s of step loop (goal >= 2e7 on 2 threads); 4x the disks costs" \
+                "$(ratio "$b" "$a")x the time"
         done
         ;;
     print)
@@ -98,26 +168,8 @@ for c in $CASES; do
             echo "# print: $(wc -c < "$WORK/last.out") bytes written to a file"
         done
         ;;
-    assignment)
-        in=$WORK/assignment.in
-        printf '1000\n20000\n1\n1000\nperf\n' > "$in"
-        echo "# printf '1000\\n20000\\n1\\n1000\\nperf\\n' > $in"
-        measure assignment seq 1 1000 1000 "$in"
-        cp "$WORK/last.out" "$WORK/assignment.ref"
-        for t in $THREADS; do
-            measure assignment omp "$t" 1000 1000 "$in"
-            same_output "$WORK/assignment.ref"
-        done
-        ;;
-    assignment1e5)
-        in=$WORK/assignment1e5.in
-        echo "# tools/gen 100000 --L 20000 --assignment --steps 3 > $in"
-        tools/gen 100000 --L 20000 --assignment --steps 3 > "$in"
-        for t in $THREADS; do measure assignment1e5 omp "$t" 100000 3 "$in"; done
-        ;;
     *)
-        echo "unknown case $c"
-        exit 1
+        die "unknown case $c"
         ;;
     esac
 done
@@ -133,3 +185,4 @@ if [ "$BIG" = 1 ]; then
     done
     rm -f "$in"
 fi
+for line in "${TARGETS[@]}"; do echo "$line"; done
