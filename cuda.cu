@@ -55,7 +55,8 @@ extern "C" const char backend_options[] = "";
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
-#define PARALLEL_ROUNDS 2         /* choice rounds run over the whole grid before the one-block finish */
+#define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
+#define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
 #ifndef SLICE_COST
 #define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 40, 64, 100: 40 best) */
 #endif
@@ -108,7 +109,7 @@ typedef struct {
     unsigned long long overflow; /* pair events the refused step found, when they overflowed the list */
     unsigned long long faster;   /* steps whose disks were faster than their plan's speed */
     unsigned long long tests, events;             /* sums over committed steps */
-    unsigned long long left[PARALLEL_ROUNDS];     /* pair events undecided before each grid-wide round */
+    unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */
 } Control;
 
 /* Binning of one step. */
@@ -256,7 +257,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->found = 0;
     info->events = 0;
     info->tests = 0;
-    for (int r = 0; r <= PARALLEL_ROUNDS; r++) counts[r] = 0;
+    for (int r = 0; r <= MAX_ROUNDS; r++) counts[r] = 0;
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
 
@@ -270,7 +271,7 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
     ctl->events += info->events;
     ctl->faster += info->faster;
     ctl->left[0] += info->found;
-    for (int r = 1; r < PARALLEL_ROUNDS; r++) ctl->left[r] += counts[r];
+    for (int r = 1; r < MAX_ROUNDS; r++) ctl->left[r] += counts[r];
 }
 
 /* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle.
@@ -887,7 +888,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
     events_alloc(c, ev_cap);
-    c->counts = (unsigned long long *)dev_alloc((PARALLEL_ROUNDS + 1) * sizeof(unsigned long long), "counters");
+    c->counts = (unsigned long long *)dev_alloc((MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
@@ -1016,7 +1017,7 @@ static void phase_report(const Cuda *c, const Control *h)
     fprintf(stderr, "cuda: device time per phase (ms):");
     for (int k = 0; k < PHASES; k++) fprintf(stderr, " %s %.3f", phase_names[k], c->phase_ms[k]);
     fprintf(stderr, "\ncuda: pair events undecided before each grid-wide round:");
-    for (int r = 0; r < PARALLEL_ROUNDS; r++) fprintf(stderr, " %llu", h->left[r]);
+    for (int r = 0; r < MAX_ROUNDS && (r == 0 || h->left[r]); r++) fprintf(stderr, " %llu", h->left[r]);
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
             "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
 }
@@ -1030,11 +1031,25 @@ typedef struct {
     int64_t gcap; /* cells per side at most */
     int64_t m;    /* entries: n K */
     int64_t cells; /* K gcap^2: the cells each step clears and scans */
+    int rounds;    /* grid-wide rounds of the choice before the one-block finish */
 } Plan;
 
-static Plan plan_for(const Cuda *c, double vmax)
+/* Grid-wide rounds for steps that find `found` pair events, of which a fraction `decay` is left after
+ * each round (both as the last batch had them): enough that about FINISH_EVENTS are left to the one
+ * block that finishes the choice, whose time grows with them (a dense scene of 1e6 disks leaves it
+ * millions after two rounds: 17 ms a step), and no more (each round costs four launches, about 10 us). */
+static int rounds_for(double found, double decay)
+{
+    if (!(decay < 1)) return MAX_ROUNDS;
+    int r = 2; /* at least two, or the next batch's decay would not be known */
+    for (double left = found * decay * decay; r < MAX_ROUNDS && left > FINISH_EVENTS; r++) left *= decay;
+    return r;
+}
+
+static Plan plan_for(const Cuda *c, double vmax, int rounds)
 {
     Plan pl;
+    pl.rounds = rounds;
     pl.vmax = speed_bits(vmax);
     /* room for the disks to speed up by SLICE_SLACK, or slow down by SPEED_SLACK, before the grid is
      * coarser than it could be (extra slices cost only threads that return at once) */
@@ -1101,7 +1116,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     CUDA_LAUNCHED();
     int list = 0;
     const unsigned long long *len = found;
-    for (int r = 1; r < PARALLEL_ROUNDS; r++) {
+    for (int r = 1; r < pl->rounds; r++) {
         compact_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &c->counts[r],
                                                 c->partner, c->wall_hi, c->best_hi, c->best_lo);
         CUDA_LAUNCHED();
@@ -1253,8 +1268,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     if (par->n > INT32_MAX / 2) io_fail("at most %d disks on the GPU", INT32_MAX / 2);
     /* Test hooks for the paths that ordinary runs take rarely: plans for a fraction of the known speed,
      * "A" or "A,B" alternating by batch (each step's grid is then fitted to disks faster than planned;
-     * "0,1" alternates plans of one slice with plans of several), and a small first event list (steps
-     * overflow it and are refused while batches of other plans are in flight). */
+     * "0,1" alternates plans of one slice with plans of several), a small first event list (steps
+     * overflow it and are refused while batches of other plans are in flight), and the number of
+     * grid-wide choice rounds (SIM_CUDA_ROUNDS, below; 1 leaves nearly everything to the one block). */
     double plan_scale[2] = {1, 1};
     const char *hook = getenv("SIM_CUDA_PLAN_SPEED");
     if (hook) {
@@ -1268,8 +1284,12 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
     Cuda c;
     cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
-    Control last_read;                      /* the newest control record read back */
+    Control last_read, prev_read;           /* the newest control record read back, and the one before */
     memset(&last_read, 0, sizeof last_read);
+    prev_read = last_read;
+    int rounds = MAX_ROUNDS; /* grid-wide choice rounds: all of them for the first step, then adapted */
+    const char *rounds_hook = getenv("SIM_CUDA_ROUNDS"); /* or as many as it says (1 to MAX_ROUNDS) */
+    if (rounds_hook && atoi(rounds_hook) >= 1 && atoi(rounds_hook) <= MAX_ROUNDS) rounds = atoi(rounds_hook);
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = io_now();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
@@ -1278,12 +1298,16 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
     int cur_at[RING];         /* the state buffer each step in flight starts from */
     while (next <= last || flying > 0) {
-        if (flying < 2 && next <= last) {
+        /* the first batch is one step, read back before the next is launched: its counts set the
+         * rounds of all later batches (a dense scene's first batches would otherwise leave the
+         * finish millions of events, and a dilute scene's would run rounds with nothing left) */
+        if (flying < (prev_read.steps ? 2 : 1) && next <= last) {
             int b = (head + flying) % 2;
             Batch *bt = &batch[b];
-            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2]);
+            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2], rounds);
             bt->first = next;
             bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
+            if (!prev_read.steps) bt->last = next;
             bt->print = 0;
             int64_t shown = (next + k - 1) / k * k; /* the first whole step from next on */
             if (par->print && shown < last && shown <= bt->last) {
@@ -1329,6 +1353,15 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
             head = 0;
             continue;
         }
+        if (!rounds_hook && last_read.steps > prev_read.steps && last_read.left[0] > prev_read.left[0]) {
+            /* the slowest decay any round showed: later rounds decay more slowly than the first */
+            double decay = 0, left[MAX_ROUNDS];
+            for (int r = 0; r < MAX_ROUNDS; r++) left[r] = (double)(last_read.left[r] - prev_read.left[r]);
+            for (int r = 1; r < MAX_ROUNDS; r++)
+                if (left[r - 1] > 0 && left[r] / left[r - 1] > decay) decay = left[r] / left[r - 1];
+            rounds = rounds_for(left[0] / (double)(last_read.steps - prev_read.steps), decay);
+        }
+        prev_read = last_read;
         if (bt->print) print_state(&c, out, head, bt->print);
         io_progress(out, bt->last / k);
         head = 1 - head;

@@ -1,5 +1,6 @@
 # cuda against seq, byte for byte, on generated scenes that stress the broad phase: slow and fast disks
-# (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes.
+# (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes,
+# mixed scenes (a few fast disks among slow ones), tiny radii, speeds far beyond the box, a few disks.
 # Each scene runs in print and perf mode, in double (cuda against seq) and in single precision
 # (cuda_f32 against seq_f32: its broad phase has its own rounding margins). Without a GPU every case
 # is a SKIP.
@@ -13,6 +14,14 @@ cuda_scenes() {
     echo "walls      tools/gen 40 --fraction 0.3 --speed 3 --steps 300 --seed 9"
     echo "random     printf 1000\n20000\n1\n20\nperf\n"
     echo "random_r5  printf 700\n3000\n5\n25\nperf\n"
+    echo "fast_walls tools/gen 300 --assignment --L 150 --steps 20"
+    echo "fast_mid   tools/gen 2000 --assignment --L 6000 --steps 10"
+    echo "mixed_gas  tools/gen 2000 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 8"
+    echo "mixed_dil  tools/gen 1500 --fraction 0.02 --speed 2 --fast 0.05 --fast-speed 0.5 --steps 12"
+    echo "tiny_r     tools/gen 500 --r 1e-4 --L 10 --speed 5e4 --fast 0.1 --steps 10"
+    echo "huge_speed tools/gen 200 --fraction 0.1 --speed 1e7 --steps 10"
+    echo "three_fast tools/gen 3 --assignment --L 30 --steps 30"
+    echo "dense_fast tools/gen 3000 --assignment --L 2000 --overlap --steps 6"
 }
 while read -r name cmd; do
     if ! have_gpu; then
@@ -66,6 +75,20 @@ for name in slow fast overlap walls random; do
                 fail "$label: both paths taken" "stats: ${line:-no line}"
             fi
         done
+    done
+done
+
+# SIM_CUDA_ROUNDS sets the grid-wide rounds of the choice (adapted to the events found otherwise): one
+# leaves the one-block finish nearly all the events, eight run to the last
+for name in dense overlap random dense_fast; do
+    for rounds in 1 8; do
+        label="cuda/$name perf, $rounds grid-wide choice rounds"
+        if ! have_gpu; then
+            skip "$label" "no GPU"
+            continue
+        fi
+        same_bytes "$label" "$TMP/cuda_${name}_perf.expected" env SIM_CUDA_ROUNDS=$rounds \
+            ./cuda "$TMP/cuda_${name}_perf.in" --quiet
     done
 done
 

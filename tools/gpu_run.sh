@@ -11,6 +11,11 @@
 #   tools/gpu_run.sh big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
 #                            about 110 s, nearly all of it parsing the input)
 #   tools/gpu_run.sh profile device time per phase (cuda --stats)
+#   tools/gpu_run.sh targets the GPU machine's targets of the fast scenes: cuda on the assignment's random
+#                            scene at N = 32000 (200 steps) and 1e6 (10 steps) and the gas at 1e7 (50
+#                            steps), two runs each and one with the choice's grid-wide rounds fixed at
+#                            two (SIM_CUDA_ROUNDS=2); omp on the random scene at N = 1e5 on 1 and 16
+#                            threads (tools/bench_omp.sh)
 #   tools/gpu_run.sh all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -180,14 +185,34 @@ do_profile() {
     done
 }
 
+do_targets() {
+    echo "# $(provenance)" >> "$CSV"
+    echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
+    printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random_32000.in"
+    printf '1000000\n20000\n1\n10\nperf\n' > "$DATA/random_1000000.in"
+    [ -s "$DATA/gas_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas_10000000.in"
+    for f in random_32000 random_1000000 gas_10000000; do
+        n=${f#*_}
+        ./cuda "$DATA/$f.in" > /dev/null 2>&1 # warm-up, discarded
+        time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+        time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+        ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | grep -E 'phase|round|refused' | sed "s/^/# $f: /" >> "$CSV"
+        # the same with the two grid-wide choice rounds of every step that the choice had before they adapted
+        SIM_CUDA_ROUNDS=2 NAME=cuda_rounds2 time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+    done
+    THREADS="1 16" CASES=random1e5 REPEATS=2 tools/bench_omp.sh > "$OUT/omp_random1e5.log" 2>&1
+    grep -E '^# target' "$OUT/omp_random1e5.log" >> "$CSV"
+}
+
 case ${1:-all} in
 check) do_check ;;
 memcheck) do_memcheck ;;
 perf) do_perf ;;
 profile) do_profile ;;
+targets) do_targets ;;
 host) do_host ;;
 big) do_big ;;
 all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
-*) echo "usage: $0 check|memcheck|perf|host|big|profile|all" >&2; exit 2 ;;
+*) echo "usage: $0 check|memcheck|perf|host|big|profile|targets|all" >&2; exit 2 ;;
 esac
 [ -f "$CSV" ] && tail -30 "$CSV" || true
