@@ -5,14 +5,16 @@
  * - layout: the disks live in slots, kept in the cell order of the grid below (a counting sort moves
  *   them every few steps), so that neighbours are neighbours in memory; each slot remembers its
  *   disk's original index, which alone decides the event order and the output order.
- * - broad phase, one of two, whichever the cost model expects to be cheaper this step:
+ * - broad phase, one of three, whichever the cost model expects to be cheapest this step:
  *   grid (slow scenes): every disk's swept box (its path over the step, grown by r and a rounding
  *   margin) is binned by its centre into square cells at least as wide as two boxes can be apart and
  *   still overlap, so overlapping boxes lie in the same or neighbouring cells; a pair whose boxes
  *   overlap goes to the narrow phase (pair_time).
  *   paths (fast scenes, omp_paths.c): every disk's path is binned into the cells it crosses with the
  *   interval of time it spends in each; pairs meet only in a shared cell at overlapping times.
- *   Both find exactly the pair events that the choice can accept (before_walls in omp_step.h).
+ *   mixed (a few fast disks among slow ones): the slow disks in a grid for their own speed, the
+ *   paths of the fast ones among themselves and across the slow grid's cells.
+ *   All find exactly the pair events that the choice can accept (before_walls in omp_step.h).
  * - choice: per-disk lists of candidate events (CSR), then rounds of "accept every event that is the
  *   smallest remaining event of all its disks", finished by a sort and walk once few disks remain.
  *   That is exactly the greedy choice of SPEC.md 3.3, whatever the thread count.

@@ -126,7 +126,13 @@ for c in $CASES; do
             target "mixed gas (1e5 disks, 1% at L/4 per step, 5 steps), omp $t threads:" \
                 "$(ratio "$BEST_WALL" "$base")x the same gas without fast disks, whole process" \
                 "($BEST_WALL s against $base s; step loop $(ratio "$BEST_LOOP" "$base_loop")x) (goal <= 2x)"
+            # what the cost model's choice (mixed, on these steps) saves over the paths of every disk
+            measure mixed_paths omp "$t" 100000 5 "$WORK/mixed_0.01.in" --broad paths
         done
+        # how the fast disks heat the gas: disks faster than 10 r per step (20x the gas's fastest)
+        sed 's/^perf$/print/' "$WORK/mixed_0.01.in" > "$WORK/mixed_print.in"
+        echo "# disks faster than 10 r per step after steps 0 to 5: $(./omp "$WORK/mixed_print.in" --quiet |
+            awk '$5 * $5 + $6 * $6 > 100 { c[$1]++ } END { for (s = 0; s <= 5; s++) printf " %d", c[s] }')"
         ;;
     dense)
         in=$WORK/dense.in
