@@ -18,7 +18,7 @@ PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
 PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
-.PHONY: all test golden bench accuracy plots clean tools
+.PHONY: all test golden bench accuracy plots clean tools demo
 ifeq ($(PRECISION),float)
 all: $(PROGRAMS_F32)
 else
@@ -100,5 +100,13 @@ plots:
 	@bash tools/plot.sh --merge bench/gpu_h100 $(GPU_SUMMARIES)
 	@if [ -f bench/accuracy.csv ]; then bash tools/accuracy.sh --plot bench/accuracy.csv; fi
 
+# the viewer's demo: a gas whose few fast disks heat it, every step printed (viewer/demo.out, 33 MB)
+demo: omp
+	./omp viewer/demo.in --quiet > viewer/demo.out
+	@echo "viewer/demo.out: 300 steps of 2000 disks. To watch them, open viewer/index.html in a browser"
+	@echo "and choose (or drop on it) viewer/demo.in and viewer/demo.out; or, in one command:"
+	@echo "  chromium --allow-file-access-from-files 'file://$(CURDIR)/viewer/index.html?in=demo.in&src=demo.out'"
+	@echo "  python3 -m http.server 8000   # in this folder; then http://localhost:8000/viewer/index.html?in=demo.in&src=demo.out"
+
 clean:
-	rm -f seq omp cuda seq_san omp_tsan io.o io_f32.o $(PROGRAMS_F32) $(TOOLS)
+	rm -f seq omp cuda seq_san omp_tsan io.o io_f32.o $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
