@@ -140,13 +140,10 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
 #define SIM_FEATURE_EXACT 4u
 /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
- * 1..S-1 (sub-steps K, 2K, ...) to io_write_state. When sim->wi is set, every wall reflection adds
+ * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
  * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included.
  * Returns 0, or non-zero after printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
-/* Writes the lines of a whole state: step 0 before backend_run, the final state (with counts) after.
- * seq calls io_write_state; omp and cuda format on several threads (1e8 lines take minutes on one). */
-void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
 /* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's default;
  * seq: one, in order). The tasks must not depend on each other's order: io.c parses the particle lines
  * of the input in independent chunks this way (1e8 lines take minutes on one thread). */
@@ -169,10 +166,32 @@ void sim_free(Sim *sim);
 /* Formats output line i of a state (counts included when with_counts) at dst; returns its length. */
 size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts,
                       int dump17);
-/* Appends the lines of particles [from, to) of one state to the output. */
-void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int64_t to,
-                    int with_counts);
+/* Writes a whole state's lines (0 .. n-1), formatted on the backend's threads (backend_parallel) while
+ * the lines before are written: step 0, each printed step and the final state (with counts) of every
+ * backend go through it or, inside omp's parallel region, through the TextJob below. */
+void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
+/* The same in the caller's own parallel loop: for r = 0 .. rounds, run io_text_task(j, r, k) for k in
+ * [0, io_text_tasks(j, r)) in any order on any threads, each round complete before the next starts. */
+typedef struct {
+    char *buf;
+    size_t len, cap;
+} TextBlock;
+#define IO_TEXT_ROUND 16 /* blocks of lines formatted per round */
+typedef struct {
+    Output *out;
+    const Sim *sim;
+    int64_t step, n, blocks, rounds;
+    int with_counts;
+    TextBlock slot[2 * IO_TEXT_ROUND]; /* two rounds of blocks: one being formatted, one written */
+} TextJob;
+void io_text_begin(TextJob *j, Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
+int64_t io_text_tasks(const TextJob *j, int64_t r);
+void io_text_task(TextJob *j, int64_t r, int64_t k);
+void io_text_end(TextJob *j);
 void io_write_bytes(Output *out, const char *bytes, size_t len);
+/* A real of the input as SPEC.md 1 accepts it, the value strtod gives: 0, -1 (not a number), -2 (out of
+ * range) or -3 (nan or inf). */
+int io_parse_real(const char *s, double *out);
 int io_dump17(const Output *out);
 int io_threads(const Output *out); /* --threads, 0 if not given */
 /* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */

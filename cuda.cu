@@ -35,6 +35,8 @@
 #include <string.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -744,6 +746,21 @@ __global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real 
     vy[i] = vel.y;
 }
 
+/* The input's state, in original order, into the first state buffer (slot s holds disk s). */
+__global__ void pair_up_kernel(DevState st, int64_t n, const real *x, const real *y, const real *vx, const real *vy)
+{
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    real2 pos, vel;
+    pos.x = x[i];
+    pos.y = y[i];
+    vel.x = vx[i];
+    vel.y = vy[i];
+    st.pos[i] = pos;
+    st.vel[i] = vel;
+    st.id[i] = (int32_t)i;
+}
+
 /* ==== host side ========================================================================================== */
 
 #ifndef BATCH
@@ -850,13 +867,30 @@ static double bits_speed(unsigned long long bits)
     return v;
 }
 
+typedef struct {
+    const Sim *sim;
+    int64_t n, parts;
+    double *part_max;
+} VmaxJob;
+
+static void vmax_part(void *ctx, int64_t k)
+{
+    VmaxJob *j = (VmaxJob *)ctx;
+    double m = 0;
+    for (int64_t i = j->n * k / j->parts; i < j->n * (k + 1) / j->parts; i++) {
+        m = fmax(m, fabs((double)j->sim->vx[i]));
+        m = fmax(m, fabs((double)j->sim->vy[i]));
+    }
+    j->part_max[k] = m;
+}
+
+/* The largest velocity component of the state, on the host threads (a maximum: exact in any order). */
 static double host_vmax(const Sim *sim, int64_t n)
 {
-    double m = 0;
-    for (int64_t i = 0; i < n; i++) {
-        m = fmax(m, fabs((double)sim->vx[i]));
-        m = fmax(m, fabs((double)sim->vy[i]));
-    }
+    double part_max[64] = {0}, m = 0;
+    VmaxJob j = {sim, n, n < 65536 ? 1 : 64, part_max};
+    backend_parallel(0, j.parts, vmax_part, &j);
+    for (int64_t k = 0; k < j.parts; k++) m = fmax(m, part_max[k]);
     return m;
 }
 
@@ -935,25 +969,20 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
             CUDA_CHECK(cudaMallocHost((void **)&c->out_host[b], (size_t)n * 4 * sizeof(real)));
     }
 
-    DevState *d = &c->st[0];
+    /* the state as the input left it: its four arrays copied as they are into the spare state buffer,
+     * then paired into positions and velocities, with ids, on the device */
+    DevState *d = &c->st[0], *spare = &c->st[1];
     size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
-    real2 *pos = (real2 *)io_alloc((size_t)n, sizeof *pos), *vel = (real2 *)io_alloc((size_t)n, sizeof *vel);
-    for (int64_t i = 0; i < n; i++) {
-        pos[i].x = sim->x[i];
-        pos[i].y = sim->y[i];
-        vel[i].x = sim->vx[i];
-        vel[i].y = sim->vy[i];
-    }
-    CUDA_CHECK(cudaMemcpy(d->pos, pos, 2 * nd, cudaMemcpyHostToDevice));
-    CUDA_CHECK(cudaMemcpy(d->vel, vel, 2 * nd, cudaMemcpyHostToDevice));
-    free(pos);
-    free(vel);
+    real *x = (real *)spare->pos, *vx = (real *)spare->vel;
+    CUDA_CHECK(cudaMemcpy(x, sim->x, nd, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(x + n, sim->y, nd, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(vx, sim->vx, nd, cudaMemcpyHostToDevice));
+    CUDA_CHECK(cudaMemcpy(vx + n, sim->vy, nd, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(c->pc, sim->pc, ni, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(c->wc, sim->wc, ni, cudaMemcpyHostToDevice));
-    int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
-    for (int64_t i = 0; i < n; i++) ids[i] = (int32_t)i;
-    CUDA_CHECK(cudaMemcpy(d->id, ids, ni, cudaMemcpyHostToDevice));
-    free(ids);
+    pair_up_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(*d, n, x, x + n, vx, vx + n);
+    CUDA_LAUNCHED();
+    CUDA_CHECK(cudaStreamSynchronize(c->stream));
     Control start;
     memset(&start, 0, sizeof start);
     start.vmax = speed_bits(vmax);
@@ -1145,50 +1174,40 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     c->cur = 1 - in;
 }
 
-typedef struct {
-    Output *out;
-    const Sim *view;
-    int64_t step, n, parts;
-    int with_counts, dump17;
-    std::vector<std::vector<char>> *text;
-} FormatJob;
+/* The host threads of backend_parallel: started once, then woken for each call (the output is written
+ * in rounds of a few MB, some 800 calls for a state of 1e8 disks), up to 16 with the calling thread. */
+struct HostPool {
+    std::mutex lock;
+    std::condition_variable wake, done;
+    std::vector<std::thread> threads;
+    void (*task)(void *, int64_t) = nullptr;
+    void *ctx = nullptr;
+    int64_t tasks = 0, busy = 0, generation = 0;
+    std::atomic<int64_t> next{0};
+    int workers = 0; /* threads of this call, the caller among them */
 
-static void format_part(void *ctx, int64_t t)
-{
-    FormatJob *job = (FormatJob *)ctx;
-    int64_t from = job->n * t / job->parts, to = job->n * (t + 1) / job->parts;
-    std::vector<char> &buf = (*job->text)[(size_t)t];
-    buf.resize((size_t)(to - from) * 64 + IO_LINE_MAX);
-    size_t len = 0;
-    for (int64_t i = from; i < to; i++) {
-        if (len + IO_LINE_MAX > buf.size()) buf.resize(buf.size() * 2);
-        len += io_format_line(buf.data() + len, job->step, i, job->view, job->with_counts, job->dump17);
+    void run_tasks()
+    {
+        for (int64_t k; (k = next++) < tasks;) task(ctx, k);
     }
-    buf.resize(len);
-}
-
-/* Formats lines [0, n) of a state on the host threads (backend_parallel), each a contiguous part into
- * its own buffer, and writes the parts in order. */
-static void format_state(Output *out, int64_t step, const Sim *view, int64_t n, int with_counts)
-{
-    int64_t parts = n < 65536 ? 1 : 64;
-    if (parts == 1) {
-        io_write_state(out, step, view, 0, n, with_counts);
-        return;
+    void worker(int me)
+    {
+        int64_t seen = 0;
+        std::unique_lock<std::mutex> g(lock);
+        for (;;) {
+            wake.wait(g, [&] { return generation != seen; });
+            seen = generation;
+            if (me >= workers - 1) continue; /* not needed this time */
+            g.unlock();
+            run_tasks();
+            g.lock();
+            if (--busy == 0) done.notify_one();
+        }
     }
-    std::vector<std::vector<char>> text((size_t)parts);
-    FormatJob job = {out, view, step, n, parts, with_counts, io_dump17(out), &text};
-    backend_parallel(0, parts, format_part, &job);
-    for (auto &b : text) io_write_bytes(out, b.data(), b.size());
-}
+};
+/* never destroyed: a thread that ends the program (a failed write) must not wait for itself */
+static HostPool &host_pool = *new HostPool;
 
-/* Step 0 and the final state, on host threads. */
-extern "C" void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
-{
-    format_state(out, step, sim, n, with_counts);
-}
-
-/* The tasks are taken in turn from a shared counter by up to 16 host threads. */
 extern "C" void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     unsigned hw = std::thread::hardware_concurrency();
@@ -1199,13 +1218,25 @@ extern "C" void backend_parallel(int threads, int64_t tasks, void (*task)(void *
         for (int64_t k = 0; k < tasks; k++) task(ctx, k);
         return;
     }
-    std::atomic<int64_t> next(0);
-    std::vector<std::thread> workers;
-    for (int64_t t = 0; t < nt; t++)
-        workers.emplace_back([&]() {
-            for (int64_t k; (k = next++) < tasks;) task(ctx, k);
-        });
-    for (auto &w : workers) w.join();
+    HostPool &p = host_pool;
+    std::unique_lock<std::mutex> g(p.lock);
+    while ((int64_t)p.threads.size() < nt - 1) {
+        int me = (int)p.threads.size();
+        p.threads.emplace_back([me]() { host_pool.worker(me); });
+        p.threads.back().detach();
+    }
+    p.task = task;
+    p.ctx = ctx;
+    p.tasks = tasks;
+    p.next = 0;
+    p.workers = (int)nt;
+    p.busy = nt - 1;
+    p.generation++;
+    g.unlock();
+    p.wake.notify_all();
+    p.run_tasks();
+    g.lock();
+    p.done.wait(g, [&] { return p.busy == 0; });
 }
 
 /* Print mode: the current state, in original order, on its way to out_host[b]. */
@@ -1230,37 +1261,41 @@ static void print_state(Cuda *c, Output *out, int b, int64_t step)
     view.y = view.x + n;
     view.vx = view.x + 2 * n;
     view.vy = view.x + 3 * n;
-    format_state(out, step, &view, n, 0);
+    io_write_lines(out, step, &view, n, 0);
 }
 
+/* The final state into sim, in original order: put in that order on the device (into the other state
+ * buffer, free by now), then copied straight into sim's arrays. */
 static void state_download(Cuda *c, Sim *sim)
 {
     int64_t n = c->n;
-    DevState *d = &c->st[c->cur];
     size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
-    real2 *pos = (real2 *)io_alloc((size_t)n, sizeof *pos), *vel = (real2 *)io_alloc((size_t)n, sizeof *vel);
-    int32_t *ids = (int32_t *)io_alloc((size_t)n, sizeof *ids);
-    CUDA_CHECK(cudaMemcpy(pos, d->pos, 2 * nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(vel, d->vel, 2 * nd, cudaMemcpyDeviceToHost));
-    CUDA_CHECK(cudaMemcpy(ids, d->id, ni, cudaMemcpyDeviceToHost));
+    DevState *spare = &c->st[1 - c->cur];
+    real *x = (real *)spare->pos, *vx = (real *)spare->vel;
+    unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, x, x + n, vx, vx + n, c->ctl);
+    CUDA_LAUNCHED();
+    CUDA_CHECK(cudaStreamSynchronize(c->stream));
+    CUDA_CHECK(cudaMemcpy(sim->x, x, nd, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(sim->y, x + n, nd, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(sim->vx, vx, nd, cudaMemcpyDeviceToHost));
+    CUDA_CHECK(cudaMemcpy(sim->vy, vx + n, nd, cudaMemcpyDeviceToHost));
     CUDA_CHECK(cudaMemcpy(sim->pc, c->pc, ni, cudaMemcpyDeviceToHost));
     CUDA_CHECK(cudaMemcpy(sim->wc, c->wc, ni, cudaMemcpyDeviceToHost));
-    for (int64_t s = 0; s < n; s++) {
-        int32_t i = ids[s];
-        sim->x[i] = pos[s].x;
-        sim->y[i] = pos[s].y;
-        sim->vx[i] = vel[s].x;
-        sim->vy[i] = vel[s].y;
-    }
-    free(pos);
-    free(vel);
-    free(ids);
 }
 
 /* Steps first..last of one plan, launched together; print: the whole step printed after the last. */
 typedef struct {
     int64_t first, last, print;
 } Batch;
+
+/* Creating CUDA's context takes a few hundred milliseconds: it is started beside the reading of the
+ * input, and awaited by backend_run (or at exit, before the thread object goes). */
+static std::thread cuda_warm;
+
+static void cuda_warm_join(void)
+{
+    if (cuda_warm.joinable()) cuda_warm.join();
+}
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
@@ -1281,9 +1316,13 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     int64_t batches = 0;
     hook = getenv("SIM_CUDA_EVENTS");
+    double h0 = io_now();
     double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
+    cuda_warm_join();
+    double h1 = io_now();
     Cuda c;
     cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
+    double h2 = io_now();
     Control last_read, prev_read;           /* the newest control record read back, and the one before */
     memset(&last_read, 0, sizeof last_read);
     prev_read = last_read;
@@ -1371,13 +1410,20 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     stats->seconds = io_now() - t0;
     stats->pair_tests += last_read.tests;
     stats->events += last_read.events;
+    double h3 = io_now();
     state_download(&c, sim);
+    double h4 = io_now();
     if (c.timed) phase_report(&c, &last_read);
     cuda_close(&c);
+    if (c.timed)
+        fprintf(stderr, "cuda: host side (s): waiting for the context %.3f, allocations and upload %.3f, "
+                "download %.3f, release %.3f\n", h1 - h0, h2 - h1, h4 - h3, io_now() - h4);
     return 0;
 }
 
 int main(int argc, char **argv)
 {
+    cuda_warm = std::thread([]() { (void)cudaFree(0); });
+    atexit(cuda_warm_join);
     return io_main(argc, argv);
 }

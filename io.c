@@ -11,6 +11,7 @@
 #include "exact.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -94,8 +95,11 @@ struct Output {
     int shown;         /* a progress line is on the terminal */
 };
 
+static uint64_t bytes_written; /* all of stdout, for --stats */
+
 static void write_all(const char *bytes, size_t len)
 {
+    bytes_written += len;
     size_t done = 0;
     while (done < len) {
         ssize_t w = write(STDOUT_FILENO, bytes + done, len - done);
@@ -132,17 +136,31 @@ int io_threads(const Output *out)
     return out->threads;
 }
 
+/* "00" to "99": two digits per table look-up and per division (formatting is most of the output's time) */
+static const char digit_pairs[201] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
 /* Writes the decimal digits of u; returns the end. */
 static char *put_uint(char *p, uint64_t u)
 {
     char tmp[24];
-    int k = 0;
-    do {
-        tmp[k++] = (char)('0' + u % 10);
-        u /= 10;
-    } while (u);
-    while (k) *p++ = tmp[--k];
-    return p;
+    int k = 24;
+    while (u >= 100) {
+        unsigned d = (unsigned)(u % 100);
+        u /= 100;
+        tmp[--k] = digit_pairs[2 * d + 1];
+        tmp[--k] = digit_pairs[2 * d];
+    }
+    if (u >= 10) {
+        tmp[--k] = digit_pairs[2 * u + 1];
+        tmp[--k] = digit_pairs[2 * u];
+    } else {
+        tmp[--k] = (char)('0' + u);
+    }
+    memcpy(p, tmp + k, (size_t)(24 - k));
+    return p + (24 - k);
 }
 
 static char *put_int(char *p, int64_t v)
@@ -154,9 +172,23 @@ static char *put_int(char *p, int64_t v)
     return put_uint(p, (uint64_t)v);
 }
 
+/* The 8 digits of f < 10^8, zeros in front. */
+static char *put_frac8(char *p, uint32_t f)
+{
+    for (int k = 6; k >= 0; k -= 2) {
+        uint32_t d = f % 100;
+        f /= 100;
+        p[k] = digit_pairs[2 * d];
+        p[k + 1] = digit_pairs[2 * d + 1];
+    }
+    return p + 8;
+}
+
 /* v formatted exactly as printf("%.8f", v) does: the exact binary value rounded half to even at the
  * 8th decimal, "-" on every negative value (so -0.0 and -1e-9 give "-0.00000000"). The exact value
- * m * 2^e times 10^8 fits in 128 bits whenever |v| < 2^64; larger values, inf and nan go to printf. */
+ * m * 2^e times 10^8 fits in 128 bits whenever |v| < 2^64; larger values, inf and nan go to printf.
+ * Below 2^64 / 10^8 (1.8e11: every coordinate of a box up to that side) the rounded value fits in 64
+ * bits and is split into digits with 64-bit divisions, which compilers turn into multiplications. */
 static char *put_fixed8(char *p, double v)
 {
 #ifdef __SIZEOF_INT128__
@@ -180,14 +212,15 @@ static char *put_fixed8(char *p, double v)
             if (rem > half || (rem == half && (q & 1))) q++;
         }
         if (bits >> 63) *p++ = '-';
-        p = put_uint(p, (uint64_t)(q / 100000000u));
-        uint32_t frac = (uint32_t)(q % 100000000u);
-        *p++ = '.';
-        for (int k = 7; k >= 0; k--) {
-            p[k] = (char)('0' + frac % 10);
-            frac /= 10;
+        if ((uint64_t)(q >> 64) == 0) {
+            uint64_t q64 = (uint64_t)q;
+            p = put_uint(p, q64 / 100000000u);
+            *p++ = '.';
+            return put_frac8(p, (uint32_t)(q64 % 100000000u));
         }
-        return p + 8;
+        p = put_uint(p, (uint64_t)(q / 100000000u));
+        *p++ = '.';
+        return put_frac8(p, (uint32_t)(q % 100000000u));
     }
 #endif
     return p + sprintf(p, "%.8f", v);
@@ -226,13 +259,103 @@ size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int wi
     return (size_t)(p - dst);
 }
 
-void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int64_t to,
-                    int with_counts)
+/* The lines of particles [from, to) of one state, on this thread. */
+static void io_write_state(Output *out, int64_t step, const Sim *sim, int64_t from, int64_t to,
+                           int with_counts)
 {
     for (int64_t i = from; i < to; i++) {
         if (out->len + IO_LINE_MAX > OUT_BUFFER) out_flush(out);
         out->len += io_format_line(out->buf + out->len, step, i, sim, with_counts, out->dump17);
     }
+}
+
+/* ---- a state's lines, formatted in parallel and written in order --------------------------------------
+ * Blocks of TEXT_LINES lines, each formatted by one task into its own buffer, go in rounds of
+ * TEXT_ROUND blocks; while round r is formatted, one more task writes round r - 1 (double-buffered),
+ * so that the kernel's copy of the bytes into the file, one thread's work, overlaps the formatting.
+ * The caller runs the tasks: io_write_lines with backend_parallel, omp inside its parallel region. */
+#define TEXT_LINES 8192
+#define TEXT_ROUND IO_TEXT_ROUND
+
+void io_text_begin(TextJob *j, Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    memset(j, 0, sizeof *j);
+    j->out = out;
+    j->sim = sim;
+    j->step = step;
+    j->n = n;
+    j->with_counts = with_counts;
+    j->blocks = (n + TEXT_LINES - 1) / TEXT_LINES;
+    j->rounds = (j->blocks + TEXT_ROUND - 1) / TEXT_ROUND;
+}
+
+/* Round r's tasks: the blocks of round r (if r < rounds), after a first task that writes round r - 1
+ * (if r > 0); r runs from 0 to rounds. */
+int64_t io_text_tasks(const TextJob *j, int64_t r)
+{
+    int64_t first = r * TEXT_ROUND, count = r < j->rounds ? j->blocks - first : 0;
+    if (count > TEXT_ROUND) count = TEXT_ROUND;
+    return count + (r > 0);
+}
+
+void io_text_task(TextJob *j, int64_t r, int64_t k)
+{
+    if (r > 0 && k == 0) { /* write round r - 1, in block order */
+        out_flush(j->out);
+        int64_t first = (r - 1) * TEXT_ROUND, last = first + TEXT_ROUND;
+        if (last > j->blocks) last = j->blocks;
+        for (int64_t b = first; b < last; b++) {
+            TextBlock *t = &j->slot[b % (2 * TEXT_ROUND)];
+            write_all(t->buf, t->len);
+        }
+        return;
+    }
+    int64_t b = r * TEXT_ROUND + k - (r > 0);
+    TextBlock *t = &j->slot[b % (2 * TEXT_ROUND)];
+    int64_t from = b * TEXT_LINES, to = from + TEXT_LINES < j->n ? from + TEXT_LINES : j->n;
+    t->len = 0;
+    for (int64_t i = from; i < to; i++) {
+        if (t->len + IO_LINE_MAX > t->cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
+            size_t cap = t->cap ? 2 * t->cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
+            char *grown = realloc(t->buf, cap);
+            if (!grown) io_fail("out of memory formatting the output (%zu bytes)", cap);
+            t->buf = grown;
+            t->cap = cap;
+        }
+        t->len += io_format_line(t->buf + t->len, j->step, i, j->sim, j->with_counts, j->out->dump17);
+    }
+}
+
+void io_text_end(TextJob *j)
+{
+    for (int k = 0; k < 2 * TEXT_ROUND; k++) free(j->slot[k].buf);
+    memset(j, 0, sizeof *j);
+}
+
+typedef struct {
+    TextJob *job;
+    int64_t round;
+} TextRound;
+
+static void text_round_task(void *ctx, int64_t k)
+{
+    TextRound *tr = ctx;
+    io_text_task(tr->job, tr->round, k);
+}
+
+void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    if (n <= TEXT_LINES) { /* one block: nothing to share out */
+        io_write_state(out, step, sim, 0, n, with_counts);
+        return;
+    }
+    TextJob j;
+    io_text_begin(&j, out, step, sim, n, with_counts);
+    for (int64_t r = 0; r <= j.rounds; r++) {
+        TextRound tr = {&j, r};
+        backend_parallel(out->threads, io_text_tasks(&j, r), text_round_task, &tr);
+    }
+    io_text_end(&j);
 }
 
 void io_progress(Output *out, int64_t step)
@@ -273,6 +396,31 @@ static void input_error(const Reader *rd, long line, const char *fmt, ...)
     exit(1);
 }
 
+/* A large input is read in pieces of READ_PIECE bytes on the backend's threads: the kernel's copy
+ * from its page cache is then shared out too. */
+#define READ_PIECE ((size_t)8 << 20)
+typedef struct {
+    int fd;
+    char *buf;
+    size_t size;
+    int err; /* errno of a failed piece, or -1 where the file ended early (it shrank) */
+} Slurp;
+
+static void read_piece(void *ctx, int64_t k)
+{
+    Slurp *sl = ctx;
+    size_t from = (size_t)k * READ_PIECE, to = from + READ_PIECE < sl->size ? from + READ_PIECE : sl->size;
+    while (from < to) {
+        ssize_t got = pread(sl->fd, sl->buf + from, to - from, (off_t)from);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) {
+            sl->err = got < 0 ? errno : -1;
+            return;
+        }
+        from += (size_t)got;
+    }
+}
+
 static char *slurp(const Options *opt, size_t *size)
 {
     FILE *f = stdin;
@@ -288,6 +436,15 @@ static char *slurp(const Options *opt, size_t *size)
         cap = (size_t)st.st_size + 2;
     char *buf = malloc(cap);
     if (!buf) io_fail("%s: out of memory reading the input (%zu bytes)", opt->label, cap);
+    if (cap > 2 * READ_PIECE) { /* a large regular file: its pieces read in parallel, then what follows */
+        Slurp sl = {fileno(f), buf, cap - 2, 0};
+        backend_parallel(opt->threads, (int64_t)((cap - 2 + READ_PIECE - 1) / READ_PIECE), read_piece, &sl);
+        if (sl.err)
+            io_fail("%s: cannot read the input (%s)", opt->label,
+                    sl.err > 0 ? strerror(sl.err) : "it became shorter while it was read");
+        len = cap - 2;
+        if (fseeko(f, (off_t)len, SEEK_SET) != 0) io_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
+    }
     for (;;) {
         if (cap - len < 2) {
             if (cap > SIZE_MAX / 2) io_fail("%s: input too large", opt->label);
@@ -361,15 +518,18 @@ static int next_record(Reader *rd)
 static int parse_int(const char *s, long long *out)
 {
     const char *p = s;
+    int neg = *p == '-';
     if (*p == '+' || *p == '-') p++;
     if (!*p) return -1;
-    for (const char *q = p; *q; q++)
+    unsigned long long v = 0;
+    for (const char *q = p; *q; q++) {
         if (*q < '0' || *q > '9') return -1;
-    errno = 0;
-    char *end;
-    *out = strtoll(s, &end, 10);
-    if (errno == ERANGE) return -2;
-    return *end ? -1 : 0;
+        if (v > (ULLONG_MAX - 9) / 10) return -2; /* far beyond any index */
+        v = v * 10 + (unsigned long long)(*q - '0');
+    }
+    if (v > (unsigned long long)LLONG_MAX + (unsigned long long)neg) return -2;
+    *out = neg ? (long long)(0 - v) : (long long)v;
+    return 0;
 }
 
 static int ieq(const char *a, const char *b)
@@ -381,20 +541,41 @@ static int ieq(const char *a, const char *b)
     return *a == *b;
 }
 
+/* Exact powers of ten: a double holds each of them exactly up to 10^22. */
+static const double exact_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                       1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
 /* Accepts decimal reals: [+-] digits [. digits] [e [+-] digits] (at least one digit in the mantissa).
- * Returns 0, -1 (not a number), -2 (overflow) or -3 (nan or inf). */
-static int parse_real(const char *s, double *out)
+ * Returns 0, -1 (not a number), -2 (overflow) or -3 (nan or inf). Values as strtod reads them: where the
+ * digits make an integer M < 2^53 and there are k <= 22 decimals and no exponent (every %.8f output of
+ * a box up to 9e7 wide), M / 10^k is a single correctly rounded division of two exact doubles, which is
+ * strtod's correctly rounded value; anything else goes to strtod. */
+int io_parse_real(const char *s, double *out)
 {
     const char *p = s;
+    int neg = *p == '-';
     if (*p == '+' || *p == '-') p++;
-    if (ieq(p, "nan") || ieq(p, "inf") || ieq(p, "infinity")) return -3;
-    int digits = 0;
-    while (*p >= '0' && *p <= '9') p++, digits++;
+    if ((*p | 32) == 'n' || (*p | 32) == 'i')
+        if (ieq(p, "nan") || ieq(p, "inf") || ieq(p, "infinity")) return -3;
+    int digits = 0, decimals = 0;
+    uint64_t mant = 0;
+    while (*p >= '0' && *p <= '9') {
+        if (digits < 19) mant = mant * 10 + (uint64_t)(*p - '0');
+        p++, digits++;
+    }
     if (*p == '.') {
         p++;
-        while (*p >= '0' && *p <= '9') p++, digits++;
+        while (*p >= '0' && *p <= '9') {
+            if (digits < 19) mant = mant * 10 + (uint64_t)(*p - '0');
+            p++, digits++, decimals++;
+        }
     }
     if (!digits) return -1;
+    if (!*p && digits <= 19 && mant <= (UINT64_C(1) << 53) && decimals <= 22) {
+        double v = (double)mant / exact_pow10[decimals];
+        *out = neg ? -v : v;
+        return 0;
+    }
     if (*p == 'e' || *p == 'E') {
         p++;
         if (*p == '+' || *p == '-') p++;
@@ -426,7 +607,7 @@ static double header_real(Reader *rd, const char *what)
 {
     const char *t = header_token(rd, what);
     double v;
-    int rc = parse_real(t, &v);
+    int rc = io_parse_real(t, &v);
     if (rc) input_error(rd, rd->line, "%s %s (found '%s')", what, real_problem(rc), t);
     return v;
 }
@@ -535,7 +716,7 @@ static int32_t read_line(const Parse *ps, Chunk *c, long line, char **tok, int n
     }
     double v[4];
     for (int k = 0; k < 4; k++) {
-        rc = parse_real(tok[k + 1], &v[k]);
+        rc = io_parse_real(tok[k + 1], &v[k]);
         if (rc) {
             chunk_error(c, line, "%s %s (found '%s')", field_name[k + 1], real_problem(rc), tok[k + 1]);
             return (int32_t)idx;
@@ -783,17 +964,30 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
 }
 
 /* Reads and validates the whole input; generates the disks when the input lists none. */
-static void io_read_input(const Options *opt, Params *par, Sim *sim)
+/* Seconds and bytes of the untimed parts, for --stats. */
+typedef struct {
+    double start; /* io_now() when main began */
+    double read_s, parse_s, write_s;
+    uint64_t in_bytes, out_bytes;
+} IoTimes;
+
+static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io)
 {
     Reader rd;
     memset(&rd, 0, sizeof rd);
     rd.label = opt->label;
+    double t0 = io_now();
     rd.text = slurp(opt, &rd.size);
+    double t1 = io_now();
     read_header(&rd, par);
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
                     (long long)par->n);
-    if (read_particles(&rd, par, sim, opt->threads) == 0) {
+    int64_t lines = read_particles(&rd, par, sim, opt->threads);
+    io->read_s = t1 - t0;
+    io->parse_s = io_now() - t1;
+    io->in_bytes = rd.size;
+    if (lines == 0) {
         int64_t failed = generate(par, opt->seed, sim);
         if (failed >= 0)
             input_error(&rd, rd.n_line,
@@ -929,7 +1123,10 @@ int io_main(int argc, char **argv)
     Sim sim;
     parse_args(argc, argv, &opt);
     signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
-    io_read_input(&opt, &par, &sim);
+    IoTimes io;
+    memset(&io, 0, sizeof io);
+    io.start = io_now();
+    io_read_input(&opt, &par, &sim, &io);
 
     Output out;
     memset(&out, 0, sizeof out);
@@ -944,7 +1141,11 @@ int io_main(int argc, char **argv)
         io_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
                 "(S x K must be <= %d)",
                 opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
-    backend_write_state(&out, 0, &sim, par.n, 0);
+    double w0 = io_now();
+    io_write_lines(&out, 0, &sim, par.n, 0);
+    out_flush(&out);
+    io.write_s = io_now() - w0;
+    io.out_bytes = bytes_written;
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     par.substeps = opt.substeps;
@@ -958,23 +1159,36 @@ int io_main(int argc, char **argv)
     out.start = io_now();
     out.next_show = out.start + 2.0;
     if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
+    double run_s = io_now() - out.start;
     if (out.shown) fputc('\n', stderr);
     scale_velocities(&sim, par.n, k);
     v_unscale = 1;
 
-    backend_write_state(&out, par.steps, &sim, par.n, 1);
+    uint64_t before = bytes_written;
+    w0 = io_now();
+    io_write_lines(&out, par.steps, &sim, par.n, 1);
     out_flush(&out);
+    io.write_s += io_now() - w0;
+    io.out_bytes += bytes_written - before;
     if (!opt.quiet) {
         double ps = (double)par.n * (double)par.steps;
         fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",
                 backend_name, (long long)par.n, (long long)par.steps, par.print ? "print" : "perf",
                 st.seconds, st.seconds > 0 ? ps / st.seconds : 0.0);
     }
-    if (opt.stats)
+    if (opt.stats) {
         fprintf(stderr, "%s: %llu pair tests (%.4g per particle-step), %llu events\n", backend_name,
                 (unsigned long long)st.pair_tests,
                 par.steps ? (double)st.pair_tests / ((double)par.n * (double)par.steps) : 0.0,
                 (unsigned long long)st.events);
+        /* the text: the input read and parsed; step 0 and the final state formatted and written */
+        fprintf(stderr, "%s: input %.1f MB: read %.4f s, parsed %.4f s (%.0f MB/s); step 0 and final state "
+                "%.1f MB: formatted and written %.4f s (%.0f MB/s)\n", backend_name, (double)io.in_bytes / 1e6,
+                io.read_s, io.parse_s, io.parse_s > 0 ? (double)io.in_bytes / 1e6 / io.parse_s : 0.0,
+                (double)io.out_bytes / 1e6, io.write_s, io.write_s > 0 ? (double)io.out_bytes / 1e6 / io.write_s : 0.0);
+        fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", backend_name, run_s,
+                st.seconds, io_now() - io.start);
+    }
     if (opt.pressure) {
         double impulse = 0; /* in index order: the same sum in every backend */
         for (int64_t i = 0; i < par.n; i++) impulse += sim.wi[i];

@@ -41,7 +41,6 @@ const char backend_options[] =
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
-#define PRINT_BLOCK 4096 /* lines one thread formats before the blocks are written in order */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 #define SCAN_WIDTH 4     /* boxes one group of the scan tests at once */
@@ -104,8 +103,6 @@ static inline int speed_bin(double a, double inv_span)
 /* Per-thread state, padded so that threads never share a cache line. */
 typedef struct {
     Found found;      /* pair events found by this thread this step */
-    char *text;       /* formatted lines (print mode) */
-    size_t text_len, text_cap;
     int64_t n_active; /* undecided disks of this thread's range, at active + range start */
     int64_t partial;  /* this thread's part of a prefix sum */
     size_t ev_off;    /* where this thread's events go in the gathered list */
@@ -124,6 +121,7 @@ typedef struct {
     const Params *p;
     const Options *opt;
     Output *out;
+    TextJob text;     /* print mode: the state being formatted and written */
     int nt;           /* threads in the parallel region */
     Plan plan;
     Thread *th;
@@ -951,29 +949,18 @@ static void move_range(Work *w, int tid)
 
 static void print_state(Work *w, int tid, int64_t step)
 {
-    Thread *th = &w->th[tid];
-    int64_t n = w->p->n;
-    int dump17 = io_dump17(w->out);
     slots_unpermute(w, tid);
 #pragma omp barrier
-    for (int64_t base = 0; base < n; base += (int64_t)w->nt * PRINT_BLOCK) {
-        int64_t from = base + (int64_t)tid * PRINT_BLOCK, to = from + PRINT_BLOCK;
-        if (to > n) to = n;
-        th->text_len = 0;
-        for (int64_t i = from; i < to; i++) {
-            th->text = omp_grow(th->text, &th->text_cap, th->text_len + IO_LINE_MAX, 1);
-            th->text_len += io_format_line(th->text + th->text_len, step, i, w->sim, 0, dump17);
-        }
-#pragma omp barrier
 #pragma omp single
-        for (int t = 0; t < w->nt; t++)
-            if (w->th[t].text_len) io_write_bytes(w->out, w->th[t].text, w->th[t].text_len);
+    io_text_begin(&w->text, w->out, step, w->sim, w->p->n, 0);
+    for (int64_t r = 0; r <= w->text.rounds; r++) {
+#pragma omp for schedule(dynamic, 1)
+        for (int64_t k = 0; k < io_text_tasks(&w->text, r); k++) io_text_task(&w->text, r, k);
     }
+#pragma omp single
+    io_text_end(&w->text);
 }
 
-/* ==== one step =========================================================================================== */
-
-/* One sub-step (a whole step unless --substeps). */
 static void step_run(Work *w, int tid, int64_t step)
 {
     const Params *p = w->p;
@@ -1034,36 +1021,30 @@ static void step_run(Work *w, int tid, int64_t step)
     io_progress(w->out, step / k);
 }
 
-/* Step 0 and the final state: rounds of PRINT_BLOCK lines per thread, each thread formatting into its
- * own buffer, the buffers written in thread order. */
-void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+/* The caller's state into this thread's range of slots, in original order (the first step sorts them),
+ * the speeds into this thread's histogram and fastest component: each thread first touches the memory
+ * it works on. */
+static void slots_fill(Work *w, int tid)
 {
-    int nt = io_threads(out) > 0 ? io_threads(out) : omp_get_max_threads();
-    if (nt < 2 || n < 2 * PRINT_BLOCK) {
-        io_write_state(out, step, sim, 0, n, with_counts);
-        return;
+    const Sim *sim = w->sim;
+    Slots *s = &w->s;
+    Thread *th = &w->th[tid];
+    double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t i = from; i < to; i++) {
+        s->x[i] = sim->x[i];
+        s->y[i] = sim->y[i];
+        s->vx[i] = sim->vx[i];
+        s->vy[i] = sim->vy[i];
+        s->id[i] = (int32_t)i;
+        s->pc[i] = sim->pc[i];
+        s->wc[i] = sim->wc[i];
+        if (sim->wi) s->wi[i] = sim->wi[i];
+        th->vmax = fastest(th->vmax, sim->vx[i], sim->vy[i]);
+        note_speed(th->speed_n, th->speed_s1, sim->vx[i], sim->vy[i], inv_span, 1);
     }
-    char **text = io_alloc((size_t)nt, sizeof *text);
-    size_t *cap = io_alloc((size_t)nt, sizeof *cap), *len = io_alloc((size_t)nt, sizeof *len);
-    int dump17 = io_dump17(out);
-    for (int64_t base = 0; base < n; base += (int64_t)nt * PRINT_BLOCK) {
-#pragma omp parallel num_threads(nt)
-        for (int t = omp_get_thread_num(); t < nt; t += omp_get_num_threads()) { /* any team size */
-            int64_t from = base + (int64_t)t * PRINT_BLOCK, to = from + PRINT_BLOCK;
-            if (to > n) to = n;
-            len[t] = 0;
-            for (int64_t i = from; i < to; i++) {
-                text[t] = omp_grow(text[t], &cap[t], len[t] + IO_LINE_MAX, 1);
-                len[t] += io_format_line(text[t] + len[t], step, i, sim, with_counts, dump17);
-            }
-        }
-        for (int t = 0; t < nt; t++)
-            if (len[t]) io_write_bytes(out, text[t], len[t]);
-    }
-    for (int t = 0; t < nt; t++) free(text[t]);
-    free(text);
-    free(cap);
-    free(len);
+#pragma omp barrier
 }
 
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
@@ -1078,6 +1059,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     if (opt->threads > 0) omp_set_num_threads(opt->threads);
     omp_set_dynamic(0);
     if (opt->exact) return omp_exact_run(sim, par, opt, out, st);
+    if (par->steps == 0) return 0; /* the state is the final state: nothing to set up */
     int nt_max = omp_get_max_threads();
     int64_t n = par->n;
     Work w;
@@ -1091,16 +1073,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     if (w.max_cells < 1) w.max_cells = 1;
     slots_alloc(&w.s, n, sim->wi != NULL);
     slots_alloc(&w.spare, n, sim->wi != NULL);
-    for (int64_t i = 0; i < n; i++) {
-        w.s.x[i] = sim->x[i];
-        w.s.y[i] = sim->y[i];
-        w.s.vx[i] = sim->vx[i];
-        w.s.vy[i] = sim->vy[i];
-        w.s.id[i] = (int32_t)i;
-        w.s.pc[i] = sim->pc[i];
-        w.s.wc[i] = sim->wc[i];
-        if (sim->wi) w.s.wi[i] = sim->wi[i];
-    }
     w.th = io_alloc((size_t)nt_max, sizeof *w.th);
     w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
     w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
@@ -1116,18 +1088,16 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.taken = io_alloc((size_t)n, sizeof *w.taken);
     w.box_slot = io_alloc((size_t)n, sizeof *w.box_slot);
     w.paths = paths_new(nt_max);
-    double inv_span = 1 / ((double)par->hi - (double)par->lo);
-    for (int64_t i = 0; i < n; i++) {
-        w.th[0].vmax = fastest(w.th[0].vmax, sim->vx[i], sim->vy[i]);
-        note_speed(w.speed_n, w.speed_s1, sim->vx[i], sim->vy[i], inv_span, 1);
-    }
 
-    double t0 = io_now();
+    double t0 = 0;
 #pragma omp parallel
     {
 #pragma omp single
         w.nt = omp_get_num_threads();
         int tid = omp_get_thread_num();
+        slots_fill(&w, tid);
+#pragma omp single
+        t0 = io_now(); /* the step loop from here */
         for (int64_t step = 1; step <= par->steps * par->substeps; step++) step_run(&w, tid, step);
         slots_unpermute(&w, tid);
     }
@@ -1141,7 +1111,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         st->events += w.th[t].events;
         free(w.th[t].found.ev);
         free(w.th[t].fast);
-        free(w.th[t].text);
     }
     int64_t steps = par->steps * par->substeps;
     if (opt->stats) {

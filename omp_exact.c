@@ -302,7 +302,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         while (!done) from = run_window(&w, from, &done, st);
 #pragma omp parallel for schedule(static)
         for (int64_t i = 0; i < n; i++) exact_finish(&w.d, par, i);
-        if (par->print && step < par->steps) backend_write_state(out, step, sim, n, 0);
+        if (par->print && step < par->steps) io_write_lines(out, step, sim, n, 0);
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;

@@ -165,18 +165,13 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
             if (e.j != e.i) st->pair_tests += exact_predict(&d, par, e.j, e.i, &h);
         }
         for (int64_t i = 0; i < par->n; i++) exact_finish(&d, par, i);
-        if (par->print && step < par->steps) io_write_state(out, step, sim, 0, par->n, 0);
+        if (par->print && step < par->steps) io_write_lines(out, step, sim, par->n, 0);
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;
     free(h.e);
     exact_free(&d);
     return 0;
-}
-
-void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
-{
-    io_write_state(out, step, sim, 0, n, with_counts);
 }
 
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
@@ -201,7 +196,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         st->events += choose_events(&events, par->n, event_of);
         move(sim, par, &events, event_of);
         if (sub % k) continue;
-        if (par->print && sub < last) io_write_state(out, sub / k, sim, 0, par->n, 0);
+        if (par->print && sub < last) io_write_lines(out, sub / k, sim, par->n, 0);
         io_progress(out, sub / k);
     }
     st->seconds = io_now() - t0;

@@ -1,4 +1,5 @@
-/* tools/fmtcheck.c: checks io.c's exact %.8f formatter against the C library's printf.
+/* tools/fmtcheck.c: checks io.c's exact %.8f formatter against the C library's printf, and its reader of
+ * reals (io_parse_real) against strtod.
  *
  * usage: tools/fmtcheck [COUNT]   (COUNT random doubles of each kind, default 1000000)
  *
@@ -6,8 +7,10 @@
  * with snprintf("%lld %lld %.8f %.8f %.8f %.8f\n"). Values: random bit patterns (every magnitude,
  * subnormals, both signs), random values near 1, dyadic values k/2^n, exact decimal ties at the 8th
  * digit (odd multiples of 2^-9), carries (x.999999995...), -0.0, tiny negatives, huge values, the
- * 2^64 boundary where io.c hands over to printf, inf and nan. Prints one summary line; exits 1 on the
- * first mismatch, printing both strings.
+ * 2^64 boundary where io.c hands over to printf, inf and nan. Each formatted real is also read back
+ * by io_parse_real and compared with strtod, bit for bit, and so are random decimal strings of 1 to 25
+ * digits with and without a point, a sign or an exponent (io_parse_real's shortcut and its hand-over
+ * to strtod). Prints one summary line; exits 1 on the first mismatch, printing both.
  */
 #include "../common.h"
 
@@ -19,11 +22,6 @@
 const char backend_name[] = "fmtcheck";
 const char backend_options[] = "";
 const unsigned backend_features = 0;
-
-void backend_write_state(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
-{
-    io_write_state(out, step, sim, 0, n, with_counts);
-}
 
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
@@ -54,6 +52,21 @@ static double from_bits(uint64_t b)
     return d;
 }
 
+static unsigned long long read_checked;
+
+/* io_parse_real(s) is strtod(s), bit for bit, where s is a finite real in range */
+static void check_read(const char *s)
+{
+    double mine = 0, libc = strtod(s, NULL);
+    int rc = io_parse_real(s, &mine);
+    if (!(libc - libc == 0)) return; /* inf, nan: refused by the reader, by design */
+    if (rc != 0 || memcmp(&mine, &libc, sizeof mine) != 0) {
+        printf("FAIL: '%s' read as %a (status %d), strtod %a\n", s, mine, rc, libc);
+        exit(1);
+    }
+    read_checked++;
+}
+
 static double pending[4];
 static int npending;
 static unsigned long long checked;
@@ -77,6 +90,10 @@ static void flush_line(void)
     }
     checked += 4;
     npending = 0;
+    /* the four reals read back as strtod reads them */
+    char *tok = strtok(libc, " \n");
+    for (int k = 0; tok; k++, tok = strtok(NULL, " \n"))
+        if (k >= 2) check_read(tok);
 }
 
 static void check(double v)
@@ -153,6 +170,21 @@ int main(int argc, char **argv)
         check(-(double)(u >> 11) / 9007199254740992.0 * 1e-8);
     }
     while (npending) check(0.0);
-    printf("fmtcheck: %llu values formatted exactly as printf(\"%%.8f\")\n", checked);
+    /* random decimal strings: 1 to 25 digits, a point or not, signs, some exponents */
+    for (long k = 0; k < count; k++) {
+        char s[64], *p = s;
+        uint64_t u = next_u64();
+        int digits = 1 + (int)(u % 25), point = (int)((u >> 5) % (unsigned)(digits + 2)) - 1;
+        if ((u >> 10) & 1) *p++ = (u >> 11) & 1 ? '-' : '+';
+        for (int d = 0; d < digits; d++) {
+            if (d == point) *p++ = '.';
+            *p++ = (char)('0' + next_u64() % 10);
+        }
+        if ((u >> 12) % 16 == 0) p += sprintf(p, "e%d", (int)((u >> 16) % 41) - 20);
+        *p = '\0';
+        check_read(s);
+    }
+    printf("fmtcheck: %llu values formatted exactly as printf(\"%%.8f\"), %llu reals read exactly as strtod\n",
+           checked, read_checked);
     return 0;
 }

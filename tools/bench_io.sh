@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# tools/bench_io.sh: the text path (reading and parsing the input, formatting and writing the output)
+# measured as a user meets it: whole process, wall clock around the command, output to a file. Each
+# row: the best and the median of REPEATS runs after a warm-up, (input + output bytes) / whole process,
+# and the program's own --stats split (read, parse, format and write: their MB/s).
+#   tools/bench_io.sh                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
+#   tools/bench_io.sh gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
+#                                    (S = 0 and 50) and of 1e8 (S = 10; BIG=0 leaves it out)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. tools/script_lib.sh
+REPEATS=${REPEATS:-5}
+WORK=${WORK:-bench/tmp}
+BIG=${BIG:-1}
+mode=${1:-cpu}
+THREADS=${THREADS:-$([ "$mode" = gpu ] && echo "1 2 4 8 16" || echo "1 2")}
+make -s seq omp tools/gen >/dev/null
+[ "$mode" != gpu ] || make -s cuda >/dev/null
+mkdir -p "$WORK"
+machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
+echo "# REPEATS=$REPEATS; output to $WORK/io.out (a file)"
+echo "program,threads,n,steps,in_mb,out_mb,best_s,median_s,mb_per_s,stats"
+
+# run LABEL N STEPS INPUT PROGRAM [ARGS]: one row
+run() {
+    local n=$1 steps=$2 in=$3 prog=$4 threads=$5
+    shift 5
+    local args=("$in" --stats "$@") walls=() s e k
+    [ "$threads" = - ] || args+=(--threads "$threads")
+    echo "# ./$prog ${args[*]} > $WORK/io.out"
+    ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err" # warm-up
+    for ((k = 0; k < REPEATS; k++)); do
+        s=$(date +%s%N)
+        ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err"
+        e=$(date +%s%N)
+        walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')")
+    done
+    local best median in_mb out_mb
+    best=$(printf '%s\n' "${walls[@]}" | sort -g | head -1)
+    median=$(printf '%s\n' "${walls[@]}" | sort -g | sed -n "$(((REPEATS + 1) / 2))p")
+    in_mb=$(awk -v b="$(stat -c %s "$in")" 'BEGIN { printf "%.1f", b / 1e6 }')
+    out_mb=$(awk -v b="$(stat -c %s "$WORK/io.out")" 'BEGIN { printf "%.1f", b / 1e6 }')
+    echo "$prog,${threads/-/1},$n,$steps,$in_mb,$out_mb,$best,$median,$(awk -v a="$in_mb" -v b="$out_mb" -v t="$best" \
+        'BEGIN { printf "%.0f", (a + b) / t }'),\"$(grep -h 'input ' "$WORK/io.err" | sed 's/^[a-z_0-9]*: //')\""
+}
+
+gas() { # gas N STEPS: the file of a gas of N disks (fraction 0.2, speeds up to r/2)
+    local f=$WORK/io_gas_$1_$2.in
+    [ -s "$f" ] || tools/gen "$1" --fraction 0.2 --speed 0.5 --steps "$2" > "$f"
+    echo "$f"
+}
+
+in=$(gas 1000000 0)
+for t in $THREADS; do run 1000000 0 "$in" omp "$t"; done
+[ "$mode" = gpu ] || run 1000000 0 "$in" seq -
+if [ "$mode" = gpu ]; then
+    in=$(gas 10000000 0); run 10000000 0 "$in" cuda -
+    in=$(gas 10000000 50); run 10000000 50 "$in" cuda -
+    if [ "$BIG" = 1 ]; then
+        REPEATS=1
+        in=$(gas 100000000 10); run 100000000 10 "$in" cuda -
+        rm -f "$WORK/io.out"
+    fi
+fi
