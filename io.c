@@ -313,17 +313,21 @@ void io_text_task(TextJob *j, int64_t r, int64_t k)
     int64_t b = r * TEXT_ROUND + k - (r > 0);
     TextBlock *t = &j->slot[b % (2 * TEXT_ROUND)];
     int64_t from = b * TEXT_LINES, to = from + TEXT_LINES < j->n ? from + TEXT_LINES : j->n;
-    t->len = 0;
+    /* in locals: the blocks' records share cache lines, and every line would move them between cores */
+    char *buf = t->buf;
+    size_t len = 0, cap = t->cap;
+    int dump17 = j->out->dump17;
     for (int64_t i = from; i < to; i++) {
-        if (t->len + IO_LINE_MAX > t->cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
-            size_t cap = t->cap ? 2 * t->cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
-            char *grown = realloc(t->buf, cap);
-            if (!grown) io_fail("out of memory formatting the output (%zu bytes)", cap);
-            t->buf = grown;
-            t->cap = cap;
+        if (len + IO_LINE_MAX > cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
+            cap = cap ? 2 * cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
+            buf = realloc(buf, cap);
+            if (!buf) io_fail("out of memory formatting the output (%zu bytes)", cap);
         }
-        t->len += io_format_line(t->buf + t->len, j->step, i, j->sim, j->with_counts, j->out->dump17);
+        len += io_format_line(buf + len, j->step, i, j->sim, j->with_counts, dump17);
     }
+    t->buf = buf;
+    t->cap = cap;
+    t->len = len;
 }
 
 void io_text_end(TextJob *j)
