@@ -144,6 +144,9 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
  * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included.
  * Returns 0, or non-zero after printing its own error message. */
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+/* Called once the input's header is read, before its particle lines: a backend may start slow set-up
+ * there that runs beside the reading (cuda creates its context when there are steps to run). */
+void backend_prepare(const Params *par);
 /* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's default;
  * seq: one, in order). The tasks must not depend on each other's order: io.c parses the particle lines
  * of the input in independent chunks this way (1e8 lines take minutes on one thread). */

@@ -38,6 +38,7 @@
 #include <condition_variable>
 #include <mutex>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 extern "C" const char backend_name[] = "cuda" SIM_SUFFIX;
@@ -1421,9 +1422,21 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     return 0;
 }
 
+/* With steps to run, the context is created while the particle lines are read. */
+extern "C" void backend_prepare(const Params *par)
+{
+    if (par->steps > 0 && !cuda_warm.joinable()) {
+        cuda_warm = std::thread([]() { (void)cudaFree(0); });
+        atexit(cuda_warm_join);
+    }
+}
+
+/* The output is flushed and every device buffer freed when io_main returns: _exit leaves the context's
+ * teardown to the driver, which reclaims it with the process (the runtime's own exit handlers take a
+ * large part of a second on some machines). */
 int main(int argc, char **argv)
 {
-    cuda_warm = std::thread([]() { (void)cudaFree(0); });
-    atexit(cuda_warm_join);
-    return io_main(argc, argv);
+    int rc = io_main(argc, argv);
+    fflush(NULL);
+    _exit(rc);
 }

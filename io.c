@@ -984,6 +984,7 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io
     rd.text = slurp(opt, &rd.size);
     double t1 = io_now();
     read_header(&rd, par);
+    backend_prepare(par);
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
                     (long long)par->n);

@@ -1047,6 +1047,11 @@ static void slots_fill(Work *w, int tid)
 #pragma omp barrier
 }
 
+void backend_prepare(const Params *par)
+{
+    (void)par;
+}
+
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     int nt = threads > 0 ? threads : omp_get_max_threads();

@@ -174,6 +174,11 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     return 0;
 }
 
+void backend_prepare(const Params *par)
+{
+    (void)par;
+}
+
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     (void)threads;

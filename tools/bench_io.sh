@@ -19,7 +19,7 @@ make -s seq omp tools/gen >/dev/null
 [ "$mode" != gpu ] || make -s cuda >/dev/null
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
-echo "# REPEATS=$REPEATS; output to $WORK/io.out (a file)"
+echo "# REPEATS=$REPEATS; output to $WORK/io.out (a new file each run)"
 echo "program,threads,n,steps,in_mb,out_mb,best_s,median_s,mb_per_s,stats"
 
 # run LABEL N STEPS INPUT PROGRAM [ARGS]: one row
@@ -34,6 +34,7 @@ run() {
     echo "# ./$prog ${args[*]} > $WORK/io.out"
     ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err" || true # warm-up
     for ((k = 0; k < REPEATS; k++)); do
+        rm -f "$WORK/io.out" # not timed: the shell's truncation of the last run's output
         s=$(date +%s%N)
         ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err"
         e=$(date +%s%N)

@@ -23,6 +23,11 @@ const char backend_name[] = "fmtcheck";
 const char backend_options[] = "";
 const unsigned backend_features = 0;
 
+void backend_prepare(const Params *par)
+{
+    (void)par;
+}
+
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     (void)threads;
