@@ -85,6 +85,7 @@ typedef struct {
     real hi;       /* largest allowed centre coordinate: L - r */
     real sigma2;   /* squared contact distance: (r + r) * (r + r) */
     int64_t substeps; /* K: sub-steps per step (--substeps), a power of two; 1 is SPEC.md */
+    int64_t first_step; /* steps already run: 0, or the step of the checkpoint a run resumes from */
 } Params;
 
 /* ---- state: structure of arrays, n entries each -------------------------------------------------- */
@@ -95,6 +96,7 @@ typedef struct {
     int32_t *pc;     /* collisions with other disks so far (<= S x K, checked; --exact checks its own) */
     int32_t *wc;     /* collisions with walls so far */
     double *wi;      /* --pressure: wall impulse received so far (unit mass x velocity); else NULL */
+    int32_t *last;   /* --exact: partner of each disk's last event, -1 for none (exact.h); else NULL */
 } Sim;
 
 /* ---- command-line options ------------------------------------------------------------------------ */
@@ -114,6 +116,9 @@ typedef struct {
     int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
     int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
                           _PATHS, _MIXED */
+    const char *checkpoint;   /* --checkpoint FILE: the state written there every checkpoint_every steps */
+    int64_t checkpoint_every; /* --checkpoint-every K (default 1000) */
+    const char *resume;       /* --resume FILE: go on from that checkpoint instead of reading an input */
 } Options;
 
 #define SIM_BROAD_AUTO 0
@@ -138,6 +143,7 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
 #define SIM_FEATURE_SUBSTEPS 1u
 #define SIM_FEATURE_PRESSURE 2u
 #define SIM_FEATURE_EXACT 4u
+#define SIM_FEATURE_CHECKPOINT 8u /* --checkpoint and --resume */
 /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
  * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
@@ -199,6 +205,12 @@ int io_dump17(const Output *out);
 int io_threads(const Output *out); /* --threads, 0 if not given */
 /* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
 void io_progress(Output *out, int64_t step);
+/* --checkpoint: whether the state after whole step `step` is to be saved, and saving it (sim in
+ * original order, velocities as the backend holds them: v / K). io_checkpoint first flushes stdout
+ * through that step, then writes FILE.tmp, syncs it and renames it over FILE, so that FILE is always
+ * a whole checkpoint; it fails the run with a message where it cannot. */
+int io_checkpoint_due(const Output *out, int64_t step);
+void io_checkpoint(Output *out, const Sim *sim, int64_t step);
 
 /* ---- the physics of SPEC.md section 3 ------------------------------------------------------------ */
 

@@ -43,7 +43,7 @@
 
 extern "C" const char backend_name[] = "cuda" SIM_SUFFIX;
 /* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
-extern "C" const unsigned backend_features = SIM_FEATURE_SUBSTEPS;
+extern "C" const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_CHECKPOINT;
 extern "C" const char backend_options[] = "";
 
 #define CUDA_CHECK(call)                                                                             \
@@ -795,8 +795,9 @@ typedef struct {
     Control *ctl;               /* device record */
     Control *ctl_host;          /* its pinned copies, one per batch in flight */
     cudaEvent_t batch_done[2];  /* the copy into ctl_host[b] is complete */
-    real *out_dev;              /* print mode: 4n reals in original order */
-    real *out_host[2];          /* pinned copies, one per batch in flight */
+    real *out_dev;              /* print mode and checkpoints: 4n reals in original order */
+    real *out_host[2];          /* pinned copies, one per batch in flight (checkpoints: then p, w) */
+    int checkpoints;            /* --checkpoint: out_host also holds the counts */
     cudaStream_t stream;
     int sms;
     int timed;                        /* --stats: time each phase with device events */
@@ -896,7 +897,8 @@ static double host_vmax(const Sim *sim, int64_t n)
 }
 
 /* vmax: the largest velocity component of sim (host_vmax) */
-static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, int timed, int64_t ev_cap)
+static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, int timed, int64_t ev_cap,
+                      int checkpoints)
 {
     int devices = 0;
     cudaError_t err = cudaGetDeviceCount(&devices);
@@ -909,6 +911,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, 0));
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
     c->timed = timed;
+    c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
             for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[s][k]));
@@ -964,10 +967,10 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
         c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
     }
-    if (par->print && par->steps > 1) {
+    if ((par->print && par->steps > 1) || checkpoints) {
+        size_t bytes = (size_t)n * (4 * sizeof(real) + (checkpoints ? 2 * sizeof(int32_t) : 0));
         c->out_dev = (real *)dev_alloc((size_t)n * 4 * sizeof(real), "the print buffer");
-        for (int b = 0; b < 2; b++)
-            CUDA_CHECK(cudaMallocHost((void **)&c->out_host[b], (size_t)n * 4 * sizeof(real)));
+        for (int b = 0; b < 2; b++) CUDA_CHECK(cudaMallocHost((void **)&c->out_host[b], bytes));
     }
 
     /* the state as the input left it: its four arrays copied as they are into the spare state buffer,
@@ -1252,6 +1255,30 @@ static void print_enqueue(Cuda *c, int b)
                                c->stream));
 }
 
+/* A checkpoint's counts, beside the state that print_enqueue has put on its way to out_host[b]. */
+static void counts_enqueue(Cuda *c, int b)
+{
+    int64_t n = c->n;
+    int32_t *counts = (int32_t *)(c->out_host[b] + 4 * n);
+    CUDA_CHECK(cudaMemcpyAsync(counts, c->pc, (size_t)n * 4, cudaMemcpyDeviceToHost, c->stream));
+    CUDA_CHECK(cudaMemcpyAsync(counts + n, c->wc, (size_t)n * 4, cudaMemcpyDeviceToHost, c->stream));
+}
+
+/* Saves the checkpoint of whole step `step` from out_host[b] (its batch is complete). */
+static void checkpoint_state(Cuda *c, Output *out, int b, int64_t step)
+{
+    int64_t n = c->n;
+    Sim view;
+    memset(&view, 0, sizeof view);
+    view.x = c->out_host[b];
+    view.y = view.x + n;
+    view.vx = view.x + 2 * n;
+    view.vy = view.x + 3 * n;
+    view.pc = (int32_t *)(view.x + 4 * n);
+    view.wc = view.pc + n;
+    io_checkpoint(out, &view, step);
+}
+
 /* Formats the state in out_host[b] (its batch is complete). */
 static void print_state(Cuda *c, Output *out, int b, int64_t step)
 {
@@ -1284,9 +1311,10 @@ static void state_download(Cuda *c, Sim *sim)
     CUDA_CHECK(cudaMemcpy(sim->wc, c->wc, ni, cudaMemcpyDeviceToHost));
 }
 
-/* Steps first..last of one plan, launched together; print: the whole step printed after the last. */
+/* Steps first..last of one plan, launched together; print: the whole step printed after the last;
+ * ck: the whole step saved as a checkpoint after the last. */
 typedef struct {
-    int64_t first, last, print;
+    int64_t first, last, print, ck;
 } Batch;
 
 /* Creating CUDA's context takes a few hundred milliseconds: it is started beside the reading of the
@@ -1322,7 +1350,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     cuda_warm_join();
     double h1 = io_now();
     Cuda c;
-    cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096);
+    cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096,
+              opt->checkpoint != NULL);
     double h2 = io_now();
     Control last_read, prev_read;           /* the newest control record read back, and the one before */
     memset(&last_read, 0, sizeof last_read);
@@ -1333,7 +1362,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = io_now();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
-    int64_t k = par->substeps, last = par->steps * k, next = 1;
+    int64_t k = par->substeps, last = par->steps * k;
+    int64_t base = par->first_step * k, next = base + 1; /* a resumed run starts after its checkpoint */
     Batch batch[2];
     int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
     int cur_at[RING];         /* the state buffer each step in flight starts from */
@@ -1349,16 +1379,25 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
             bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
             if (!prev_read.steps) bt->last = next;
             bt->print = 0;
+            bt->ck = 0;
             int64_t shown = (next + k - 1) / k * k; /* the first whole step from next on */
             if (par->print && shown < last && shown <= bt->last) {
                 bt->last = shown;
                 bt->print = shown / k;
             }
+            if (opt->checkpoint) {
+                int64_t every = opt->checkpoint_every, due = ((next + k - 1) / k + every - 1) / every * every;
+                if (due * k <= bt->last && io_checkpoint_due(out, due)) {
+                    bt->last = due * k; /* a print step in this batch can only be this one */
+                    bt->ck = due;
+                }
+            }
             for (int64_t s = bt->first; s <= bt->last; s++) {
                 cur_at[s % RING] = c.cur;
                 step_launch(&c, &pl, (int)(s % RING));
             }
-            if (bt->print) print_enqueue(&c, b);
+            if (bt->print || bt->ck) print_enqueue(&c, b);
+            if (bt->ck) counts_enqueue(&c, b);
             CUDA_CHECK(cudaMemcpyAsync(&c.ctl_host[b], c.ctl, sizeof(Control), cudaMemcpyDeviceToHost,
                                        c.stream));
             CUDA_CHECK(cudaEventRecord(c.batch_done[b], c.stream));
@@ -1369,7 +1408,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         Batch *bt = &batch[head];
         CUDA_CHECK(cudaEventSynchronize(c.batch_done[head]));
         last_read = c.ctl_host[head];
-        int64_t done = (int64_t)last_read.steps;
+        int64_t done = base + (int64_t)last_read.steps;
         known = bits_speed(last_read.vmax);
         if (c.timed) phase_collect(&c, bt->first, done < bt->last ? done : bt->last);
         if (last_read.refused) {
@@ -1403,6 +1442,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         }
         prev_read = last_read;
         if (bt->print) print_state(&c, out, head, bt->print);
+        if (bt->ck) checkpoint_state(&c, out, head, bt->ck);
         io_progress(out, bt->last / k);
         head = 1 - head;
         flying--;

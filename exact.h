@@ -84,9 +84,13 @@ static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
     d->slack = slack < most ? slack : most;
     d->t = io_alloc((size_t)n, sizeof *d->t);
     d->ver = io_alloc((size_t)n, sizeof *d->ver);
-    d->last = io_alloc((size_t)n, sizeof *d->last);
     d->step_events = io_alloc((size_t)n, sizeof *d->step_events);
-    for (int64_t i = 0; i < n; i++) d->last[i] = -1;
+    /* the last partners outlive a step (a checkpoint keeps them): the Sim holds them */
+    if (!sim->last) {
+        sim->last = io_alloc((size_t)n, sizeof *sim->last);
+        for (int64_t i = 0; i < n; i++) sim->last[i] = -1;
+    }
+    d->last = sim->last;
 }
 
 /* Stops the run before its first step if a disk alone would cross the box more often within one step
@@ -108,7 +112,6 @@ static inline void exact_free(ExactDisks *d)
 {
     free(d->t);
     free(d->ver);
-    free(d->last);
     free(d->step_events);
 }
 

@@ -11,6 +11,7 @@
 #include "exact.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -78,6 +79,7 @@ void sim_free(Sim *sim)
     free(sim->pc);
     free(sim->wc);
     free(sim->wi);
+    free(sim->last);
     memset(sim, 0, sizeof *sim);
 }
 
@@ -90,6 +92,11 @@ struct Output {
     int threads;       /* --threads, for backends that format on several threads; 0: their default */
     int progress;      /* stderr is a terminal */
     int64_t steps;     /* for the progress line */
+    int64_t first;     /* the step the run started from (its progress counts from there) */
+    const char *ck_path;  /* --checkpoint FILE, or NULL */
+    int64_t ck_every;     /* --checkpoint-every */
+    const Params *par;    /* what a checkpoint records of the run */
+    const Options *opt;
     double start;      /* io_now() when the step loop began */
     double next_show;  /* io_now() of the next progress update */
     int shown;         /* a progress line is on the terminal */
@@ -369,11 +376,269 @@ void io_progress(Output *out, int64_t step)
     if (now < out->next_show) return;
     out->next_show = now + 0.5;
     double spent = now - out->start;
-    if (spent < 2.0 || step <= 0) return;
-    double left = spent * (double)(out->steps - step) / (double)step;
+    if (spent < 2.0) return;
+    if (step <= out->first) return;
+    double left = spent * (double)(out->steps - step) / (double)(step - out->first);
     fprintf(stderr, "\r%s: step %lld of %lld (%.0f%%), %.0f s left   ", backend_name, (long long)step,
             (long long)out->steps, 100.0 * (double)step / (double)out->steps, left);
     out->shown = 1;
+}
+
+/* ==== checkpoints ========================================================================================= */
+
+/* A checkpoint file: "DISKSCKP", format version, bytes of a real (8: double, 4: float), then the run
+ * (n, L, r, S, the step reached, K, print, exact, pressure, dump17), then x, y, vx, vy (velocities per
+ * step, as in the output), the counts p and w, the wall impulses (with --pressure), the partners of
+ * the disks' last events (--exact), and a checksum of everything before it. Native byte order: it is
+ * read back by the same programs on the same kind of machine. */
+#define CK_MAGIC "DISKSCKP"
+#define CK_VERSION 1u
+
+typedef struct {
+    char magic[8];
+    uint32_t version, real_bytes;
+    int64_t n, steps, step, substeps;
+    double L, r;
+    int32_t print, exact, pressure, dump17;
+} CkHeader;
+
+/* The checksum: the bytes as 64-bit words, each mixed in by a bijection of the running value (so any
+ * one damaged word changes it), then the last 0-7 bytes one at a time. A word a step keeps it near
+ * memory speed: a checkpoint of 1e7 disks is 400 MB. */
+typedef struct {
+    uint64_t h;
+    unsigned char carry[8];
+    unsigned nc;
+} CkHash;
+
+static uint64_t ck_mix(uint64_t h, uint64_t w)
+{
+    h ^= w;
+    return ((h << 31) | (h >> 33)) * 0x9e3779b97f4a7c15u;
+}
+
+static void ck_hash(CkHash *s, const void *bytes, size_t len)
+{
+    const unsigned char *b = bytes;
+    uint64_t w;
+    while (s->nc && len) {
+        s->carry[s->nc++] = *b++, len--;
+        if (s->nc == 8) {
+            memcpy(&w, s->carry, 8);
+            s->h = ck_mix(s->h, w);
+            s->nc = 0;
+        }
+    }
+    for (; len >= 8; b += 8, len -= 8) {
+        memcpy(&w, b, 8);
+        s->h = ck_mix(s->h, w);
+    }
+    while (len) s->carry[s->nc++] = *b++, len--;
+}
+
+static uint64_t ck_hash_end(const CkHash *s)
+{
+    uint64_t h = s->h;
+    for (unsigned k = 0; k < s->nc; k++) h = ck_mix(h, s->carry[k]);
+    return h;
+}
+
+typedef struct {
+    int fd;
+    const char *path;
+    CkHash hash;
+    char buf[1 << 16];
+    size_t len;
+} CkWriter;
+
+static void ck_flush(CkWriter *w)
+{
+    size_t done = 0;
+    while (done < w->len) {
+        ssize_t got = write(w->fd, w->buf + done, w->len - done);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) io_fail("cannot write the checkpoint %s: %s", w->path, got < 0 ? strerror(errno) : "short write");
+        done += (size_t)got;
+    }
+    w->len = 0;
+}
+
+static void ck_put(CkWriter *w, const void *bytes, size_t len)
+{
+    ck_hash(&w->hash, bytes, len);
+    const char *b = bytes;
+    while (len) {
+        size_t part = sizeof w->buf - w->len < len ? sizeof w->buf - w->len : len;
+        memcpy(w->buf + w->len, b, part);
+        w->len += part, b += part, len -= part;
+        if (w->len == sizeof w->buf) ck_flush(w);
+    }
+}
+
+/* n reals times f (the velocities' K: exact, a power of two) */
+static void ck_put_reals(CkWriter *w, const real *v, int64_t n, real f)
+{
+    real chunk[1024];
+    for (int64_t i = 0; i < n; i += 1024) {
+        int64_t m = n - i < 1024 ? n - i : 1024;
+        for (int64_t k = 0; k < m; k++) chunk[k] = v[i + k] * f;
+        ck_put(w, chunk, (size_t)m * sizeof(real));
+    }
+}
+
+int io_checkpoint_due(const Output *out, int64_t step)
+{
+    return out->ck_path && step % out->ck_every == 0 && step > out->first && step < out->steps;
+}
+
+void io_checkpoint(Output *out, const Sim *sim, int64_t step)
+{
+    out_flush(out); /* stdout holds every line through this step before the checkpoint says so */
+    const Params *par = out->par;
+    size_t plen = strlen(out->ck_path);
+    char *tmp = io_alloc(plen + 5, 1);
+    memcpy(tmp, out->ck_path, plen);
+    memcpy(tmp + plen, ".tmp", 5);
+    CkWriter *w = io_alloc(1, sizeof *w);
+    w->path = tmp;
+    w->fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (w->fd < 0) io_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
+    CkHeader h;
+    memset(&h, 0, sizeof h);
+    memcpy(h.magic, CK_MAGIC, 8);
+    h.version = CK_VERSION;
+    h.real_bytes = (uint32_t)sizeof(real);
+    h.n = par->n, h.steps = par->steps, h.step = step, h.substeps = par->substeps;
+    h.L = (double)par->L, h.r = (double)par->r;
+    h.print = par->print, h.exact = out->opt->exact, h.pressure = sim->wi != NULL, h.dump17 = out->dump17;
+    ck_put(w, &h, sizeof h);
+    ck_put_reals(w, sim->x, par->n, 1);
+    ck_put_reals(w, sim->y, par->n, 1);
+    ck_put_reals(w, sim->vx, par->n, v_unscale);
+    ck_put_reals(w, sim->vy, par->n, v_unscale);
+    ck_put(w, sim->pc, (size_t)par->n * sizeof *sim->pc);
+    ck_put(w, sim->wc, (size_t)par->n * sizeof *sim->wc);
+    if (sim->wi) ck_put(w, sim->wi, (size_t)par->n * sizeof *sim->wi);
+    if (h.exact) ck_put(w, sim->last, (size_t)par->n * sizeof *sim->last);
+    uint64_t hash = ck_hash_end(&w->hash);
+    ck_put(w, &hash, sizeof hash);
+    ck_flush(w);
+    if (fsync(w->fd) != 0) io_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
+    close(w->fd);
+    if (rename(tmp, out->ck_path) != 0)
+        io_fail("cannot replace the checkpoint %s: %s", out->ck_path, strerror(errno));
+    /* and the directory's entry: the rename itself survives a crash */
+    char *dir = io_alloc(plen + 2, 1);
+    memcpy(dir, out->ck_path, plen + 1);
+    char *slash = strrchr(dir, '/');
+    if (slash) slash[slash == dir] = '\0';
+    else strcpy(dir, ".");
+    int dfd = open(dir, O_RDONLY);
+    if (dfd >= 0) {
+        (void)fsync(dfd);
+        close(dfd);
+    }
+    free(dir);
+    free(tmp);
+    free(w);
+}
+
+/* --checkpoint FILE is tried before the run starts: a run of hours should not learn at its first
+ * checkpoint that FILE cannot be written. */
+static void ck_probe(const char *path)
+{
+    struct stat st;
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
+        io_fail("--checkpoint %s: exists and is not a regular file", path);
+    size_t plen = strlen(path);
+    char *tmp = io_alloc(plen + 5, 1);
+    memcpy(tmp, path, plen);
+    memcpy(tmp + plen, ".tmp", 5);
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) io_fail("--checkpoint %s: cannot write %s (%s)", path, tmp, strerror(errno));
+    close(fd);
+    unlink(tmp);
+    free(tmp);
+}
+
+/* The run and the state of a checkpoint, for --resume: the options that shape the dynamics (K, exact,
+ * pressure) and the output (print, dump17) come from it; anything wrong with the file is refused
+ * before a byte of output. */
+static void ck_read(Options *opt, Params *par, Sim *sim)
+{
+    const char *path = opt->resume;
+    int fd = open(path, O_RDONLY);
+    if (fd < 0) io_fail("%s: cannot open the checkpoint (%s)", path, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) io_fail("%s: not a checkpoint (not a regular file)", path);
+    CkHeader h;
+    if (read(fd, &h, sizeof h) != (ssize_t)sizeof h || memcmp(h.magic, CK_MAGIC, 8) != 0)
+        io_fail("%s: not a checkpoint (it does not start with %s)", path, CK_MAGIC);
+    if (h.version != CK_VERSION)
+        io_fail("%s: a checkpoint of format %u; this program reads format %u", path, h.version, CK_VERSION);
+    if (h.real_bytes != sizeof(real))
+        io_fail("%s: a checkpoint of %s precision; %s computes in %s", path, h.real_bytes == 8 ? "double" : "single",
+                backend_name, sizeof(real) == 8 ? "double" : "single");
+    if (h.n < 1 || h.n > SIM_MAX_N || h.steps < 0 || h.step < 1 || h.step >= h.steps || h.substeps < 1 ||
+        h.substeps > 1024 || (h.substeps & (h.substeps - 1)) || !(h.L > 0) || !(h.r > 0))
+        io_fail("%s: a checkpoint with impossible values (N = %lld, step %lld of %lld, K = %lld)", path,
+                (long long)h.n, (long long)h.step, (long long)h.steps, (long long)h.substeps);
+    uint64_t n = (uint64_t)h.n;
+    uint64_t want = sizeof h + n * (4 * sizeof(real) + 2 * sizeof(int32_t)) + (h.pressure ? n * sizeof(double) : 0) +
+                    (h.exact ? n * sizeof(int32_t) : 0) + 8;
+    if ((uint64_t)st.st_size != want)
+        io_fail("%s: a checkpoint of %lld bytes, where its header calls for %llu (cut short or extended)", path,
+                (long long)st.st_size, (unsigned long long)want);
+    if (h.exact && !(backend_features & SIM_FEATURE_EXACT))
+        io_fail("%s: a checkpoint of an --exact run, which %s does not support", path, backend_name);
+    if (h.pressure && !(backend_features & SIM_FEATURE_PRESSURE))
+        io_fail("%s: a checkpoint of a --pressure run, which %s does not support", path, backend_name);
+    if (h.substeps > 1 && !(backend_features & SIM_FEATURE_SUBSTEPS))
+        io_fail("%s: a checkpoint of a --substeps run, which %s does not support", path, backend_name);
+    if (sim_alloc(sim, h.n)) io_fail("%s: not enough memory for the particles (N = %lld)", path, (long long)h.n);
+    if (h.pressure) sim->wi = io_alloc(n, sizeof *sim->wi);
+    if (h.exact) sim->last = io_alloc(n, sizeof *sim->last);
+    CkHash hash = {0, {0}, 0};
+    ck_hash(&hash, &h, sizeof h);
+    void *arrays[8] = {sim->x, sim->y, sim->vx, sim->vy, sim->pc, sim->wc, sim->wi, sim->last};
+    size_t sizes[8] = {sizeof(real), sizeof(real), sizeof(real), sizeof(real), 4, 4, 8, 4};
+    for (int a = 0; a < 8; a++) {
+        char *b = arrays[a];
+        if (!b) continue; /* no --pressure or no --exact */
+        size_t len = n * sizes[a], done = 0;
+        while (done < len) {
+            ssize_t got = read(fd, b + done, len - done);
+            if (got < 0 && errno == EINTR) continue;
+            if (got <= 0) io_fail("%s: cannot read the checkpoint (%s)", path, got < 0 ? strerror(errno) : "cut short");
+            done += (size_t)got;
+        }
+        ck_hash(&hash, b, len);
+    }
+    uint64_t stored;
+    if (read(fd, &stored, sizeof stored) != (ssize_t)sizeof stored || stored != ck_hash_end(&hash))
+        io_fail("%s: the checkpoint's checksum does not match its contents (damaged)", path);
+    close(fd);
+    for (int64_t i = 0; i < h.n; i++)
+        if (!(sim->x[i] >= (real)h.r && sim->x[i] <= (real)h.L - (real)h.r && sim->y[i] >= (real)h.r &&
+              sim->y[i] <= (real)h.L - (real)h.r && sim->pc[i] >= 0 && sim->wc[i] >= 0 &&
+              (!sim->last || (sim->last[i] >= -1 && sim->last[i] < h.n && sim->last[i] != i))))
+            io_fail("%s: disk %lld of the checkpoint is outside the box or has impossible counts", path, (long long)i);
+    par->n = h.n;
+    par->L = (real)h.L;
+    par->r = (real)h.r;
+    par->steps = h.steps;
+    par->print = h.print;
+    par->lo = par->r;
+    par->hi = par->L - par->r;
+    par->sigma2 = (par->r + par->r) * (par->r + par->r);
+    par->first_step = h.step;
+    opt->substeps = (int)h.substeps;
+    opt->exact = h.exact;
+    opt->pressure = h.pressure;
+    opt->dump17 = h.dump17;
+    if (!opt->quiet)
+        fprintf(stderr, "%s: resuming %s at step %lld of %lld\n", backend_name, path, (long long)h.step,
+                (long long)h.steps);
 }
 
 /* ==== reading the input ==================================================================================== */
@@ -1030,6 +1295,11 @@ static void usage(FILE *f)
             "  --quiet      no timing line on stderr\n"
             "  --exact      event-driven: every collision in time order, any number per disk and step\n"
             "               (the exact elastic dynamics up to rounding); not with --substeps\n"
+            "  --checkpoint FILE   save the whole state in FILE every --checkpoint-every steps\n"
+            "               (default 1000), replacing it whole each time (FILE.tmp, then a rename)\n"
+            "  --resume FILE       go on from the checkpoint FILE (no INPUT): prints what the\n"
+            "               interrupted run had not printed (print mode: the steps after the\n"
+            "               checkpoint's; perf: the final state); the run's options come from FILE\n"
             "  --help       this text\n"
             "%s",
             backend_name, DEFAULT_SEED, backend_options);
@@ -1097,6 +1367,14 @@ static void parse_args(int argc, char **argv, Options *opt)
             else if (strcmp(val, "mixed") == 0) opt->broad = SIM_BROAD_MIXED;
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
             else io_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
+        } else if (strcmp(a, "--checkpoint") == 0) {
+            if (k + 1 >= argc) io_fail("--checkpoint needs a file name");
+            opt->checkpoint = argv[++k];
+        } else if (strcmp(a, "--checkpoint-every") == 0) {
+            opt->checkpoint_every = option_value(argc, argv, &k, 1, SIM_MAX_STEPS);
+        } else if (strcmp(a, "--resume") == 0) {
+            if (k + 1 >= argc) io_fail("--resume needs a checkpoint file");
+            opt->resume = argv[++k];
         } else if (a[0] == '-' && a[1] != '\0') {
             io_fail("unknown option '%s' (see --help)", a);
         } else if (opt->path) {
@@ -1107,6 +1385,17 @@ static void parse_args(int argc, char **argv, Options *opt)
     }
     /* --exact already has every collision: sub-steps would only cut its steps into more windows */
     if (opt->exact && substeps_given) io_fail("--exact and --substeps exclude each other");
+    if ((opt->checkpoint || opt->resume) && !(backend_features & SIM_FEATURE_CHECKPOINT))
+        io_fail("--checkpoint and --resume are not supported by %s yet", backend_name);
+    if (opt->checkpoint_every && !opt->checkpoint) io_fail("--checkpoint-every needs --checkpoint FILE");
+    if (!opt->checkpoint_every) opt->checkpoint_every = 1000;
+    if (opt->resume) {
+        /* the run is the checkpoint's: these would change it */
+        if (opt->path) io_fail("--resume reads no input file ('%s' given)", opt->path);
+        if (substeps_given || opt->pressure || opt->dump17 || opt->seed_given || opt->exact)
+            io_fail("--resume takes --substeps, --exact, --pressure, --dump17 and --seed from the checkpoint: "
+                    "leave them out");
+    }
     if (!opt->path) opt->path = "-";
     opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
 }
@@ -1127,11 +1416,20 @@ int io_main(int argc, char **argv)
     Params par;
     Sim sim;
     parse_args(argc, argv, &opt);
+    if (opt.checkpoint) ck_probe(opt.checkpoint);
     signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
     IoTimes io;
     memset(&io, 0, sizeof io);
     io.start = io_now();
-    io_read_input(&opt, &par, &sim, &io);
+    if (opt.resume) {
+        memset(&par, 0, sizeof par);
+        memset(&sim, 0, sizeof sim);
+        ck_read(&opt, &par, &sim);
+        backend_prepare(&par);
+    } else {
+        io_read_input(&opt, &par, &sim, &io);
+        par.first_step = 0;
+    }
 
     Output out;
     memset(&out, 0, sizeof out);
@@ -1140,6 +1438,11 @@ int io_main(int argc, char **argv)
     out.threads = opt.threads;
     out.progress = isatty(STDERR_FILENO);
     out.steps = par.steps;
+    out.first = par.first_step;
+    out.ck_path = opt.checkpoint;
+    out.ck_every = opt.checkpoint_every;
+    out.par = &par;
+    out.opt = &opt;
     /* runs that cannot finish are refused before the first byte of output */
     if (opt.exact) exact_check_speeds(&sim, &par);
     if (par.steps * (int64_t)opt.substeps > INT32_MAX)
@@ -1147,7 +1450,7 @@ int io_main(int argc, char **argv)
                 "(S x K must be <= %d)",
                 opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
     double w0 = io_now();
-    io_write_lines(&out, 0, &sim, par.n, 0);
+    if (!opt.resume) io_write_lines(&out, 0, &sim, par.n, 0); /* a resumed run's step 0 is out already */
     out_flush(&out);
     io.write_s = io_now() - w0;
     io.out_bytes = bytes_written;
@@ -1157,7 +1460,7 @@ int io_main(int argc, char **argv)
     real k = (real)opt.substeps;
     scale_velocities(&sim, par.n, 1 / k);
     v_unscale = k;
-    if (opt.pressure) sim.wi = io_alloc((size_t)par.n, sizeof *sim.wi);
+    if (opt.pressure && !sim.wi) sim.wi = io_alloc((size_t)par.n, sizeof *sim.wi);
 
     RunStats st;
     memset(&st, 0, sizeof st);
@@ -1176,15 +1479,15 @@ int io_main(int argc, char **argv)
     io.write_s += io_now() - w0;
     io.out_bytes += bytes_written - before;
     if (!opt.quiet) {
-        double ps = (double)par.n * (double)par.steps;
+        double ps = (double)par.n * (double)(par.steps - par.first_step); /* a resumed run: the steps it ran */
         fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",
-                backend_name, (long long)par.n, (long long)par.steps, par.print ? "print" : "perf",
+                backend_name, (long long)par.n, (long long)(par.steps - par.first_step), par.print ? "print" : "perf",
                 st.seconds, st.seconds > 0 ? ps / st.seconds : 0.0);
     }
     if (opt.stats) {
         fprintf(stderr, "%s: %llu pair tests (%.4g per particle-step), %llu events\n", backend_name,
                 (unsigned long long)st.pair_tests,
-                par.steps ? (double)st.pair_tests / ((double)par.n * (double)par.steps) : 0.0,
+                par.steps > par.first_step ? (double)st.pair_tests / ((double)par.n * (double)(par.steps - par.first_step)) : 0.0,
                 (unsigned long long)st.events);
         /* the text: the input read and parsed; step 0 and the final state formatted and written */
         fprintf(stderr, "%s: input %.1f MB: read %.4f s, parsed %.4f s (%.0f MB/s); step 0 and final state "

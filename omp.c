@@ -38,7 +38,8 @@ const char backend_options[] =
     "  --broad B    the broad phase: grid (cells as wide as the fastest disk's step), paths (each\n"
     "               disk's path through the cells it crosses), mixed (slow disks in a grid, the\n"
     "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
+const unsigned backend_features =
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
@@ -981,7 +982,9 @@ static void step_run(Work *w, int tid, int64_t step)
     if (w->plan.mode == MODE_PATHS) {
         paths_find(w->paths, &w->s, p, w->wall_t, NULL, NULL, 0, &th->found, tid, w->nt);
     } else {
-        bin_grid(w, tid, step % REORDER_EVERY == 1 ? BIN_REORDER : BIN_SLOTS);
+        /* reordered on a run's first step too: a resumed run starts from the original order */
+        int first = step == p->first_step * p->substeps + 1;
+        bin_grid(w, tid, step % REORDER_EVERY == 1 || first ? BIN_REORDER : BIN_SLOTS);
         scan_grid(w, tid);
         if (w->plan.mode == MODE_MIXED) {
             const Plan *pl = &w->plan;
@@ -1017,6 +1020,12 @@ static void step_run(Work *w, int tid, int64_t step)
     int64_t k = p->substeps;
     if (step % k) return;
     if (p->print && step < p->steps * k) print_state(w, tid, step / k);
+    if (io_checkpoint_due(w->out, step / k)) {
+        if (!p->print) slots_unpermute(w, tid); /* print_state has done it */
+#pragma omp barrier
+#pragma omp single
+        io_checkpoint(w->out, w->sim, step / k);
+    }
 #pragma omp single
     io_progress(w->out, step / k);
 }
@@ -1103,7 +1112,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         slots_fill(&w, tid);
 #pragma omp single
         t0 = io_now(); /* the step loop from here */
-        for (int64_t step = 1; step <= par->steps * par->substeps; step++) step_run(&w, tid, step);
+        for (int64_t step = par->first_step * par->substeps + 1; step <= par->steps * par->substeps; step++)
+            step_run(&w, tid, step);
         slots_unpermute(&w, tid);
     }
     st->seconds = io_now() - t0;

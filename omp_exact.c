@@ -296,13 +296,14 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.rate = (double)n;
 
     double t0 = io_now();
-    for (int64_t step = 1; step <= par->steps; step++) {
+    for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
         int done = 0;
         real from = 0;
         while (!done) from = run_window(&w, from, &done, st);
 #pragma omp parallel for schedule(static)
         for (int64_t i = 0; i < n; i++) exact_finish(&w.d, par, i);
         if (par->print && step < par->steps) io_write_lines(out, step, sim, n, 0);
+        if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;

@@ -13,7 +13,8 @@
 
 const char backend_name[] = "seq" SIM_SUFFIX;
 const char backend_options[] = "";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT;
+const unsigned backend_features =
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT;
 
 typedef struct {
     real t;  /* time of the event within the step, 0..1 */
@@ -144,7 +145,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     ExactHeap h = {NULL, 0, 0};
     exact_alloc(&d, sim, par);
     double t0 = io_now();
-    for (int64_t step = 1; step <= par->steps; step++) {
+    for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
         h.len = 0;
         for (int64_t i = 0; i < par->n; i++) {
             real t = exact_wall_time(&d, par, i);
@@ -166,6 +167,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
         }
         for (int64_t i = 0; i < par->n; i++) exact_finish(&d, par, i);
         if (par->print && step < par->steps) io_write_lines(out, step, sim, par->n, 0);
+        if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
     st->seconds = io_now() - t0;
@@ -194,7 +196,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
     int64_t k = par->substeps, last = par->steps * k;
     double t0 = io_now();
-    for (int64_t sub = 1; sub <= last; sub++) {
+    for (int64_t sub = par->first_step * k + 1; sub <= last; sub++) {
         events.len = 0;
         detect_walls(sim, par, &events);
         st->pair_tests += detect_pairs(sim, par, &events);
@@ -202,6 +204,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         move(sim, par, &events, event_of);
         if (sub % k) continue;
         if (par->print && sub < last) io_write_lines(out, sub / k, sim, par->n, 0);
+        if (io_checkpoint_due(out, sub / k)) io_checkpoint(out, sim, sub / k);
         io_progress(out, sub / k);
     }
     st->seconds = io_now() - t0;

@@ -80,7 +80,7 @@ static void flush_line(void)
 {
     static double x[1], y[1], vx[1], vy[1];
     static int32_t pc[1], wc[1];
-    Sim sim = {x, y, vx, vy, pc, wc, NULL};
+    Sim sim = {x, y, vx, vy, pc, wc, NULL, NULL};
     char mine[IO_LINE_MAX], libc[IO_LINE_MAX];
     x[0] = pending[0], y[0] = pending[1], vx[0] = pending[2], vy[0] = pending[3];
     int64_t step = (int64_t)(next_u64() >> 33);
