@@ -144,6 +144,7 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
 #define SIM_FEATURE_PRESSURE 2u
 #define SIM_FEATURE_EXACT 4u
 #define SIM_FEATURE_CHECKPOINT 8u /* --checkpoint and --resume */
+#define SIM_FEATURE_STEP0 16u     /* perf mode: the backend writes step 0 (io_write_step0) beside its steps */
 /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
  * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
@@ -211,6 +212,10 @@ void io_progress(Output *out, int64_t step);
  * a whole checkpoint; it fails the run with a message where it cannot. */
 int io_checkpoint_due(const Output *out, int64_t step);
 void io_checkpoint(Output *out, const Sim *sim, int64_t step);
+/* SIM_FEATURE_STEP0: whether this run's step 0 is the backend's to write, and writing it (sim as the
+ * backend received it, before it changes sim; any thread, while no other writes to out). */
+int io_step0_pending(const Output *out);
+void io_write_step0(Output *out, const Sim *sim);
 
 /* ---- the physics of SPEC.md section 3 ------------------------------------------------------------ */
 

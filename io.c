@@ -98,6 +98,9 @@ struct Output {
     const Params *par;    /* what a checkpoint records of the run */
     const Options *opt;
     double start;      /* io_now() when the step loop began */
+    int step0_pending; /* the backend is to write step 0 (SIM_FEATURE_STEP0) */
+    double step0_s;    /* seconds spent writing step 0, and its bytes */
+    uint64_t step0_bytes;
     double next_show;  /* io_now() of the next progress update */
     int shown;         /* a progress line is on the terminal */
 };
@@ -484,6 +487,22 @@ static void ck_put_reals(CkWriter *w, const real *v, int64_t n, real f)
         for (int64_t k = 0; k < m; k++) chunk[k] = v[i + k] * f;
         ck_put(w, chunk, (size_t)m * sizeof(real));
     }
+}
+
+int io_step0_pending(const Output *out)
+{
+    return out->step0_pending;
+}
+
+void io_write_step0(Output *out, const Sim *sim)
+{
+    double t0 = io_now();
+    uint64_t before = bytes_written;
+    io_write_lines(out, 0, sim, out->par->n, 0);
+    out_flush(out);
+    out->step0_s = io_now() - t0;
+    out->step0_bytes = bytes_written - before;
+    out->step0_pending = 0;
 }
 
 int io_checkpoint_due(const Output *out, int64_t step)
@@ -1449,11 +1468,9 @@ int io_main(int argc, char **argv)
         io_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
                 "(S x K must be <= %d)",
                 opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
-    double w0 = io_now();
-    if (!opt.resume) io_write_lines(&out, 0, &sim, par.n, 0); /* a resumed run's step 0 is out already */
-    out_flush(&out);
-    io.write_s = io_now() - w0;
-    io.out_bytes = bytes_written;
+    /* a resumed run's step 0 is out already; cuda writes it beside its steps, where the host is idle */
+    out.step0_pending = !opt.resume && !par.print && par.steps > 0 && (backend_features & SIM_FEATURE_STEP0);
+    if (!opt.resume && !out.step0_pending) io_write_step0(&out, &sim);
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     par.substeps = opt.substeps;
@@ -1468,12 +1485,15 @@ int io_main(int argc, char **argv)
     out.next_show = out.start + 2.0;
     if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
     double run_s = io_now() - out.start;
+    if (out.step0_pending) io_fail("internal error: %s did not write step 0", backend_name);
+    io.write_s = out.step0_s;
+    io.out_bytes = out.step0_bytes;
     if (out.shown) fputc('\n', stderr);
     scale_velocities(&sim, par.n, k);
     v_unscale = 1;
 
     uint64_t before = bytes_written;
-    w0 = io_now();
+    double w0 = io_now();
     io_write_lines(&out, par.steps, &sim, par.n, 1);
     out_flush(&out);
     io.write_s += io_now() - w0;
