@@ -6,7 +6,8 @@
 #   tools/bench_io.sh                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   tools/bench_io.sh gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10; BIG=0 leaves it out)
-#   BASE_REV=REV tools/bench_io.sh   also revision REV's omp (built in bench/tmp/base), row by row
+#   BASE_REV=REV tools/bench_io.sh   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
+#                                    row by row
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . tools/script_lib.sh
@@ -26,8 +27,8 @@ echo "program,threads,n,steps,in_mb,out_mb,best_s,median_s,mb_per_s,stats"
 run() {
     local n=$1 steps=$2 in=$3 prog=$4 threads=$5
     shift 5
-    if [ -n "${BASE_REV:-}" ] && [ "$prog" = omp ]; then
-        BASE_REV="" run "$n" "$steps" "$in" "bench/tmp/base/omp" "$threads" "$@"
+    if [ -n "${BASE_REV:-}" ] && { [ "$prog" = omp ] || [ "$prog" = cuda ]; }; then
+        BASE_REV="" run "$n" "$steps" "$in" "bench/tmp/base/$prog" "$threads" "$@"
     fi
     local args=("$in" --stats "$@") walls=() s e k
     [ "$threads" = - ] || args+=(--threads "$threads")
@@ -56,8 +57,11 @@ gas() { # gas N STEPS: the file of a gas of N disks (fraction 0.2, speeds up to 
 }
 
 if [ -n "${BASE_REV:-}" ]; then
-    build_revision "$BASE_REV" bench/tmp/base "$WORK/base_build.log" omp || { tail -5 "$WORK/base_build.log"; exit 1; }
-    echo "# bench/tmp/base/omp: revision $BASE_REV's omp"
+    targets=omp
+    [ "$mode" != gpu ] || targets="omp cuda"
+    build_revision "$BASE_REV" bench/tmp/base "$WORK/base_build.log" "$targets" ||
+        { tail -5 "$WORK/base_build.log"; exit 1; }
+    echo "# bench/tmp/base/{$targets}: revision $BASE_REV's build"
 fi
 in=$(gas 1000000 0)
 for t in $THREADS; do run 1000000 0 "$in" omp "$t"; done

@@ -16,13 +16,14 @@ loop_seconds() { sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' "$1" | tail -n 
 # A variable of the Makefile, as make sees it (CC, CFLAGS, ...).
 make_var() { make -s --no-print-directory --eval='script-print-%: ; @echo $($*)' "script-print-$1" 2>/dev/null; }
 
-# build_revision REV DIR LOG [TARGET]: revision REV's TARGET (default cuda), built in a git worktree at DIR
-# (the benchmark scripts time it beside this tree's build); the build's output goes to LOG. Non-zero
-# status when it fails.
+# build_revision REV DIR LOG [TARGETS]: revision REV's TARGETS (default cuda; several in one word, split),
+# built in a git worktree at DIR (the benchmark scripts time them beside this tree's build); the build's
+# output goes to LOG. Non-zero status when it fails.
 build_revision() {
     rm -rf "$2"
     git worktree prune
-    git worktree add --detach "$2" "$1" > /dev/null && make -C "$2" -j"$(nproc)" "${4:-cuda}" > "$3" 2>&1
+    # shellcheck disable=SC2086
+    git worktree add --detach "$2" "$1" > /dev/null && make -C "$2" -j"$(nproc)" ${4:-cuda} > "$3" 2>&1
 }
 
 # machine_provenance LOAD CORES: the '#' lines of a results file that name the tree (REVISION, or git),
