@@ -28,41 +28,52 @@ ifneq ($(HAVE_NVCC),yes)
 	@echo "cuda skipped: $(NVCC) not found"
 endif
 
-io.o: io.c common.h Makefile
+# the layers below the backends: state.c (messages, memory, the state's arrays), io.c (the driver)
+io.o: io.c io.h common.h exact.h Makefile
 	$(CC) $(CFLAGS) -c io.c -o $@
 
-io_f32.o: io.c common.h Makefile
+io_f32.o: io.c io.h common.h exact.h Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT -c io.c -o $@
 
-seq_f32: seq.c io_f32.o common.h exact.h Makefile
-	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c io_f32.o -o $@ $(LDLIBS)
+state.o: state.c common.h Makefile
+	$(CC) $(CFLAGS) -c state.c -o $@
 
-omp_f32: omp.c omp_paths.c omp_exact.c io_f32.o common.h exact.h omp_step.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_paths.c omp_exact.c io_f32.o -o $@ $(LDLIBS)
+state_f32.o: state.c common.h Makefile
+	$(CC) $(CFLAGS) -DSIM_FLOAT -c state.c -o $@
 
-cuda_f32: cuda.cu io_f32.o common.h Makefile
-	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu io_f32.o -o $@ $(LDLIBS)
+BASE = io.o state.o
+BASE_F32 = io_f32.o state_f32.o
+HEADERS = common.h io.h exact.h
 
-seq: seq.c io.o common.h exact.h Makefile
-	$(CC) $(CFLAGS) seq.c io.o -o $@ $(LDLIBS)
+seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
+	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c $(BASE_F32) -o $@ $(LDLIBS)
 
-omp: omp.c omp_paths.c omp_exact.c io.o common.h exact.h omp_step.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_paths.c omp_exact.c io.o -o $@ $(LDLIBS)
+omp_f32: omp.c omp_paths.c omp_exact.c $(BASE_F32) $(HEADERS) omp_step.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_paths.c omp_exact.c $(BASE_F32) -o $@ $(LDLIBS)
 
-cuda: cuda.cu io.o common.h Makefile
-	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu io.o -o $@ $(LDLIBS)
+cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
+	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu $(BASE_F32) -o $@ $(LDLIBS)
+
+seq: seq.c $(BASE) $(HEADERS) Makefile
+	$(CC) $(CFLAGS) seq.c $(BASE) -o $@ $(LDLIBS)
+
+omp: omp.c omp_paths.c omp_exact.c $(BASE) $(HEADERS) omp_step.h Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_paths.c omp_exact.c $(BASE) -o $@ $(LDLIBS)
+
+cuda: cuda.cu $(BASE) common.h io.h Makefile
+	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu $(BASE) -o $@ $(LDLIBS)
 
 # seq with address and undefined-behaviour checks, for the hard cases
-seq_san: seq.c io.c common.h exact.h Makefile
-	$(CC) $(SANFLAGS) seq.c io.c -o $@ $(LDLIBS)
+seq_san: seq.c io.c state.c $(HEADERS) Makefile
+	$(CC) $(SANFLAGS) seq.c io.c state.c -o $@ $(LDLIBS)
 
 # omp under ThreadSanitizer (tests/t_62_tsan.sh), built by clang with LLVM's OpenMP runtime (libomp),
 # whose Archer tool tells the sanitizer about OpenMP's own synchronisation (gcc's libgomp would give
 # false reports); needs clang and libomp-dev
 TSAN_CC ?= clang
-omp_tsan: omp.c omp_paths.c omp_exact.c io.c common.h exact.h omp_step.h Makefile
+omp_tsan: omp.c omp_paths.c omp_exact.c io.c state.c $(HEADERS) omp_step.h Makefile
 	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp omp.c omp_paths.c \
-	    omp_exact.c io.c -o $@ $(LDLIBS)
+	    omp_exact.c io.c state.c -o $@ $(LDLIBS)
 
 tools/%: tools/%.c common.h tools/output_error.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
@@ -72,8 +83,8 @@ tools/gen: tools/gen.c Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) $< -o $@ $(LDLIBS)
 
 # the formatter check calls io.c's own io_format_line
-tools/fmtcheck: tools/fmtcheck.c io.o common.h Makefile
-	$(CC) $(CFLAGS) tools/fmtcheck.c io.o -o $@ $(LDLIBS)
+tools/fmtcheck: tools/fmtcheck.c $(BASE) common.h io.h Makefile
+	$(CC) $(CFLAGS) tools/fmtcheck.c $(BASE) -o $@ $(LDLIBS)
 
 test: all seq_san
 	@bash tests/run.sh
@@ -109,4 +120,4 @@ demo: omp
 	@echo "  python3 -m http.server 8000   # in this folder; then http://localhost:8000/viewer/index.html?in=demo.in&src=demo.out"
 
 clean:
-	rm -f seq omp cuda seq_san omp_tsan io.o io_f32.o $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
+	rm -f seq omp cuda seq_san omp_tsan $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out

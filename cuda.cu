@@ -23,7 +23,7 @@
  *            partners with the lower original index as i, so both see the same arithmetic
  * Event keys compare by value only (t, kind, i, j), so nothing depends on thread order.
  */
-#include "common.h"
+#include "io.h"
 
 #include <cub/cub.cuh>
 #include <cuda/functional>
@@ -50,7 +50,7 @@ extern "C" const char backend_options[] = "";
     do {                                                                                             \
         cudaError_t err_ = (call);                                                                   \
         if (err_ != cudaSuccess)                                                                     \
-            io_fail("%s:%d: %s failed: %s", __FILE__, __LINE__, #call, cudaGetErrorString(err_));   \
+            sim_fail("%s:%d: %s failed: %s", __FILE__, __LINE__, #call, cudaGetErrorString(err_));   \
     } while (0)
 #define CUDA_LAUNCHED() CUDA_CHECK(cudaGetLastError())
 
@@ -827,7 +827,7 @@ static void *dev_alloc(size_t bytes, const char *what)
         size_t free_b = 0, total_b = 0;
         cudaGetLastError();
         cudaMemGetInfo(&free_b, &total_b);
-        io_fail("not enough GPU memory for %s: %.1f MiB wanted, %.1f MiB free of %.1f MiB (%s)", what,
+        sim_fail("not enough GPU memory for %s: %.1f MiB wanted, %.1f MiB free of %.1f MiB (%s)", what,
                 bytes / 1048576.0, free_b / 1048576.0, total_b / 1048576.0, cudaGetErrorString(err));
     }
     return p;
@@ -903,7 +903,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     int devices = 0;
     cudaError_t err = cudaGetDeviceCount(&devices);
     if (err != cudaSuccess || devices == 0)
-        io_fail("no CUDA GPU available (%s)", err != cudaSuccess ? cudaGetErrorString(err) : "no device");
+        sim_fail("no CUDA GPU available (%s)", err != cudaSuccess ? cudaGetErrorString(err) : "no device");
     memset(c, 0, sizeof *c);
     int64_t n = par->n;
     c->n = n;
@@ -1329,7 +1329,7 @@ static void cuda_warm_join(void)
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
     if (par->steps == 0) return 0;
-    if (par->n > INT32_MAX / 2) io_fail("at most %d disks on the GPU", INT32_MAX / 2);
+    if (par->n > INT32_MAX / 2) sim_fail("at most %d disks on the GPU", INT32_MAX / 2);
     /* Test hooks for the paths that ordinary runs take rarely: plans for a fraction of the known speed,
      * "A" or "A,B" alternating by batch (each step's grid is then fitted to disks faster than planned;
      * "0,1" alternates plans of one slice with plans of several), a small first event list (steps
@@ -1345,7 +1345,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     int64_t batches = 0;
     hook = getenv("SIM_CUDA_EVENTS");
-    double h0 = io_now();
+    double h0 = sim_clock();
     double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
     cuda_warm_join();
     /* perf mode: step 0 is formatted and written by the host threads while the device allocates,
@@ -1357,11 +1357,11 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (cudaGetDeviceCount(&devices) == cudaSuccess && devices > 0)
             step0 = std::thread([out, sim]() { io_write_step0(out, sim); });
     }
-    double h1 = io_now();
+    double h1 = sim_clock();
     Cuda c;
     cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096,
               opt->checkpoint != NULL);
-    double h2 = io_now();
+    double h2 = sim_clock();
     Control last_read, prev_read;           /* the newest control record read back, and the one before */
     memset(&last_read, 0, sizeof last_read);
     prev_read = last_read;
@@ -1369,7 +1369,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     const char *rounds_hook = getenv("SIM_CUDA_ROUNDS"); /* or as many as it says (1 to MAX_ROUNDS) */
     if (rounds_hook && atoi(rounds_hook) >= 1 && atoi(rounds_hook) <= MAX_ROUNDS) rounds = atoi(rounds_hook);
     CUDA_CHECK(cudaDeviceSynchronize());
-    double t0 = io_now();
+    double t0 = sim_clock();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
     int64_t k = par->substeps, last = par->steps * k;
     int64_t base = par->first_step * k, next = base + 1; /* a resumed run starts after its checkpoint */
@@ -1460,20 +1460,20 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         flying--;
     }
     CUDA_CHECK(cudaStreamSynchronize(c.stream));
-    stats->seconds = io_now() - t0;
+    stats->seconds = sim_clock() - t0;
     stats->pair_tests += last_read.tests;
     stats->events += last_read.events;
-    double h3 = io_now();
+    double h3 = sim_clock();
     if (step0.joinable()) step0.join();
-    double h3b = io_now();
+    double h3b = sim_clock();
     state_download(&c, sim);
-    double h4 = io_now();
+    double h4 = sim_clock();
     if (c.timed) phase_report(&c, &last_read);
     cuda_close(&c);
     if (c.timed)
         fprintf(stderr, "cuda: host side (s): waiting for the context %.3f, allocations and upload %.3f, "
                 "then for step 0's writing %.3f, download %.3f, release %.3f\n", h1 - h0, h2 - h1, h3b - h3,
-                h4 - h3b, io_now() - h4);
+                h4 - h3b, sim_clock() - h4);
     return 0;
 }
 

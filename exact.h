@@ -82,12 +82,12 @@ static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
     d->sim = sim;
     real slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r), most = p->r * p->r;
     d->slack = slack < most ? slack : most;
-    d->t = io_alloc((size_t)n, sizeof *d->t);
-    d->ver = io_alloc((size_t)n, sizeof *d->ver);
-    d->step_events = io_alloc((size_t)n, sizeof *d->step_events);
+    d->t = sim_calloc((size_t)n, sizeof *d->t);
+    d->ver = sim_calloc((size_t)n, sizeof *d->ver);
+    d->step_events = sim_calloc((size_t)n, sizeof *d->step_events);
     /* the last partners outlive a step (a checkpoint keeps them): the Sim holds them */
     if (!sim->last) {
-        sim->last = io_alloc((size_t)n, sizeof *sim->last);
+        sim->last = sim_calloc((size_t)n, sizeof *sim->last);
         for (int64_t i = 0; i < n; i++) sim->last[i] = -1;
     }
     d->last = sim->last;
@@ -102,7 +102,7 @@ static inline void exact_check_speeds(const Sim *s, const Params *p)
     for (int64_t i = 0; i < p->n; i++) {
         double crossings = (fabs((double)s->vx[i]) + fabs((double)s->vy[i])) / span;
         if (crossings > EXACT_MAX_STEP_EVENTS)
-            io_fail("--exact: disk %lld would hit the walls about %.3g times within one step (more than "
+            sim_fail("--exact: disk %lld would hit the walls about %.3g times within one step (more than "
                     "%u events of one disk per step)",
                     (long long)i, crossings, EXACT_MAX_STEP_EVENTS);
     }
@@ -162,11 +162,11 @@ static inline void exact_count(ExactDisks *d, int64_t i, int32_t *c)
 {
     d->ver[i]++;
     if (++d->step_events[i] > EXACT_MAX_STEP_EVENTS)
-        io_fail("--exact: disk %lld collided more than %u times within one step (a cascade that "
+        sim_fail("--exact: disk %lld collided more than %u times within one step (a cascade that "
                 "does not advance in time); stopping",
                 (long long)i, EXACT_MAX_STEP_EVENTS);
     if (*c == INT32_MAX)
-        io_fail("--exact: the collision count of disk %lld exceeds %d", (long long)i, INT32_MAX);
+        sim_fail("--exact: the collision count of disk %lld exceeds %d", (long long)i, INT32_MAX);
     ++*c;
 }
 
@@ -235,7 +235,7 @@ static inline void heap_reserve(ExactHeap *h, size_t need)
     size_t c = h->cap ? h->cap : 1024;
     while (c < need) c *= 2;
     ExactEvent *grown = realloc(h->e, c * sizeof *grown);
-    if (!grown) io_fail("out of memory for %zu events", c);
+    if (!grown) sim_fail("out of memory for %zu events", c);
     h->e = grown;
     h->cap = c;
 }
@@ -282,10 +282,5 @@ static inline void heap_pop(ExactHeap *h, ExactEvent *e)
     h->e[0] = h->e[--h->len];
     if (h->len) heap_sift_down(h, 0);
 }
-
-/* ---- omp_exact.c ---------------------------------------------------------------------------------- */
-
-/* omp's --exact engine: what backend_run does with --exact. */
-int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st);
 
 #endif /* EXACT_H */

@@ -2,12 +2,12 @@
  *
  * The driver (io_main, which each backend's main calls), the command line, reading and validating the
  * input (SPEC.md 1 and 6), the seeded random placement, the exact %.8f formatter and buffered output
- * (SPEC.md 2), clocks and progress.
+ * (SPEC.md 2), progress and checkpoints.
  * Every input error is found before the first byte goes to stdout.
  */
 #define _POSIX_C_SOURCE 200809L
 
-#include "common.h"
+#include "io.h"
 #include "exact.h"
 
 #include <errno.h>
@@ -26,63 +26,6 @@
 #define OUT_BUFFER (8u << 20) /* bytes gathered before one write(2) */
 #define PLACE_TRIES 10000     /* random positions tried for one disk before giving up */
 
-/* ==== messages, memory and clocks ==================================================================== */
-
-void io_fail(const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, "%s: ", backend_name);
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fputc('\n', stderr);
-    exit(1);
-}
-
-void *io_alloc(size_t count, size_t size)
-{
-    if (count == 0) count = 1;
-    if (count > SIZE_MAX / size) io_fail("out of memory (%zu x %zu bytes)", count, size);
-    void *p = calloc(count, size);
-    if (!p) io_fail("out of memory (%zu x %zu bytes)", count, size);
-    return p;
-}
-
-double io_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-int sim_alloc(Sim *sim, int64_t n)
-{
-    size_t m = (size_t)n;
-    memset(sim, 0, sizeof *sim);
-    sim->x = malloc(m * sizeof(real));
-    sim->y = malloc(m * sizeof(real));
-    sim->vx = malloc(m * sizeof(real));
-    sim->vy = malloc(m * sizeof(real));
-    sim->pc = calloc(m, sizeof(int32_t));
-    sim->wc = calloc(m, sizeof(int32_t));
-    if (sim->x && sim->y && sim->vx && sim->vy && sim->pc && sim->wc) return 0;
-    sim_free(sim);
-    return -1;
-}
-
-void sim_free(Sim *sim)
-{
-    free(sim->x);
-    free(sim->y);
-    free(sim->vx);
-    free(sim->vy);
-    free(sim->pc);
-    free(sim->wc);
-    free(sim->wi);
-    free(sim->last);
-    memset(sim, 0, sizeof *sim);
-}
-
 /* ==== output ============================================================================================ */
 
 struct Output {
@@ -97,11 +40,11 @@ struct Output {
     int64_t ck_every;     /* --checkpoint-every */
     const Params *par;    /* what a checkpoint records of the run */
     const Options *opt;
-    double start;      /* io_now() when the step loop began */
+    double start;      /* sim_clock() when the step loop began */
     int step0_pending; /* the backend is to write step 0 (SIM_FEATURE_STEP0) */
     double step0_s;    /* seconds spent writing step 0, and its bytes */
     uint64_t step0_bytes;
-    double next_show;  /* io_now() of the next progress update */
+    double next_show;  /* sim_clock() of the next progress update */
     int shown;         /* a progress line is on the terminal */
 };
 
@@ -114,7 +57,7 @@ static void write_all(const char *bytes, size_t len)
     while (done < len) {
         ssize_t w = write(STDOUT_FILENO, bytes + done, len - done);
         if (w < 0 && errno == EINTR) continue;
-        if (w <= 0) io_fail("cannot write output: %s", w < 0 ? strerror(errno) : "short write");
+        if (w <= 0) sim_fail("cannot write output: %s", w < 0 ? strerror(errno) : "short write");
         done += (size_t)w;
     }
 }
@@ -331,7 +274,7 @@ void io_text_task(TextJob *j, int64_t r, int64_t k)
         if (len + IO_LINE_MAX > cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
             cap = cap ? 2 * cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
             buf = realloc(buf, cap);
-            if (!buf) io_fail("out of memory formatting the output (%zu bytes)", cap);
+            if (!buf) sim_fail("out of memory formatting the output (%zu bytes)", cap);
         }
         len += io_format_line(buf + len, j->step, i, j->sim, j->with_counts, dump17);
     }
@@ -375,7 +318,7 @@ void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int wi
 void io_progress(Output *out, int64_t step)
 {
     if (!out->progress) return;
-    double now = io_now();
+    double now = sim_clock();
     if (now < out->next_show) return;
     out->next_show = now + 0.5;
     double spent = now - out->start;
@@ -460,7 +403,7 @@ static void ck_flush(CkWriter *w)
     while (done < w->len) {
         ssize_t got = write(w->fd, w->buf + done, w->len - done);
         if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) io_fail("cannot write the checkpoint %s: %s", w->path, got < 0 ? strerror(errno) : "short write");
+        if (got <= 0) sim_fail("cannot write the checkpoint %s: %s", w->path, got < 0 ? strerror(errno) : "short write");
         done += (size_t)got;
     }
     w->len = 0;
@@ -496,11 +439,11 @@ int io_step0_pending(const Output *out)
 
 void io_write_step0(Output *out, const Sim *sim)
 {
-    double t0 = io_now();
+    double t0 = sim_clock();
     uint64_t before = bytes_written;
     io_write_lines(out, 0, sim, out->par->n, 0);
     out_flush(out);
-    out->step0_s = io_now() - t0;
+    out->step0_s = sim_clock() - t0;
     out->step0_bytes = bytes_written - before;
     out->step0_pending = 0;
 }
@@ -515,13 +458,13 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     out_flush(out); /* stdout holds every line through this step before the checkpoint says so */
     const Params *par = out->par;
     size_t plen = strlen(out->ck_path);
-    char *tmp = io_alloc(plen + 5, 1);
+    char *tmp = sim_calloc(plen + 5, 1);
     memcpy(tmp, out->ck_path, plen);
     memcpy(tmp + plen, ".tmp", 5);
-    CkWriter *w = io_alloc(1, sizeof *w);
+    CkWriter *w = sim_calloc(1, sizeof *w);
     w->path = tmp;
     w->fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (w->fd < 0) io_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
+    if (w->fd < 0) sim_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
     CkHeader h;
     memset(&h, 0, sizeof h);
     memcpy(h.magic, CK_MAGIC, 8);
@@ -542,12 +485,12 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     uint64_t hash = ck_hash_end(&w->hash);
     ck_put(w, &hash, sizeof hash);
     ck_flush(w);
-    if (fsync(w->fd) != 0) io_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
+    if (fsync(w->fd) != 0) sim_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
     close(w->fd);
     if (rename(tmp, out->ck_path) != 0)
-        io_fail("cannot replace the checkpoint %s: %s", out->ck_path, strerror(errno));
+        sim_fail("cannot replace the checkpoint %s: %s", out->ck_path, strerror(errno));
     /* and the directory's entry: the rename itself survives a crash */
-    char *dir = io_alloc(plen + 2, 1);
+    char *dir = sim_calloc(plen + 2, 1);
     memcpy(dir, out->ck_path, plen + 1);
     char *slash = strrchr(dir, '/');
     if (slash) slash[slash == dir] = '\0';
@@ -568,13 +511,13 @@ static void ck_probe(const char *path)
 {
     struct stat st;
     if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
-        io_fail("--checkpoint %s: exists and is not a regular file", path);
+        sim_fail("--checkpoint %s: exists and is not a regular file", path);
     size_t plen = strlen(path);
-    char *tmp = io_alloc(plen + 5, 1);
+    char *tmp = sim_calloc(plen + 5, 1);
     memcpy(tmp, path, plen);
     memcpy(tmp + plen, ".tmp", 5);
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd < 0) io_fail("--checkpoint %s: cannot write %s (%s)", path, tmp, strerror(errno));
+    if (fd < 0) sim_fail("--checkpoint %s: cannot write %s (%s)", path, tmp, strerror(errno));
     close(fd);
     unlink(tmp);
     free(tmp);
@@ -587,36 +530,36 @@ static void ck_read(Options *opt, Params *par, Sim *sim)
 {
     const char *path = opt->resume;
     int fd = open(path, O_RDONLY);
-    if (fd < 0) io_fail("%s: cannot open the checkpoint (%s)", path, strerror(errno));
+    if (fd < 0) sim_fail("%s: cannot open the checkpoint (%s)", path, strerror(errno));
     struct stat st;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) io_fail("%s: not a checkpoint (not a regular file)", path);
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) sim_fail("%s: not a checkpoint (not a regular file)", path);
     CkHeader h;
     if (read(fd, &h, sizeof h) != (ssize_t)sizeof h || memcmp(h.magic, CK_MAGIC, 8) != 0)
-        io_fail("%s: not a checkpoint (it does not start with %s)", path, CK_MAGIC);
+        sim_fail("%s: not a checkpoint (it does not start with %s)", path, CK_MAGIC);
     if (h.version != CK_VERSION)
-        io_fail("%s: a checkpoint of format %u; this program reads format %u", path, h.version, CK_VERSION);
+        sim_fail("%s: a checkpoint of format %u; this program reads format %u", path, h.version, CK_VERSION);
     if (h.real_bytes != sizeof(real))
-        io_fail("%s: a checkpoint of %s precision; %s computes in %s", path, h.real_bytes == 8 ? "double" : "single",
+        sim_fail("%s: a checkpoint of %s precision; %s computes in %s", path, h.real_bytes == 8 ? "double" : "single",
                 backend_name, sizeof(real) == 8 ? "double" : "single");
     if (h.n < 1 || h.n > SIM_MAX_N || h.steps < 0 || h.step < 1 || h.step >= h.steps || h.substeps < 1 ||
         h.substeps > 1024 || (h.substeps & (h.substeps - 1)) || !(h.L > 0) || !(h.r > 0))
-        io_fail("%s: a checkpoint with impossible values (N = %lld, step %lld of %lld, K = %lld)", path,
+        sim_fail("%s: a checkpoint with impossible values (N = %lld, step %lld of %lld, K = %lld)", path,
                 (long long)h.n, (long long)h.step, (long long)h.steps, (long long)h.substeps);
     uint64_t n = (uint64_t)h.n;
     uint64_t want = sizeof h + n * (4 * sizeof(real) + 2 * sizeof(int32_t)) + (h.pressure ? n * sizeof(double) : 0) +
                     (h.exact ? n * sizeof(int32_t) : 0) + 8;
     if ((uint64_t)st.st_size != want)
-        io_fail("%s: a checkpoint of %lld bytes, where its header calls for %llu (cut short or extended)", path,
+        sim_fail("%s: a checkpoint of %lld bytes, where its header calls for %llu (cut short or extended)", path,
                 (long long)st.st_size, (unsigned long long)want);
     if (h.exact && !(backend_features & SIM_FEATURE_EXACT))
-        io_fail("%s: a checkpoint of an --exact run, which %s does not support", path, backend_name);
+        sim_fail("%s: a checkpoint of an --exact run, which %s does not support", path, backend_name);
     if (h.pressure && !(backend_features & SIM_FEATURE_PRESSURE))
-        io_fail("%s: a checkpoint of a --pressure run, which %s does not support", path, backend_name);
+        sim_fail("%s: a checkpoint of a --pressure run, which %s does not support", path, backend_name);
     if (h.substeps > 1 && !(backend_features & SIM_FEATURE_SUBSTEPS))
-        io_fail("%s: a checkpoint of a --substeps run, which %s does not support", path, backend_name);
-    if (sim_alloc(sim, h.n)) io_fail("%s: not enough memory for the particles (N = %lld)", path, (long long)h.n);
-    if (h.pressure) sim->wi = io_alloc(n, sizeof *sim->wi);
-    if (h.exact) sim->last = io_alloc(n, sizeof *sim->last);
+        sim_fail("%s: a checkpoint of a --substeps run, which %s does not support", path, backend_name);
+    if (sim_alloc(sim, h.n)) sim_fail("%s: not enough memory for the particles (N = %lld)", path, (long long)h.n);
+    if (h.pressure) sim->wi = sim_calloc(n, sizeof *sim->wi);
+    if (h.exact) sim->last = sim_calloc(n, sizeof *sim->last);
     CkHash hash = {0, {0}, 0};
     ck_hash(&hash, &h, sizeof h);
     void *arrays[8] = {sim->x, sim->y, sim->vx, sim->vy, sim->pc, sim->wc, sim->wi, sim->last};
@@ -628,20 +571,20 @@ static void ck_read(Options *opt, Params *par, Sim *sim)
         while (done < len) {
             ssize_t got = read(fd, b + done, len - done);
             if (got < 0 && errno == EINTR) continue;
-            if (got <= 0) io_fail("%s: cannot read the checkpoint (%s)", path, got < 0 ? strerror(errno) : "cut short");
+            if (got <= 0) sim_fail("%s: cannot read the checkpoint (%s)", path, got < 0 ? strerror(errno) : "cut short");
             done += (size_t)got;
         }
         ck_hash(&hash, b, len);
     }
     uint64_t stored;
     if (read(fd, &stored, sizeof stored) != (ssize_t)sizeof stored || stored != ck_hash_end(&hash))
-        io_fail("%s: the checkpoint's checksum does not match its contents (damaged)", path);
+        sim_fail("%s: the checkpoint's checksum does not match its contents (damaged)", path);
     close(fd);
     for (int64_t i = 0; i < h.n; i++)
         if (!(sim->x[i] >= (real)h.r && sim->x[i] <= (real)h.L - (real)h.r && sim->y[i] >= (real)h.r &&
               sim->y[i] <= (real)h.L - (real)h.r && sim->pc[i] >= 0 && sim->wc[i] >= 0 &&
               (!sim->last || (sim->last[i] >= -1 && sim->last[i] < h.n && sim->last[i] != i))))
-            io_fail("%s: disk %lld of the checkpoint is outside the box or has impossible counts", path, (long long)i);
+            sim_fail("%s: disk %lld of the checkpoint is outside the box or has impossible counts", path, (long long)i);
     par->n = h.n;
     par->L = (real)h.L;
     par->r = (real)h.r;
@@ -714,7 +657,7 @@ static char *slurp(const Options *opt, size_t *size)
     FILE *f = stdin;
     if (strcmp(opt->path, "-") != 0) {
         f = fopen(opt->path, "rb");
-        if (!f) io_fail("%s: cannot open the input (%s)", opt->path, strerror(errno));
+        if (!f) sim_fail("%s: cannot open the input (%s)", opt->path, strerror(errno));
     }
     /* a regular file is read into a buffer of its size: growing by doubling copies gigabytes at N = 1e8 */
     struct stat st;
@@ -723,21 +666,21 @@ static char *slurp(const Options *opt, size_t *size)
         (uint64_t)st.st_size < SIZE_MAX / 2)
         cap = (size_t)st.st_size + 2;
     char *buf = malloc(cap);
-    if (!buf) io_fail("%s: out of memory reading the input (%zu bytes)", opt->label, cap);
+    if (!buf) sim_fail("%s: out of memory reading the input (%zu bytes)", opt->label, cap);
     if (cap > 2 * READ_PIECE) { /* a large regular file: its pieces read in parallel, then what follows */
         Slurp sl = {fileno(f), buf, cap - 2, 0};
         backend_parallel(opt->threads, (int64_t)((cap - 2 + READ_PIECE - 1) / READ_PIECE), read_piece, &sl);
         if (sl.err)
-            io_fail("%s: cannot read the input (%s)", opt->label,
+            sim_fail("%s: cannot read the input (%s)", opt->label,
                     sl.err > 0 ? strerror(sl.err) : "it became shorter while it was read");
         len = cap - 2;
-        if (fseeko(f, (off_t)len, SEEK_SET) != 0) io_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
+        if (fseeko(f, (off_t)len, SEEK_SET) != 0) sim_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
     }
     for (;;) {
         if (cap - len < 2) {
-            if (cap > SIZE_MAX / 2) io_fail("%s: input too large", opt->label);
+            if (cap > SIZE_MAX / 2) sim_fail("%s: input too large", opt->label);
             char *grown = realloc(buf, cap * 2);
-            if (!grown) io_fail("%s: out of memory reading the input", opt->label);
+            if (!grown) sim_fail("%s: out of memory reading the input", opt->label);
             buf = grown;
             cap *= 2;
         }
@@ -745,7 +688,7 @@ static char *slurp(const Options *opt, size_t *size)
         len += got;
         if (got == 0) break;
     }
-    if (ferror(f)) io_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
+    if (ferror(f)) sim_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
     if (f != stdin) fclose(f);
     buf[len] = '\0';
     *size = len;
@@ -975,7 +918,7 @@ static void chunk_error(Chunk *c, long line, const char *fmt, ...)
     va_start(ap, fmt);
     int len = vsnprintf(NULL, 0, fmt, ap);
     va_end(ap);
-    c->err = io_alloc((size_t)len + 1, 1);
+    c->err = sim_calloc((size_t)len + 1, 1);
     va_start(ap, fmt);
     vsnprintf(c->err, (size_t)len + 1, fmt, ap);
     va_end(ap);
@@ -1072,7 +1015,7 @@ static int64_t read_particles(Reader *rd, const Params *par, Sim *sim, int threa
     Parse ps = {par, sim, rd->text, rd->line, NULL, NULL};
     size_t from = rd->pos, size = rd->size;
     int64_t nchunk = (int64_t)((size - from) / CHUNK_BYTES) + 1;
-    ps.chunk = io_alloc((size_t)nchunk, sizeof *ps.chunk);
+    ps.chunk = sim_calloc((size_t)nchunk, sizeof *ps.chunk);
     for (int64_t k = 0; k < nchunk; k++) { /* each ends after the first newline past its share */
         Chunk *c = &ps.chunk[k];
         c->from = k ? ps.chunk[k - 1].to : from;
@@ -1086,7 +1029,7 @@ static int64_t read_particles(Reader *rd, const Params *par, Sim *sim, int threa
         ps.chunk[k].line0 = lines;
         lines += ps.chunk[k].lines;
     }
-    ps.line_idx = io_alloc((size_t)lines, sizeof *ps.line_idx);
+    ps.line_idx = sim_calloc((size_t)lines, sizeof *ps.line_idx);
     backend_parallel(threads, nchunk, parse_chunk, &ps);
 
     /* In file order up to the first chunk error: count the records, mark the indices seen. */
@@ -1097,7 +1040,7 @@ static int64_t read_particles(Reader *rd, const Params *par, Sim *sim, int threa
             ps.chunk[k].err = NULL;
         }
     int64_t last = verdict.err ? verdict.err_line - ps.line_base - 1 : lines - 1, seen = 0;
-    unsigned char *have = io_alloc((size_t)(par->n / 8 + 1), 1);
+    unsigned char *have = sim_calloc((size_t)(par->n / 8 + 1), 1);
     for (int64_t i = 0; i <= last; i++) {
         int32_t idx = ps.line_idx[i];
         long line = ps.line_base + 1 + (long)i;
@@ -1191,8 +1134,8 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
     int64_t cells = (int64_t)(side < fit ? side : fit);
     if (cells < 1) cells = 1;
     double cell = par->L / (double)cells;
-    int32_t *head = io_alloc((size_t)(cells * cells), sizeof *head);
-    int32_t *next = io_alloc((size_t)par->n, sizeof *next);
+    int32_t *head = sim_calloc((size_t)(cells * cells), sizeof *head);
+    int32_t *next = sim_calloc((size_t)par->n, sizeof *next);
     memset(head, 0xff, (size_t)(cells * cells) * sizeof *head);
     double smin = par->L / 4, smax = par->L / (8 * par->r);
     if (smax < smin) {
@@ -1254,7 +1197,7 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim)
 /* Reads and validates the whole input; generates the disks when the input lists none. */
 /* Seconds and bytes of the untimed parts, for --stats. */
 typedef struct {
-    double start; /* io_now() when main began */
+    double start; /* sim_clock() when main began */
     double read_s, parse_s, write_s;
     uint64_t in_bytes, out_bytes;
 } IoTimes;
@@ -1264,9 +1207,9 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io
     Reader rd;
     memset(&rd, 0, sizeof rd);
     rd.label = opt->label;
-    double t0 = io_now();
+    double t0 = sim_clock();
     rd.text = slurp(opt, &rd.size);
-    double t1 = io_now();
+    double t1 = sim_clock();
     read_header(&rd, par);
     backend_prepare(par);
     if (sim_alloc(sim, par->n))
@@ -1274,7 +1217,7 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io
                     (long long)par->n);
     int64_t lines = read_particles(&rd, par, sim, opt->threads);
     io->read_s = t1 - t0;
-    io->parse_s = io_now() - t1;
+    io->parse_s = sim_clock() - t1;
     io->in_bytes = rd.size;
     if (lines == 0) {
         int64_t failed = generate(par, opt->seed, sim);
@@ -1327,11 +1270,11 @@ static void usage(FILE *f)
 static long long option_value(int argc, char **argv, int *k, long long lo, long long hi)
 {
     const char *name = argv[*k];
-    if (*k + 1 >= argc) io_fail("%s needs a value (see --help)", name);
+    if (*k + 1 >= argc) sim_fail("%s needs a value (see --help)", name);
     const char *val = argv[++*k];
     long long v;
     if (parse_int(val, &v) || v < lo || v > hi)
-        io_fail("%s must be an integer between %lld and %lld (found '%s')", name, lo, hi, val);
+        sim_fail("%s must be an integer between %lld and %lld (found '%s')", name, lo, hi, val);
     return v;
 }
 
@@ -1347,7 +1290,7 @@ static void parse_args(int argc, char **argv, Options *opt)
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
             if (fflush(stdout) || ferror(stdout))
-                io_fail("cannot write the help text: %s", strerror(errno));
+                sim_fail("cannot write the help text: %s", strerror(errno));
             exit(0);
         } else if (strcmp(a, "--seed") == 0) {
             opt->seed = (uint64_t)option_value(argc, argv, &k, 0, 9223372036854775807LL);
@@ -1362,57 +1305,57 @@ static void parse_args(int argc, char **argv, Options *opt)
             opt->substeps = (int)option_value(argc, argv, &k, 1, 1024);
             substeps_given = 1;
             if (opt->substeps & (opt->substeps - 1))
-                io_fail("--substeps must be a power of two, so that velocities scale exactly (found "
+                sim_fail("--substeps must be a power of two, so that velocities scale exactly (found "
                         "%d)", opt->substeps);
             if (opt->substeps > 1 && !(backend_features & SIM_FEATURE_SUBSTEPS))
-                io_fail("--substeps is not supported by %s", backend_name);
+                sim_fail("--substeps is not supported by %s", backend_name);
         } else if (strcmp(a, "--pressure") == 0) {
             opt->pressure = 1;
             if (!(backend_features & SIM_FEATURE_PRESSURE))
-                io_fail("--pressure is not supported by %s", backend_name);
+                sim_fail("--pressure is not supported by %s", backend_name);
         } else if (strcmp(a, "--exact") == 0) {
             opt->exact = 1;
             if (!(backend_features & SIM_FEATURE_EXACT))
-                io_fail("--exact is not supported by %s", backend_name);
+                sim_fail("--exact is not supported by %s", backend_name);
         } else if (own_threads && strcmp(a, "--threads") == 0) {
             opt->threads = (int)option_value(argc, argv, &k, 1, 4096);
         } else if (own_threads && strcmp(a, "--check") == 0) {
             opt->check = 1;
         } else if (own_threads && strcmp(a, "--broad") == 0) {
-            if (k + 1 >= argc) io_fail("--broad needs a value (see --help)");
+            if (k + 1 >= argc) sim_fail("--broad needs a value (see --help)");
             const char *val = argv[++k];
             if (strcmp(val, "grid") == 0) opt->broad = SIM_BROAD_GRID;
             else if (strcmp(val, "paths") == 0) opt->broad = SIM_BROAD_PATHS;
             else if (strcmp(val, "mixed") == 0) opt->broad = SIM_BROAD_MIXED;
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
-            else io_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
+            else sim_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
         } else if (strcmp(a, "--checkpoint") == 0) {
-            if (k + 1 >= argc) io_fail("--checkpoint needs a file name");
+            if (k + 1 >= argc) sim_fail("--checkpoint needs a file name");
             opt->checkpoint = argv[++k];
         } else if (strcmp(a, "--checkpoint-every") == 0) {
             opt->checkpoint_every = option_value(argc, argv, &k, 1, SIM_MAX_STEPS);
         } else if (strcmp(a, "--resume") == 0) {
-            if (k + 1 >= argc) io_fail("--resume needs a checkpoint file");
+            if (k + 1 >= argc) sim_fail("--resume needs a checkpoint file");
             opt->resume = argv[++k];
         } else if (a[0] == '-' && a[1] != '\0') {
-            io_fail("unknown option '%s' (see --help)", a);
+            sim_fail("unknown option '%s' (see --help)", a);
         } else if (opt->path) {
-            io_fail("more than one input given ('%s' and '%s')", opt->path, a);
+            sim_fail("more than one input given ('%s' and '%s')", opt->path, a);
         } else {
             opt->path = a;
         }
     }
     /* --exact already has every collision: sub-steps would only cut its steps into more windows */
-    if (opt->exact && substeps_given) io_fail("--exact and --substeps exclude each other");
+    if (opt->exact && substeps_given) sim_fail("--exact and --substeps exclude each other");
     if ((opt->checkpoint || opt->resume) && !(backend_features & SIM_FEATURE_CHECKPOINT))
-        io_fail("--checkpoint and --resume are not supported by %s yet", backend_name);
-    if (opt->checkpoint_every && !opt->checkpoint) io_fail("--checkpoint-every needs --checkpoint FILE");
+        sim_fail("--checkpoint and --resume are not supported by %s yet", backend_name);
+    if (opt->checkpoint_every && !opt->checkpoint) sim_fail("--checkpoint-every needs --checkpoint FILE");
     if (!opt->checkpoint_every) opt->checkpoint_every = 1000;
     if (opt->resume) {
         /* the run is the checkpoint's: these would change it */
-        if (opt->path) io_fail("--resume reads no input file ('%s' given)", opt->path);
+        if (opt->path) sim_fail("--resume reads no input file ('%s' given)", opt->path);
         if (substeps_given || opt->pressure || opt->dump17 || opt->seed_given || opt->exact)
-            io_fail("--resume takes --substeps, --exact, --pressure, --dump17 and --seed from the checkpoint: "
+            sim_fail("--resume takes --substeps, --exact, --pressure, --dump17 and --seed from the checkpoint: "
                     "leave them out");
     }
     if (!opt->path) opt->path = "-";
@@ -1434,12 +1377,13 @@ int io_main(int argc, char **argv)
     Options opt;
     Params par;
     Sim sim;
+    sim_program = backend_name;
     parse_args(argc, argv, &opt);
     if (opt.checkpoint) ck_probe(opt.checkpoint);
     signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
     IoTimes io;
     memset(&io, 0, sizeof io);
-    io.start = io_now();
+    io.start = sim_clock();
     if (opt.resume) {
         memset(&par, 0, sizeof par);
         memset(&sim, 0, sizeof sim);
@@ -1452,7 +1396,7 @@ int io_main(int argc, char **argv)
 
     Output out;
     memset(&out, 0, sizeof out);
-    out.buf = io_alloc(OUT_BUFFER, 1);
+    out.buf = sim_calloc(OUT_BUFFER, 1);
     out.dump17 = opt.dump17;
     out.threads = opt.threads;
     out.progress = isatty(STDERR_FILENO);
@@ -1465,7 +1409,7 @@ int io_main(int argc, char **argv)
     /* runs that cannot finish are refused before the first byte of output */
     if (opt.exact) exact_check_speeds(&sim, &par);
     if (par.steps * (int64_t)opt.substeps > INT32_MAX)
-        io_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
+        sim_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
                 "(S x K must be <= %d)",
                 opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
     /* a resumed run's step 0 is out already; cuda writes it beside its steps, where the host is idle */
@@ -1477,15 +1421,15 @@ int io_main(int argc, char **argv)
     real k = (real)opt.substeps;
     scale_velocities(&sim, par.n, 1 / k);
     v_unscale = k;
-    if (opt.pressure && !sim.wi) sim.wi = io_alloc((size_t)par.n, sizeof *sim.wi);
+    if (opt.pressure && !sim.wi) sim.wi = sim_calloc((size_t)par.n, sizeof *sim.wi);
 
     RunStats st;
     memset(&st, 0, sizeof st);
-    out.start = io_now();
+    out.start = sim_clock();
     out.next_show = out.start + 2.0;
     if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
-    double run_s = io_now() - out.start;
-    if (out.step0_pending) io_fail("internal error: %s did not write step 0", backend_name);
+    double run_s = sim_clock() - out.start;
+    if (out.step0_pending) sim_fail("internal error: %s did not write step 0", backend_name);
     io.write_s = out.step0_s;
     io.out_bytes = out.step0_bytes;
     if (out.shown) fputc('\n', stderr);
@@ -1493,10 +1437,10 @@ int io_main(int argc, char **argv)
     v_unscale = 1;
 
     uint64_t before = bytes_written;
-    double w0 = io_now();
+    double w0 = sim_clock();
     io_write_lines(&out, par.steps, &sim, par.n, 1);
     out_flush(&out);
-    io.write_s += io_now() - w0;
+    io.write_s += sim_clock() - w0;
     io.out_bytes += bytes_written - before;
     if (!opt.quiet) {
         double ps = (double)par.n * (double)(par.steps - par.first_step); /* a resumed run: the steps it ran */
@@ -1515,7 +1459,7 @@ int io_main(int argc, char **argv)
                 io.read_s, io.parse_s, io.parse_s > 0 ? (double)io.in_bytes / 1e6 / io.parse_s : 0.0,
                 (double)io.out_bytes / 1e6, io.write_s, io.write_s > 0 ? (double)io.out_bytes / 1e6 / io.write_s : 0.0);
         fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", backend_name, run_s,
-                st.seconds, io_now() - io.start);
+                st.seconds, sim_clock() - io.start);
     }
     if (opt.pressure) {
         double impulse = 0; /* in index order: the same sum in every backend */

@@ -171,7 +171,7 @@ void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size)
     size_t c = *cap ? *cap : 64;
     while (c < need) c *= 2;
     void *p = realloc(ptr, c * size);
-    if (!p) io_fail("out of memory (%zu x %zu bytes)", c, size);
+    if (!p) sim_fail("out of memory (%zu x %zu bytes)", c, size);
     *cap = c;
     return p;
 }
@@ -180,14 +180,14 @@ void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size)
 
 static void slots_alloc(Slots *s, int64_t n, int with_wi)
 {
-    s->wi = with_wi ? io_alloc((size_t)n, sizeof *s->wi) : NULL;
-    s->x = io_alloc((size_t)n, sizeof *s->x);
-    s->y = io_alloc((size_t)n, sizeof *s->y);
-    s->vx = io_alloc((size_t)n, sizeof *s->vx);
-    s->vy = io_alloc((size_t)n, sizeof *s->vy);
-    s->id = io_alloc((size_t)n, sizeof *s->id);
-    s->pc = io_alloc((size_t)n, sizeof *s->pc);
-    s->wc = io_alloc((size_t)n, sizeof *s->wc);
+    s->wi = with_wi ? sim_calloc((size_t)n, sizeof *s->wi) : NULL;
+    s->x = sim_calloc((size_t)n, sizeof *s->x);
+    s->y = sim_calloc((size_t)n, sizeof *s->y);
+    s->vx = sim_calloc((size_t)n, sizeof *s->vx);
+    s->vy = sim_calloc((size_t)n, sizeof *s->vy);
+    s->id = sim_calloc((size_t)n, sizeof *s->id);
+    s->pc = sim_calloc((size_t)n, sizeof *s->pc);
+    s->wc = sim_calloc((size_t)n, sizeof *s->wc);
 }
 
 static void slots_free(Slots *s)
@@ -575,12 +575,12 @@ static void check_broad_phase(Work *w, int64_t step)
     int64_t n = w->p->n;
     for (int64_t q = 0; q < n; q++)
         if (w->wall_t[q] != check_wall_time(s, w->p, q))
-            io_fail("--check: step %lld: disk %d has the wall event time %.17g, not %.17g",
+            sim_fail("--check: step %lld: disk %d has the wall event time %.17g, not %.17g",
                     (long long)step, s->id[q], (double)w->wall_t[q],
                     (double)check_wall_time(s, w->p, q));
     size_t n_ev = 0;
     for (int t = 0; t < w->nt; t++) n_ev += w->th[t].found.len;
-    PairEvent *mine = io_alloc(n_ev, sizeof *mine);
+    PairEvent *mine = sim_calloc(n_ev, sizeof *mine);
     n_ev = 0;
     for (int t = 0; t < w->nt; t++) {
         const Found *f = &w->th[t].found;
@@ -592,7 +592,7 @@ static void check_broad_phase(Work *w, int64_t step)
     for (size_t e = 0; e < n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
     if (uniq != n_ev)
-        io_fail("--check: step %lld: the broad phase found %zu events more than once",
+        sim_fail("--check: step %lld: the broad phase found %zu events more than once",
                 (long long)step, n_ev - uniq);
     size_t found = 0;
     for (int64_t qa = 0; qa < n; qa++)
@@ -604,13 +604,13 @@ static void check_broad_phase(Work *w, int64_t step)
             PairEvent key = {t, s->id[a], s->id[b], 0, 0};
             PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
             if (!hit || hit->t != t)
-                io_fail("--check: step %lld: the broad phase missed the event of disks %d and %d "
+                sim_fail("--check: step %lld: the broad phase missed the event of disks %d and %d "
                         "at t = %.17g",
                         (long long)step, key.i, key.j, t);
             found++;
         }
     if (found != uniq)
-        io_fail("--check: step %lld: the broad phase found %zu events, all pairs %zu",
+        sim_fail("--check: step %lld: the broad phase found %zu events, all pairs %zu",
                 (long long)step, uniq, found);
     free(mine);
 }
@@ -1087,20 +1087,20 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     if (w.max_cells < 1) w.max_cells = 1;
     slots_alloc(&w.s, n, sim->wi != NULL);
     slots_alloc(&w.spare, n, sim->wi != NULL);
-    w.th = io_alloc((size_t)nt_max, sizeof *w.th);
-    w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
-    w.hist = io_alloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
-    w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
-    w.boxes = io_alloc((size_t)n + SCAN_WIDTH, sizeof *w.boxes);
-    w.wall_t = io_alloc((size_t)n, sizeof *w.wall_t);
-    w.off = io_alloc((size_t)n + 1, sizeof *w.off);
-    w.active = io_alloc((size_t)n, sizeof *w.active);
-    w.best_p = io_alloc((size_t)n, sizeof *w.best_p);
-    w.best_t = io_alloc((size_t)n, sizeof *w.best_t);
-    w.acc_p = io_alloc((size_t)n, sizeof *w.acc_p);
-    w.acc_t = io_alloc((size_t)n, sizeof *w.acc_t);
-    w.taken = io_alloc((size_t)n, sizeof *w.taken);
-    w.box_slot = io_alloc((size_t)n, sizeof *w.box_slot);
+    w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
+    w.cell_of = sim_calloc((size_t)n, sizeof *w.cell_of);
+    w.hist = sim_calloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
+    w.cell_start = sim_calloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
+    w.boxes = sim_calloc((size_t)n + SCAN_WIDTH, sizeof *w.boxes);
+    w.wall_t = sim_calloc((size_t)n, sizeof *w.wall_t);
+    w.off = sim_calloc((size_t)n + 1, sizeof *w.off);
+    w.active = sim_calloc((size_t)n, sizeof *w.active);
+    w.best_p = sim_calloc((size_t)n, sizeof *w.best_p);
+    w.best_t = sim_calloc((size_t)n, sizeof *w.best_t);
+    w.acc_p = sim_calloc((size_t)n, sizeof *w.acc_p);
+    w.acc_t = sim_calloc((size_t)n, sizeof *w.acc_t);
+    w.taken = sim_calloc((size_t)n, sizeof *w.taken);
+    w.box_slot = sim_calloc((size_t)n, sizeof *w.box_slot);
     w.paths = paths_new(nt_max);
 
     double t0 = 0;
@@ -1111,12 +1111,12 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         int tid = omp_get_thread_num();
         slots_fill(&w, tid);
 #pragma omp single
-        t0 = io_now(); /* the step loop from here */
+        t0 = sim_clock(); /* the step loop from here */
         for (int64_t step = par->first_step * par->substeps + 1; step <= par->steps * par->substeps; step++)
             step_run(&w, tid, step);
         slots_unpermute(&w, tid);
     }
-    st->seconds = io_now() - t0;
+    st->seconds = sim_clock() - t0;
 
     uint64_t visits = 0, overlaps = 0;
     for (int t = 0; t < nt_max; t++) {

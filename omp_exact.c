@@ -18,6 +18,7 @@
  * loop is sequential, since events are processed in global time order.
  */
 #include "exact.h"
+#include "omp_step.h"
 
 #include <omp.h>
 #include <stdio.h>
@@ -198,12 +199,12 @@ static void check_window(const XWork *w, real t0, real t1, int early)
     for (int64_t i = 0; i < p->n; i++) {
         real t = exact_wall_time(d, p, i);
         if (t >= 0 && (t < t1 || (!early && t == t1)))
-            io_fail("--check: window [%.17g, %.17g] left the wall event of disk %lld at t = %.17g",
+            sim_fail("--check: window [%.17g, %.17g] left the wall event of disk %lld at t = %.17g",
                     (double)t0, (double)t1, (long long)i, (double)t);
         for (int64_t j = i + 1; j < p->n; j++) {
             t = exact_pair_time(d, p, i, j);
             if (t >= 0 && (t < t1 || (!early && t == t1)))
-                io_fail("--check: window [%.17g, %.17g] missed the event of disks %lld and %lld at "
+                sim_fail("--check: window [%.17g, %.17g] missed the event of disks %lld and %lld at "
                         "t = %.17g",
                         (double)t0, (double)t1, (long long)i, (long long)j, (double)t);
         }
@@ -215,7 +216,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
 {
     const Params *p = w->p;
     int64_t n = p->n;
-    double vmax = 0, clock0 = io_now();
+    double vmax = 0, clock0 = sim_clock();
 #pragma omp parallel for schedule(static) reduction(max : vmax)
     for (int64_t i = 0; i < n; i++) {
         double ax = fabs((double)w->d.sim->vx[i]), ay = fabs((double)w->d.sim->vy[i]);
@@ -246,7 +247,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         w->heap.len += w->th[t].buf.len;
     }
     heap_build(&w->heap);
-    double clock1 = io_now();
+    double clock1 = sim_clock();
 
     /* the events in key order, as seq.c processes them */
     uint64_t events = 0;
@@ -270,7 +271,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
     st->events += events;
     w->windows++;
     w->start_s += clock1 - clock0;
-    w->loop_s += io_now() - clock1;
+    w->loop_s += sim_clock() - clock1;
     double len = (double)t1 - (double)t0;
     if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)events / len;
     if (w->check) check_window(w, t0, t1, early);
@@ -287,15 +288,15 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.check = opt->check;
     w.nt = omp_get_max_threads();
     exact_alloc(&w.d, sim, par);
-    w.th = io_alloc((size_t)w.nt, sizeof *w.th);
+    w.th = sim_calloc((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
-    w.cell_of = io_alloc((size_t)n, sizeof *w.cell_of);
-    w.cell_start = io_alloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
-    w.members = io_alloc((size_t)n, sizeof *w.members);
-    w.win_events = io_alloc((size_t)n, sizeof *w.win_events);
+    w.cell_of = sim_calloc((size_t)n, sizeof *w.cell_of);
+    w.cell_start = sim_calloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
+    w.members = sim_calloc((size_t)n, sizeof *w.members);
+    w.win_events = sim_calloc((size_t)n, sizeof *w.win_events);
     w.rate = (double)n;
 
-    double t0 = io_now();
+    double t0 = sim_clock();
     for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
         int done = 0;
         real from = 0;
@@ -306,7 +307,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
-    st->seconds = io_now() - t0;
+    st->seconds = sim_clock() - t0;
     if (opt->stats)
         fprintf(stderr, "%s: --exact: %llu windows; %.6f s in their starts (parallel), %.6f s in "
                 "their event loops (sequential)\n", backend_name, (unsigned long long)w.windows,

@@ -103,9 +103,9 @@ struct Paths {
 
 Paths *paths_new(int nt_max)
 {
-    Paths *pp = io_alloc(1, sizeof *pp);
+    Paths *pp = sim_calloc(1, sizeof *pp);
     pp->nt_max = nt_max;
-    pp->sc = io_alloc((size_t)nt_max, sizeof *pp->sc);
+    pp->sc = sim_calloc((size_t)nt_max, sizeof *pp->sc);
     return pp;
 }
 
@@ -237,8 +237,8 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt)
     if ((size_t)g > pp->coord_cap) {
         free(pp->tile_of);
         free(pp->in_tile);
-        pp->tile_of = io_alloc((size_t)g, sizeof *pp->tile_of);
-        pp->in_tile = io_alloc((size_t)g, sizeof *pp->in_tile);
+        pp->tile_of = sim_calloc((size_t)g, sizeof *pp->tile_of);
+        pp->in_tile = sim_calloc((size_t)g, sizeof *pp->in_tile);
         pp->coord_cap = (size_t)g;
     }
     for (int64_t k = 0; k < g; k++) {
@@ -248,13 +248,13 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt)
     size_t need = (size_t)nt * (size_t)pp->pl.tiles;
     if (need > pp->bk_cap) {
         pp->bk = realloc(pp->bk, need * sizeof *pp->bk);
-        if (!pp->bk) io_fail("out of memory (%zu buckets)", need);
+        if (!pp->bk) sim_fail("out of memory (%zu buckets)", need);
         memset(pp->bk + pp->bk_cap, 0, (need - pp->bk_cap) * sizeof *pp->bk);
         pp->bk_cap = need;
     }
     if ((size_t)n > pp->body_cap) {
         free(pp->body);
-        pp->body = io_alloc((size_t)n, sizeof *pp->body);
+        pp->body = sim_calloc((size_t)n, sizeof *pp->body);
         pp->body_cap = (size_t)n;
     }
 }

@@ -7,7 +7,7 @@
 #ifndef OMP_STEP_H
 #define OMP_STEP_H
 
-#include "common.h"
+#include "io.h"
 
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
 typedef struct {
@@ -31,7 +31,7 @@ typedef struct {
     uint64_t tests, visits, overlaps;
 } Found;
 
-/* Grows *ptr to hold need items of size bytes (geometrically); io_fail when memory runs out. */
+/* Grows *ptr to hold need items of size bytes (geometrically); sim_fail when memory runs out. */
 void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size);
 
 static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a, int32_t b)
@@ -128,5 +128,10 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt);
  * with the slow disks. */
 void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
                 const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
+
+/* ---- omp_exact.c ---------------------------------------------------------------------------------- */
+
+/* omp's --exact engine: what backend_run does with --exact. */
+int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st);
 
 #endif /* OMP_STEP_H */

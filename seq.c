@@ -5,7 +5,7 @@
  * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly.
  * --exact (exact.h) likewise: every pair's next contact predicted, a heap of events in key order.
  */
-#include "common.h"
+#include "io.h"
 #include "exact.h"
 
 #include <stdlib.h>
@@ -33,7 +33,7 @@ static void events_push(EventList *l, real t, int kind, int64_t i, int64_t j)
     if (l->len == l->cap) {
         l->cap = l->cap ? 2 * l->cap : 1024;
         Event *grown = realloc(l->ev, l->cap * sizeof *grown);
-        if (!grown) io_fail("out of memory for %zu events", l->cap);
+        if (!grown) sim_fail("out of memory for %zu events", l->cap);
         l->ev = grown;
     }
     Event e = {t, kind, i, j};
@@ -144,7 +144,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     ExactDisks d;
     ExactHeap h = {NULL, 0, 0};
     exact_alloc(&d, sim, par);
-    double t0 = io_now();
+    double t0 = sim_clock();
     for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
         h.len = 0;
         for (int64_t i = 0; i < par->n; i++) {
@@ -170,7 +170,7 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
         if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
-    st->seconds = io_now() - t0;
+    st->seconds = sim_clock() - t0;
     free(h.e);
     exact_free(&d);
     return 0;
@@ -193,9 +193,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 {
     if (opt->exact) return exact_run(sim, par, out, st);
     EventList events = {NULL, 0, 0};
-    int64_t *event_of = io_alloc((size_t)par->n, sizeof *event_of);
+    int64_t *event_of = sim_calloc((size_t)par->n, sizeof *event_of);
     int64_t k = par->substeps, last = par->steps * k;
-    double t0 = io_now();
+    double t0 = sim_clock();
     for (int64_t sub = par->first_step * k + 1; sub <= last; sub++) {
         events.len = 0;
         detect_walls(sim, par, &events);
@@ -207,7 +207,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (io_checkpoint_due(out, sub / k)) io_checkpoint(out, sim, sub / k);
         io_progress(out, sub / k);
     }
-    st->seconds = io_now() - t0;
+    st->seconds = sim_clock() - t0;
     free(events.ev);
     free(event_of);
     return 0;

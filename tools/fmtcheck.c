@@ -12,7 +12,7 @@
  * digits with and without a point, a sign or an exponent (io_parse_real's shortcut and its hand-over
  * to strtod). Prints one summary line; exits 1 on the first mismatch, printing both.
  */
-#include "../common.h"
+#include "../io.h"
 
 #include <float.h>
 #include <stdio.h>

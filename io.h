@@ -1,0 +1,134 @@
+/* io.h: the driver's side of the program: options, the backend interface and io.c's services.
+ *
+ * The layers, bottom up: common.h and state.c (state, physics, messages and memory), exact.h (the
+ * --exact model), io.h and io.c (options, input, output, checkpoints, the driver), then the backends
+ * (seq.c, omp.c with omp_paths.c and omp_exact.c, cuda.cu), which implement the interface below and
+ * call io.c's services. Nothing calls upwards.
+ */
+#ifndef IO_H
+#define IO_H
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- command-line options ------------------------------------------------------------------------ */
+
+typedef struct {
+    const char *path;  /* input file; "-" reads stdin */
+    const char *label; /* how messages name the input: the path, or "<stdin>" */
+    uint64_t seed;     /* seed of the random placement (SPEC.md 1) */
+    int seed_given;    /* 1 when --seed was on the command line */
+    int dump17;        /* 1: print reals with %.17g, enough to round-trip a double */
+    int threads;       /* omp: threads to use; 0 leaves it to OpenMP (OMP_NUM_THREADS) */
+    int quiet;         /* 1: no timing line on stderr */
+    int stats;         /* 1: print event and pair-test counts on stderr */
+    int check;         /* omp: check the broad phase against all pairs every step */
+    int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
+    int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
+    int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
+    int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
+                          _PATHS, _MIXED */
+    const char *checkpoint;   /* --checkpoint FILE: the state written there every checkpoint_every steps */
+    int64_t checkpoint_every; /* --checkpoint-every K (default 1000) */
+    const char *resume;       /* --resume FILE: go on from that checkpoint instead of reading an input */
+} Options;
+
+#define SIM_BROAD_AUTO 0
+#define SIM_BROAD_GRID 1
+#define SIM_BROAD_PATHS 2
+#define SIM_BROAD_MIXED 3
+
+/* What a backend reports about its run, printed on stderr by the driver. */
+typedef struct {
+    double seconds;      /* wall time of the step loop */
+    uint64_t pair_tests; /* narrow-phase pair tests done (0 if not counted) */
+    uint64_t events;     /* accepted events, wall and pair */
+} RunStats;
+
+typedef struct Output Output;
+
+/* ---- the backend interface: each of seq.c, omp.c and cuda.cu defines these ----------------------- */
+
+extern const char backend_name[];    /* program name used in messages: "seq", "omp", "cuda" */
+extern const char backend_options[]; /* backend-specific lines for --help ("" if none) */
+extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the backend supports */
+#define SIM_FEATURE_SUBSTEPS 1u
+#define SIM_FEATURE_PRESSURE 2u
+#define SIM_FEATURE_EXACT 4u
+#define SIM_FEATURE_CHECKPOINT 8u /* --checkpoint and --resume */
+#define SIM_FEATURE_STEP0 16u     /* perf mode: the backend writes step 0 (io_write_step0) beside its steps */
+/* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
+ * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
+ * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
+ * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included.
+ * Returns 0, or non-zero after printing its own error message. */
+int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+/* Called once the input's header is read, before its particle lines: a backend may start slow set-up
+ * there that runs beside the reading (cuda creates its context when there are steps to run). */
+void backend_prepare(const Params *par);
+/* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's default;
+ * seq: one, in order). The tasks must not depend on each other's order: io.c parses the particle lines
+ * of the input in independent chunks this way (1e8 lines take minutes on one thread). */
+void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
+
+/* ---- io.c: everything untimed ---------------------------------------------------------------------- */
+
+/* The whole program: options, input, step 0, backend_run, final state, timing. Each backend's main
+ * is just `return io_main(argc, argv);`. */
+int io_main(int argc, char **argv);
+
+/* Upper bound on the bytes of one output line (a %.8f real can take 300+ digits). */
+#define IO_LINE_MAX 1600
+
+/* Formats output line i of a state (counts included when with_counts) at dst; returns its length. */
+size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts,
+                      int dump17);
+/* Writes a whole state's lines (0 .. n-1), formatted on the backend's threads (backend_parallel) while
+ * the lines before are written: step 0, each printed step and the final state (with counts) of every
+ * backend go through it or, inside omp's parallel region, through the TextJob below. */
+void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
+/* The same in the caller's own parallel loop: for r = 0 .. rounds, run io_text_task(j, r, k) for k in
+ * [0, io_text_tasks(j, r)) in any order on any threads, each round complete before the next starts. */
+typedef struct {
+    char *buf;
+    size_t len, cap;
+} TextBlock;
+#define IO_TEXT_ROUND 16 /* blocks of lines formatted per round */
+typedef struct {
+    Output *out;
+    const Sim *sim;
+    int64_t step, n, blocks, rounds;
+    int with_counts;
+    TextBlock slot[2 * IO_TEXT_ROUND]; /* two rounds of blocks: one being formatted, one written */
+} TextJob;
+void io_text_begin(TextJob *j, Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
+int64_t io_text_tasks(const TextJob *j, int64_t r);
+void io_text_task(TextJob *j, int64_t r, int64_t k);
+void io_text_end(TextJob *j);
+void io_write_bytes(Output *out, const char *bytes, size_t len);
+/* A real of the input as SPEC.md 1 accepts it, the value strtod gives: 0, -1 (not a number), -2 (out of
+ * range) or -3 (nan or inf). */
+int io_parse_real(const char *s, double *out);
+int io_dump17(const Output *out);
+int io_threads(const Output *out); /* --threads, 0 if not given */
+/* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
+void io_progress(Output *out, int64_t step);
+/* --checkpoint: whether the state after whole step `step` is to be saved, and saving it (sim in
+ * original order, velocities as the backend holds them: v / K). io_checkpoint first flushes stdout
+ * through that step, then writes FILE.tmp, syncs it and renames it over FILE, so that FILE is always
+ * a whole checkpoint; it fails the run with a message where it cannot. */
+int io_checkpoint_due(const Output *out, int64_t step);
+void io_checkpoint(Output *out, const Sim *sim, int64_t step);
+/* SIM_FEATURE_STEP0: whether this run's step 0 is the backend's to write, and writing it (sim as the
+ * backend received it, before it changes sim; any thread, while no other writes to out). */
+int io_step0_pending(const Output *out);
+void io_write_step0(Output *out, const Sim *sim);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

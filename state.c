@@ -1,0 +1,71 @@
+/* state.c: the bottom layer's services: messages that end the run, memory, the clock, and the
+ * state's arrays. Everything above (exact.h, io.c, the backends) may call them; they call nothing
+ * of the layers above. */
+#define _POSIX_C_SOURCE 200809L
+#include "common.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+const char *sim_program = "sim";
+
+/* ==== messages, memory and clocks ==================================================================== */
+
+void sim_fail(const char *fmt, ...)
+{
+    va_list ap;
+    fprintf(stderr, "%s: ", sim_program);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    exit(1);
+}
+
+void *sim_calloc(size_t count, size_t size)
+{
+    if (count == 0) count = 1;
+    if (count > SIZE_MAX / size) sim_fail("out of memory (%zu x %zu bytes)", count, size);
+    void *p = calloc(count, size);
+    if (!p) sim_fail("out of memory (%zu x %zu bytes)", count, size);
+    return p;
+}
+
+double sim_clock(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int sim_alloc(Sim *sim, int64_t n)
+{
+    size_t m = (size_t)n;
+    memset(sim, 0, sizeof *sim);
+    sim->x = malloc(m * sizeof(real));
+    sim->y = malloc(m * sizeof(real));
+    sim->vx = malloc(m * sizeof(real));
+    sim->vy = malloc(m * sizeof(real));
+    sim->pc = calloc(m, sizeof(int32_t));
+    sim->wc = calloc(m, sizeof(int32_t));
+    if (sim->x && sim->y && sim->vx && sim->vy && sim->pc && sim->wc) return 0;
+    sim_free(sim);
+    return -1;
+}
+
+void sim_free(Sim *sim)
+{
+    free(sim->x);
+    free(sim->y);
+    free(sim->vx);
+    free(sim->vy);
+    free(sim->pc);
+    free(sim->wc);
+    free(sim->wi);
+    free(sim->last);
+    memset(sim, 0, sizeof *sim);
+}
+
