@@ -98,18 +98,18 @@ bench: all
 
 # the accuracy ladder against the hard-disk equation of state (REPORT.md 7); about 5 minutes on 2 cores
 accuracy: all
-	tools/accuracy.sh
+	./bench.sh accuracy
 
 # figures from the committed bench/*.summary.csv and bench/accuracy.csv (needs gnuplot: apt-get install
 # gnuplot-nox)
-# sweeps run in parts (the CPU's N = 1e6 again with longer runs; the H100's in tools/gpu_sweep.sh): a
+# sweeps run in parts (the CPU's N = 1e6 again with longer runs; the H100's in ./bench.sh gpu-sweep): a
 # point in several files is taken from the later one
 GPU_SUMMARIES = bench/gpu_h100.summary.csv \
     $(patsubst %,bench/gpu_h100_%.summary.csv,threads cuda 1e7_random 1e7 1e8 1e8b)
 plots:
-	@bash tools/plot.sh --merge bench/cpu bench/cpu.summary.csv bench/cpu_1e6.summary.csv
-	@bash tools/plot.sh --merge bench/gpu_h100 $(GPU_SUMMARIES)
-	@if [ -f bench/accuracy.csv ]; then bash tools/accuracy.sh --plot bench/accuracy.csv; fi
+	@./bench.sh plots --merge bench/cpu bench/cpu.summary.csv bench/cpu_1e6.summary.csv
+	@./bench.sh plots --merge bench/gpu_h100 $(GPU_SUMMARIES)
+	@if [ -f bench/accuracy.csv ]; then ./bench.sh accuracy --plot bench/accuracy.csv; fi
 
 # the viewer's demo: a gas whose few fast disks heat it, every step printed (viewer/demo.out, 33 MB)
 demo: omp

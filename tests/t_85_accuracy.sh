@@ -1,7 +1,7 @@
 # The accuracy study's parts: tools/measure on hand-made outputs whose answers are worked out below;
 # --substeps 1 is the SPEC.md step byte for byte; --substeps K > 1 and --pressure give the same bytes
 # (stdout and the pressure line) in seq and omp at any thread count, and so does --exact --pressure;
-# the pressure of a disk bouncing off a wall, by hand; tools/accuracy.sh --quick writes a well-formed
+# the pressure of a disk bouncing off a wall, by hand; ./bench.sh accuracy --quick writes a well-formed
 # CSV with every rung, --exact included.
 A=$TMP/accuracy
 mkdir -p "$A"
@@ -180,10 +180,10 @@ for prog in seq omp; do
     done
 done
 
-# ---- tools/accuracy.sh --quick --------------------------------------------------------------------
+# ---- ./bench.sh accuracy --quick --------------------------------------------------------------------
 acc_csv=$A/accuracy-quick.csv
 acc_rungs="k1 k2 k4 k8 exact f32"
-if RUNGS=$acc_rungs tools/accuracy.sh --quick -o "$acc_csv" > "$A/accuracy.log" 2>&1; then
+if RUNGS=$acc_rungs ./bench.sh accuracy --quick -o "$acc_csv" > "$A/accuracy.log" 2>&1; then
     pass "accuracy.sh --quick runs"
 else
     fail "accuracy.sh --quick runs" "$(tail -n 2 "$A/accuracy.log")"

@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
-# tools/bench_exact.sh: --exact against the default step, seq and omp, on dense gases of N disks (speeds
+# ./bench.sh exact: --exact against the default step, seq and omp, on dense gases of N disks (speeds
 # uniform in [0, 0.5 r] per step). Prints every command and one CSV row per run: the programs' own
 # step-loop seconds (best of REPEATS after a discarded warm-up; seq once), ns per particle-step and
 # events per particle-step. omp --exact must print the same bytes as seq --exact, or the script stops.
-#   tools/bench_exact.sh
-#   N=20000 FRACTIONS="0.4" STEPS=5 THREADS="1 2 4" tools/bench_exact.sh
+#   ./bench.sh exact
+#   N=20000 FRACTIONS="0.4" STEPS=5 THREADS="1 2 4" ./bench.sh exact
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 die() { echo "bench_exact.sh: $*" >&2; exit 1; }
-. tools/script_lib.sh
+. bench/cmd/lib.sh
 
 N=${N:-10000}
 FRACTIONS=${FRACTIONS:-"0.2 0.4"}
@@ -19,8 +19,7 @@ WORK=${WORK:-bench/tmp}
 
 make -s seq omp tools/gen >/dev/null
 mkdir -p "$WORK"
-echo "# $(git rev-parse --short HEAD 2>/dev/null || echo unknown) $(uname -n) $(nproc) cores;" \
-     "$(${CC:-cc} --version | head -1)"
+machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
 echo "fraction,program,mode,threads,n,steps,best_s,ns_per_particle_step,events_per_particle_step"
 
 run() { # FRACTION PROGRAM MODE THREADS INPUT: prints the command and a CSV row

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tools/accuracy.sh: what accuracy costs in time. Runs the accuracy ladder (rungs: the SPEC.md step,
+# ./bench.sh accuracy: what accuracy costs in time. Runs the accuracy ladder (rungs: the SPEC.md step,
 # --substeps 2, 4, 8, --exact, the float build) on closed boxes of hard disks at several area fractions,
 # measures the pressure through the walls (--pressure) and compares the compressibility factor
 # Z = P A / (N kT) with Henderson's hard-disk equation of state; tools/measure adds overlaps, energy
@@ -8,7 +8,7 @@
 # REPORT.md ("What accuracy costs in time") discusses the results.
 set -euo pipefail
 export LC_ALL=C
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 # ---- knobs (environment variables of the same name override them; options override both) ----------
 N=${N:-10000}                           # disks per scene
@@ -37,7 +37,7 @@ export OMP_PLACES=${OMP_PLACES:-cores}
 
 usage() {
     cat <<EOF
-usage: tools/accuracy.sh [options]
+usage: ./bench.sh accuracy [options]
 For each area fraction eta and each rung: tools/gen N --fraction eta --speed $SPEED, EQ_STEPS steps of
 equilibration, BLOCKS measured runs of BLOCK_STEPS steps with --pressure (each continuing the last
 one's final state, --dump17 so nothing is lost), and a print-mode run of PRINT_STEPS steps for
@@ -61,7 +61,7 @@ EOF
 }
 
 die() { echo "accuracy.sh: $*" >&2; exit 1; }
-. tools/script_lib.sh
+. bench/cmd/lib.sh
 
 # ---- the figure -------------------------------------------------------------------------------------
 # plot CSV: the figure, two panels with one point per rung and scene (a colour per scene; a line joins
@@ -127,7 +127,7 @@ plot() {
 
 # ---- options --------------------------------------------------------------------------------------
 QUICK=0 OUTPUT_GIVEN=0
-COMMAND_LINE="tools/accuracy.sh $*"
+COMMAND_LINE="./bench.sh accuracy $*"
 while [ $# -gt 0 ]; do
     case $1 in
         --help | -h) usage; exit 0 ;;
@@ -201,7 +201,7 @@ ns_per_step() { awk -v x="$1" -v n="$N" -v s="$2" 'BEGIN { printf "%.6g\n", x * 
 
 # ---- provenance -----------------------------------------------------------------------------------
 provenance() {
-    echo "# tools/accuracy.sh results (REPORT.md, What accuracy costs in time, explains the columns)"
+    echo "# ./bench.sh accuracy results (REPORT.md, What accuracy costs in time, explains the columns)"
     echo "# command: $COMMAND_LINE"
     machine_provenance "$LOAD_START" "$(nproc 2>/dev/null)"
     echo "# OMP_PROC_BIND=$OMP_PROC_BIND OMP_PLACES=$OMP_PLACES; omp threads: $THREADS"

@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
-# tools/gpu_sweep.sh: the bench.sh sweeps of REPORT.md 6.3 on a machine with an NVIDIA GPU, in two
+# ./bench.sh gpu-sweep: the bench.sh sweeps of REPORT.md 6.3 on a machine with an NVIDIA GPU, in two
 # parts that each fit a 10-minute slot. Results (CSV, logs) go to $OUT (default bench/tmp/gpu).
-#   tools/gpu_sweep.sh small   make test (beside it: the 1e7 scene files), omp on 16 threads and cuda
+#   ./bench.sh gpu-sweep small   make test (beside it: the 1e7 scene files), omp on 16 threads and cuda
 #                              over all scenes up to N = 1e6, omp thread scaling, cuda at N = 1e7
-#   tools/gpu_sweep.sh cuda    cuda alone: all scenes up to N = 1e6, and N = 1e7 (after a change to cuda.cu)
-#   tools/gpu_sweep.sh big     make test (beside it: the 1e8 scene files), cuda at N = 1e8 on the four
+#   ./bench.sh gpu-sweep cuda    cuda alone: all scenes up to N = 1e6, and N = 1e7 (after a change to cuda.cu)
+#   ./bench.sh gpu-sweep big     make test (beside it: the 1e8 scene files), cuda at N = 1e8 on the four
 #                              scenes with particle lines (4.5 GB each)
 # Both end by packing everything into $OUT/results.tgz (few files travel back easily).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 OUT=${OUT:-bench/tmp/gpu}
 mkdir -p "$OUT"
 export REVISION=${REVISION:-$(git rev-parse --short=12 HEAD 2>/dev/null || echo unknown)}

@@ -1,6 +1,6 @@
-# tools/script_lib.sh: helpers that bench.sh and the scripts under tools/ share; sourced from
-# the repository root after the script has defined die (its own name in messages), which integer needs.
-# Never run alone.
+# bench/cmd/lib.sh: helpers that every subcommand of bench.sh shares, above all machine_provenance, the
+# one provenance header of every result file; sourced from the repository root after the script has
+# defined die (its own name in messages), which integer needs. Never run alone.
 
 words() { echo "${1//,/ }"; }
 
@@ -45,4 +45,8 @@ machine_provenance() {
     echo "# cpu: $(awk -F': ' '/^model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null); cores: $2"
     echo "# cc: $cc: $("$cc" --version 2>/dev/null | head -n 1)"
     echo "# CFLAGS: $(make_var CFLAGS); OMPFLAGS: $(make_var OMPFLAGS)"
+    if command -v nvidia-smi > /dev/null 2>&1 && nvidia-smi -L > /dev/null 2>&1; then
+        echo "# gpu: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -n 1);" \
+            "nvcc: $(nvcc --version 2>/dev/null | tail -n 1)"
+    fi
 }

@@ -1,25 +1,25 @@
 #!/usr/bin/env bash
-# tools/gpu_run.sh: on a machine with an NVIDIA GPU, builds everything, checks cuda against seq and
+# ./bench.sh gpu-*: on a machine with an NVIDIA GPU, builds everything, checks cuda against seq and
 # times cuda against omp on the same inputs. Logs and a CSV go to $OUT (default bench/tmp).
-#   tools/gpu_run.sh check   build, make test, compute-sanitizer memcheck on small scenes
-#   tools/gpu_run.sh memcheck  only the memcheck part
-#   tools/gpu_run.sh perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
+#   ./bench.sh gpu-check   build, make test, compute-sanitizer memcheck on small scenes
+#   ./bench.sh gpu-memcheck  only the memcheck part
+#   ./bench.sh gpu-perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
 #                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs, and
 #                            BASE_REV=REV builds revision REV's cuda beside this tree as that BASE
-#   tools/gpu_run.sh host    the host-side work around the steps at N = 1e8 (random placement, writing
+#   ./bench.sh gpu-host    the host-side work around the steps at N = 1e8 (random placement, writing
 #                            step 0 and the final state), timed stage by stage, seq (one thread) and cuda
-#   tools/gpu_run.sh big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
+#   ./bench.sh gpu-big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
 #                            about 110 s, nearly all of it parsing the input)
-#   tools/gpu_run.sh profile device time per phase (cuda --stats)
-#   tools/gpu_run.sh targets the GPU machine's targets of the fast scenes: cuda on the assignment's random
+#   ./bench.sh gpu-profile device time per phase (cuda --stats)
+#   ./bench.sh gpu-targets the GPU machine's targets of the fast scenes: cuda on the assignment's random
 #                            scene at N = 32000 (200 steps) and 1e6 (10 steps) and the gas at 1e7 (50
 #                            steps), two runs each and one with the choice's grid-wide rounds fixed at
 #                            two (SIM_CUDA_ROUNDS=2); omp on the random scene at N = 1e5 on 1 and 16
-#                            threads (tools/bench_omp.sh)
-#   tools/gpu_run.sh all     check, then perf
+#                            threads (./bench.sh targets)
+#   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
-cd "$(dirname "$0")/.."
-. tools/script_lib.sh
+cd "$(dirname "$0")/../.."
+. bench/cmd/lib.sh
 OUT=${OUT:-bench/tmp}
 mkdir -p "$OUT"
 THREADS=${THREADS:-16}
@@ -29,10 +29,6 @@ CSV=$OUT/timings.csv
 DATA=${DATA:-/tmp/gpu_run}
 mkdir -p "$DATA"
 
-provenance() {
-    echo "git $(cat REVISION 2>/dev/null || git rev-parse --short HEAD 2>/dev/null || echo none), $(nvcc --version | tail -1)," \
-        "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader), $(nproc) cores"
-}
 
 # time_one LABEL N PROGRAM ARGS...: one run, step-loop time from the program's own stderr line. The
 # program is named by its file name, or NAME=... in the environment (an earlier build: cuda_base).
@@ -106,7 +102,7 @@ do_perf() {
         BASE=$DATA/base
         build_revision "$BASE_REV" "$BASE" "$OUT/base_build.log" || { tail -5 "$OUT/base_build.log"; exit 1; }
     fi
-    echo "# $(provenance)" >> "$CSV"
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     for n in 1000000 10000000; do
         [ -s "$DATA/gas_$n.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps $GAS_STEPS > "$DATA/gas_$n.in"
@@ -165,7 +161,7 @@ do_host() {
 # host and take far longer than the steps; each stage is logged as it ends.
 do_big() {
     local n=100000000 t0
-    echo "# $(provenance)" >> "$CSV"
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
     t0=$(date +%s)
     [ -s "$DATA/big.in" ] || tools/gen $n --fraction 0.2 --speed 0.5 --steps 10 > "$DATA/big.in"
     echo "big: input ready after $(( $(date +%s) - t0 )) s"
@@ -186,7 +182,7 @@ do_profile() {
 }
 
 do_targets() {
-    echo "# $(provenance)" >> "$CSV"
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random_32000.in"
     printf '1000000\n20000\n1\n10\nperf\n' > "$DATA/random_1000000.in"
@@ -200,7 +196,7 @@ do_targets() {
         # the same with the two grid-wide choice rounds of every step that the choice had before they adapted
         SIM_CUDA_ROUNDS=2 NAME=cuda_rounds2 time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
     done
-    THREADS="1 16" CASES=random1e5 REPEATS=2 tools/bench_omp.sh > "$OUT/omp_random1e5.log" 2>&1
+    THREADS="1 16" CASES=random1e5 REPEATS=2 ./bench.sh targets > "$OUT/omp_random1e5.log" 2>&1
     grep -E '^# target' "$OUT/omp_random1e5.log" >> "$CSV"
 }
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tools/plot.sh: the figures of bench.sh summaries (make plots). For each NAME.summary.csv given (default:
+# ./bench.sh plots: the figures of bench.sh summaries (make plots). For each NAME.summary.csv given (default:
 # every bench/*.summary.csv) it writes beside it (with --merge NAME FILES...: one set NAME-*.png of the
 # points of all the files, for a machine whose sweep ran in parts):
 #   NAME-time.png     ns per particle-step against N, log-log, a panel per scene, a line per backend/threads
@@ -9,7 +9,7 @@
 # between points.
 set -euo pipefail
 export LC_ALL=C
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 
 command -v gnuplot >/dev/null 2>&1 || {
     echo "plot.sh: gnuplot not found (apt-get install gnuplot-nox)" >&2

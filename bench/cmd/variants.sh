@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
-# tools/gpu_variants.sh: on a machine with an NVIDIA GPU, builds cuda.cu once per variant (VARIANTS: a list
+# ./bench.sh variants: on a machine with an NVIDIA GPU, builds cuda.cu once per variant (VARIANTS: a list
 # of NAME=FLAGS, the flags being -D macros of cuda.cu) and, with BASE_REV, that revision's cuda; times each
 # on the same inputs (gas at area fraction 0.2, N = 1e7, 50 steps; the assignment's random scene at
 # N = 32000, 200 steps), checks that all print the same bytes, and keeps each one's phase times
 # (--stats). Results go to $OUT (default bench/tmp/variants).
 set -euo pipefail
-cd "$(dirname "$0")/.."
-. tools/script_lib.sh
+cd "$(dirname "$0")/../.."
+. bench/cmd/lib.sh
 OUT=${OUT:-bench/tmp/variants}
 DATA=${DATA:-/tmp/gpu_variants}
 RUNS=${RUNS:-2}
 mkdir -p "$OUT" "$DATA/bin"
 make -j"$(nproc)" cuda tools/gen > "$OUT/build.log" 2>&1 || { tail -20 "$OUT/build.log"; exit 1; }
+machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
 progs=(./cuda)
 for v in ${VARIANTS:-}; do
     name=${v%%=*} flags=${v#*=}

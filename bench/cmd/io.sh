@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# tools/bench_io.sh: the text path (reading and parsing the input, formatting and writing the output)
+# ./bench.sh io: the text path (reading and parsing the input, formatting and writing the output)
 # measured as a user meets it: whole process, wall clock around the command, output to a file. Each
 # row: the best and the median of REPEATS runs after a warm-up, (input + output bytes) / whole process,
 # and the program's own --stats split (read, parse, format and write: their MB/s).
-#   tools/bench_io.sh                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
-#   tools/bench_io.sh gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
+#   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
+#   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10; BIG=0 leaves it out)
-#   BASE_REV=REV tools/bench_io.sh   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
+#   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
 #                                    row by row
 set -euo pipefail
-cd "$(dirname "$0")/.."
-. tools/script_lib.sh
+cd "$(dirname "$0")/../.."
+. bench/cmd/lib.sh
 REPEATS=${REPEATS:-5}
 WORK=${WORK:-bench/tmp}
 BIG=${BIG:-1}

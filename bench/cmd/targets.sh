@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# tools/bench_omp.sh: measures omp on the scenes its targets name, printing every command it runs, one
+# ./bench.sh targets: measures omp on the scenes its targets name, printing every command it runs, one
 # CSV row per measurement, and at the end one line per target with the measured ratio or rate. Each
 # measurement is REPEATS runs after one discarded warm-up (seq: one run); rows give the best and the
 # median of the whole process (wall clock around the command: input, placement, steps, output) and of
 # the step loop (the program's own seconds on stderr).
-#   tools/bench_omp.sh                     all cases below
-#   CASES="random1e3 mixed" tools/bench_omp.sh
-#   BIG=1 tools/bench_omp.sh               also a gas of N = 1e7 (generates a 600 MB input; minutes)
+#   ./bench.sh targets                     all cases below
+#   CASES="random1e3 mixed" ./bench.sh targets
+#   BIG=1 ./bench.sh targets               also a gas of N = 1e7 (generates a 600 MB input; minutes)
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 die() { echo "bench_omp.sh: $*" >&2; exit 1; }
-. tools/script_lib.sh
+. bench/cmd/lib.sh
 
 REPEATS=${REPEATS:-3}
 THREADS=${THREADS:-"1 2"}
