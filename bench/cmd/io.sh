@@ -6,6 +6,8 @@
 #   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10; BIG=0 leaves it out)
+#   Both end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
+#   the whole process of resuming one.
 #   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
 #                                    row by row
 set -euo pipefail
@@ -69,9 +71,41 @@ for t in $THREADS; do run 1000000 0 "$in" omp "$t"; done
 if [ "$mode" = gpu ]; then
     in=$(gas 10000000 0); run 10000000 0 "$in" cuda -
     in=$(gas 10000000 50); run 10000000 50 "$in" cuda -
-    if [ "$BIG" = 1 ]; then
-        REPEATS=1
-        in=$(gas 100000000 10); run 100000000 10 "$in" cuda -
+fi
+
+# ---- checkpoints: a run of 4 steps that saves one after steps 1, 2 and 3, against the same run
+# without; and resuming the last one (its 1 step and the final state) ----
+best_wall() { # COMMAND...: the best wall seconds of REPEATS runs (stdout to $WORK/io.out)
+    local k s e best=""
+    for ((k = 0; k < REPEATS; k++)); do
         rm -f "$WORK/io.out"
-    fi
+        s=$(date +%s%N)
+        "$@" > "$WORK/io.out" 2> "$WORK/io.err"
+        e=$(date +%s%N)
+        best=$(awk -v a="$s" -v b="$e" -v m="$best" 'BEGIN { t = (b - a) / 1e9; printf "%.4f", (m == "" || t < m) ? t : m }')
+    done
+    echo "$best"
+}
+checkpoints() { # PROGRAM THREADS N
+    local prog=$1 t=$2 n=$3 in plain with resume mb args=()
+    in=$(gas "$n" 4)
+    [ "$t" = - ] || args+=(--threads "$t")
+    echo "# ./$prog $in ${args[*]} [--checkpoint $WORK/io.ck --checkpoint-every 1]; ./$prog --resume $WORK/io.ck ${args[*]}"
+    ./"$prog" "$in" "${args[@]}" > /dev/null 2>&1 # warm-up
+    plain=$(best_wall ./"$prog" "$in" --quiet "${args[@]}")
+    with=$(best_wall ./"$prog" "$in" --quiet "${args[@]}" --checkpoint "$WORK/io.ck" --checkpoint-every 1)
+    resume=$(best_wall ./"$prog" --resume "$WORK/io.ck" --quiet "${args[@]}")
+    mb=$(awk -v b="$(stat -c %s "$WORK/io.ck")" 'BEGIN { printf "%.1f", b / 1e6 }')
+    awk -v p="$prog" -v t="${t/-/1}" -v n="$n" -v mb="$mb" -v a="$plain" -v b="$with" -v r="$resume" \
+        'BEGIN { c = (b - a) / 3; printf "checkpoint,%s,%s,%s,%s,%s,%s,%.4f,%.0f,%s\n", p, t, n, mb, a, b, c, mb / c, r }'
+}
+echo "kind,program,threads,n,checkpoint_mb,plain_s,with_3_checkpoints_s,s_per_checkpoint,mb_per_s,resume_s"
+for t in $THREADS; do checkpoints omp "$t" 1000000; done
+[ "$mode" != gpu ] || checkpoints cuda - 10000000
+rm -f "$WORK/io.ck"
+
+if [ "$mode" = gpu ] && [ "$BIG" = 1 ]; then
+    REPEATS=1
+    in=$(gas 100000000 10); run 100000000 10 "$in" cuda -
+    rm -f "$WORK/io.out"
 fi
