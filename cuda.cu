@@ -1264,8 +1264,8 @@ static void counts_enqueue(Cuda *c, int b)
     CUDA_CHECK(cudaMemcpyAsync(counts + n, c->wc, (size_t)n * 4, cudaMemcpyDeviceToHost, c->stream));
 }
 
-/* Saves the checkpoint of whole step `step` from out_host[b] (its batch is complete). */
-static void checkpoint_state(Cuda *c, Output *out, int b, int64_t step)
+/* The state in out_host[b] (its batch complete) as a Sim: x, y, vx, vy, and with checkpoints p, w. */
+static Sim host_view(const Cuda *c, int b)
 {
     int64_t n = c->n;
     Sim view;
@@ -1274,22 +1274,25 @@ static void checkpoint_state(Cuda *c, Output *out, int b, int64_t step)
     view.y = view.x + n;
     view.vx = view.x + 2 * n;
     view.vy = view.x + 3 * n;
-    view.pc = (int32_t *)(view.x + 4 * n);
-    view.wc = view.pc + n;
+    if (c->checkpoints) {
+        view.pc = (int32_t *)(view.x + 4 * n);
+        view.wc = view.pc + n;
+    }
+    return view;
+}
+
+/* Saves the checkpoint of whole step `step` from out_host[b]. */
+static void checkpoint_state(Cuda *c, Output *out, int b, int64_t step)
+{
+    Sim view = host_view(c, b);
     io_checkpoint(out, &view, step);
 }
 
-/* Formats the state in out_host[b] (its batch is complete). */
+/* Formats the state in out_host[b]. */
 static void print_state(Cuda *c, Output *out, int b, int64_t step)
 {
-    int64_t n = c->n;
-    Sim view;
-    memset(&view, 0, sizeof view);
-    view.x = c->out_host[b];
-    view.y = view.x + n;
-    view.vx = view.x + 2 * n;
-    view.vy = view.x + 3 * n;
-    io_write_lines(out, step, &view, n, 0);
+    Sim view = host_view(c, b);
+    io_write_lines(out, step, &view, c->n, 0);
 }
 
 /* The final state into sim, in original order: put in that order on the device (into the other state

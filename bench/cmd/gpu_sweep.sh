@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ./bench.sh gpu-sweep: the bench.sh sweeps of REPORT.md 6.3 on a machine with an NVIDIA GPU, in two
+# ./bench.sh gpu-sweep: the bench.sh sweeps of REPORT.md 4.2 on a machine with an NVIDIA GPU, in two
 # parts that each fit a 10-minute slot. Results (CSV, logs) go to $OUT (default bench/tmp/gpu).
 #   ./bench.sh gpu-sweep small   make test (beside it: the 1e7 scene files), omp on 16 threads and cuda
 #                              over all scenes up to N = 1e6, omp thread scaling, cuda at N = 1e7
