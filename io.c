@@ -44,6 +44,9 @@ struct Output {
     int step0_pending; /* the backend is to write step 0 (SIM_FEATURE_STEP0) */
     double step0_s;    /* seconds spent writing step 0, and its bytes */
     uint64_t step0_bytes;
+    int final_done;    /* the backend has written the final state (io_write_final) */
+    double final_s;    /* ... in these seconds, these bytes */
+    uint64_t final_bytes;
     double next_show;  /* sim_clock() of the next progress update */
     int shown;         /* a progress line is on the terminal */
 };
@@ -300,19 +303,40 @@ static void text_round_task(void *ctx, int64_t k)
     io_text_task(tr->job, tr->round, k);
 }
 
-void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+/* await: NULL, or called before each round is formatted with the lines that round needs */
+static void write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts,
+                        void (*await)(void *ctx, int64_t lines), void *ctx)
 {
     if (n <= TEXT_LINES) { /* one block: nothing to share out */
+        if (await) await(ctx, n);
         io_write_state(out, step, sim, 0, n, with_counts);
         return;
     }
     TextJob j;
     io_text_begin(&j, out, step, sim, n, with_counts);
     for (int64_t r = 0; r <= j.rounds; r++) {
+        int64_t upto = (r + 1) * TEXT_ROUND * TEXT_LINES;
+        if (await && r < j.rounds) await(ctx, upto < n ? upto : n);
         TextRound tr = {&j, r};
         backend_parallel(out->threads, io_text_tasks(&j, r), text_round_task, &tr);
     }
     io_text_end(&j);
+}
+
+void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts)
+{
+    write_lines(out, step, sim, n, with_counts, NULL, NULL);
+}
+
+void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx)
+{
+    double t0 = sim_clock();
+    uint64_t before = bytes_written;
+    write_lines(out, out->par->steps, sim, out->par->n, 1, await, ctx);
+    out_flush(out);
+    out->final_s = sim_clock() - t0;
+    out->final_bytes = bytes_written - before;
+    out->final_done = 1;
 }
 
 void io_progress(Output *out, int64_t step)
@@ -1436,12 +1460,9 @@ int io_main(int argc, char **argv)
     scale_velocities(&sim, par.n, k);
     v_unscale = 1;
 
-    uint64_t before = bytes_written;
-    double w0 = sim_clock();
-    io_write_lines(&out, par.steps, &sim, par.n, 1);
-    out_flush(&out);
-    io.write_s += sim_clock() - w0;
-    io.out_bytes += bytes_written - before;
+    if (!out.final_done) io_write_final(&out, &sim, NULL, NULL);
+    io.write_s += out.final_s;
+    io.out_bytes += out.final_bytes;
     if (!opt.quiet) {
         double ps = (double)par.n * (double)(par.steps - par.first_step); /* a resumed run: the steps it ran */
         fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",

@@ -126,6 +126,9 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step);
  * backend received it, before it changes sim; any thread, while no other writes to out). */
 int io_step0_pending(const Output *out);
 void io_write_step0(Output *out, const Sim *sim);
+/* The final state (with counts), written by a backend while it still arrives in sim: await(ctx, m)
+ * returns once sim's disks 0 .. m-1 hold it. The driver then writes no final state of its own. */
+void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx);
 
 #ifdef __cplusplus
 }
