@@ -5,7 +5,7 @@
 # and the program's own --stats split (read, parse, format and write: their MB/s).
 #   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
-#                                    (S = 0 and 50) and of 1e8 (S = 10; BIG=0 leaves it out)
+#                                    (S = 0 and 50) and of 1e8 (S = 10, 2 runs; BIG=0 leaves it out)
 #   Both end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
 #   the whole process of resuming one.
 #   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
@@ -25,31 +25,40 @@ machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
 echo "# REPEATS=$REPEATS; output to $WORK/io.out (a new file each run)"
 echo "program,threads,n,steps,in_mb,out_mb,best_s,median_s,mb_per_s,stats"
 
-# run LABEL N STEPS INPUT PROGRAM [ARGS]: one row
+# run N STEPS INPUT PROGRAM THREADS [ARGS]: one row; with BASE_REV, a row of the base build first, the two
+# builds' runs alternating (a machine's state drifts: disk writeback, page cache, clocks)
 run() {
-    local n=$1 steps=$2 in=$3 prog=$4 threads=$5
+    local n=$1 steps=$2 in=$3 prog=$4 threads=$5 progs=() walls=() s e k p
     shift 5
-    if [ -n "${BASE_REV:-}" ] && { [ "$prog" = omp ] || [ "$prog" = cuda ]; }; then
-        BASE_REV="" run "$n" "$steps" "$in" "bench/tmp/base/$prog" "$threads" "$@"
-    fi
-    local args=("$in" --stats "$@") walls=() s e k
+    if [ -n "${BASE_REV:-}" ] && { [ "$prog" = omp ] || [ "$prog" = cuda ]; }; then progs+=("bench/tmp/base/$prog"); fi
+    progs+=("$prog")
+    local args=("$in" --stats "$@")
     [ "$threads" = - ] || args+=(--threads "$threads")
-    echo "# ./$prog ${args[*]} > $WORK/io.out"
-    ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err" || true # warm-up
+    for p in "${progs[@]}"; do
+        echo "# ./$p ${args[*]} > $WORK/io.out"
+        ./"$p" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err" || true # warm-up
+        walls[${#walls[@]}]=""
+    done
     for ((k = 0; k < REPEATS; k++)); do
-        rm -f "$WORK/io.out" # not timed: the shell's truncation of the last run's output
-        s=$(date +%s%N)
-        ./"$prog" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err"
-        e=$(date +%s%N)
-        walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')")
+        for ((q = 0; q < ${#progs[@]}; q++)); do
+            rm -f "$WORK/io.out" # not timed: the shell's truncation of the last run's output
+            s=$(date +%s%N)
+            ./"${progs[q]}" "${args[@]}" > "$WORK/io.out" 2> "$WORK/io.err.$q"
+            e=$(date +%s%N)
+            walls[q]="${walls[q]} $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')"
+        done
     done
     local best median in_mb out_mb
-    best=$(printf '%s\n' "${walls[@]}" | sort -g | head -1)
-    median=$(printf '%s\n' "${walls[@]}" | sort -g | sed -n "$(((REPEATS + 1) / 2))p")
     in_mb=$(awk -v b="$(stat -c %s "$in")" 'BEGIN { printf "%.1f", b / 1e6 }')
     out_mb=$(awk -v b="$(stat -c %s "$WORK/io.out")" 'BEGIN { printf "%.1f", b / 1e6 }')
-    echo "$prog,${threads/-/1},$n,$steps,$in_mb,$out_mb,$best,$median,$(awk -v a="$in_mb" -v b="$out_mb" -v t="$best" \
-        'BEGIN { printf "%.0f", (a + b) / t }'),\"$(grep -h 'input ' "$WORK/io.err" | sed 's/^[a-z_0-9]*: //')\""
+    for ((q = 0; q < ${#progs[@]}; q++)); do
+        # shellcheck disable=SC2086
+        best=$(printf '%s\n' ${walls[q]} | sort -g | head -1)
+        # shellcheck disable=SC2086
+        median=$(printf '%s\n' ${walls[q]} | sort -g | sed -n "$(((REPEATS + 1) / 2))p")
+        echo "${progs[q]},${threads/-/1},$n,$steps,$in_mb,$out_mb,$best,$median,$(awk -v a="$in_mb" -v b="$out_mb" \
+            -v t="$best" 'BEGIN { printf "%.0f", (a + b) / t }'),\"$(grep -h 'input ' "$WORK/io.err.$q" | sed 's/^[a-z_0-9]*: //')\""
+    done
 }
 
 gas() { # gas N STEPS: the file of a gas of N disks (fraction 0.2, speeds up to r/2)
@@ -105,7 +114,7 @@ for t in $THREADS; do checkpoints omp "$t" 1000000; done
 rm -f "$WORK/io.ck"
 
 if [ "$mode" = gpu ] && [ "$BIG" = 1 ]; then
-    REPEATS=1
+    REPEATS=2
     in=$(gas 100000000 10); run 100000000 10 "$in" cuda -
     rm -f "$WORK/io.out"
 fi
