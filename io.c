@@ -1241,6 +1241,17 @@ static void place_velocity_task(void *ctx, int64_t k)
     for (int64_t t = a; t < b; t++) place_velocity(pl, pl->from + t, pl->draw[4 * t + 2], pl->draw[4 * t + 3]);
 }
 
+/* a window's tasks: on all threads where there are enough of them to pay for waking the threads (a
+ * dilute scene's first tries collide every few hundred disks at N = 1e5, so most windows are short) */
+static void place_tasks(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), Place *pl)
+{
+    if (tasks >= 4) {
+        backend_parallel(threads, tasks, task, pl);
+        return;
+    }
+    for (int64_t k = 0; k < tasks; k++) task(pl, k);
+}
+
 /* the next draw: from the queue while it lasts, then from the stream */
 static double place_draw(const double *q, size_t *qpos, size_t qlen, Rng *g)
 {
@@ -1291,19 +1302,19 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim, int threads)
         pl.from = k;
         pl.count = w;
         int64_t tasks = (w + PLACE_TASK - 1) / PLACE_TASK;
-        backend_parallel(threads, tasks, place_position_task, &pl);
+        place_tasks(threads, tasks, place_position_task, &pl);
         for (int64_t i = k; i < k + w; i++) { /* into the grid in index order */
             int64_t c = place_cell(&pl, sim->x[i], sim->y[i]);
             pl.next[i] = pl.head[c];
             pl.head[c] = (int32_t)i;
         }
-        backend_parallel(threads, tasks, place_check_task, &pl);
+        place_tasks(threads, tasks, place_check_task, &pl);
         int64_t bad = k + w;
         for (int64_t t = 0; t < tasks && bad == k + w; t++) bad = pl.first_bad[t];
         for (int64_t i = k + w - 1; i >= bad; i--) /* out of the grid again: each is its cell's latest */
             pl.head[place_cell(&pl, sim->x[i], sim->y[i])] = pl.next[i];
         pl.count = bad - k;
-        backend_parallel(threads, (pl.count + PLACE_TASK - 1) / PLACE_TASK, place_velocity_task, &pl);
+        place_tasks(threads, (pl.count + PLACE_TASK - 1) / PLACE_TASK, place_velocity_task, &pl);
         qpos = 4 * (size_t)(bad - k);
         if (bad == k + w) {
             if (window < PLACE_WINDOW) window *= 2;
