@@ -1,8 +1,9 @@
 # ThreadSanitizer on omp (make omp_tsan: clang -fsanitize=thread with LLVM's OpenMP runtime, whose
 # Archer tool tells the sanitizer about OpenMP's barriers and locks): at 3 threads, on fast, mixed,
-# dense, print, --substeps and --exact scenes, with each broad phase forced as well as chosen; any
-# report of a race fails, and so does a changed output (it must stay seq's). SKIP only where clang,
-# libomp or Archer is missing (.ci/run installs them).
+# dense, print, --substeps and --exact scenes, with each broad phase forced as well as chosen, the
+# random placement and checkpoints every step; any report of a race fails, and so does a changed
+# output (it must stay seq's). SKIP only where clang, libomp or Archer is missing (.ci/run installs
+# them).
 T=$TMP/tsan
 mkdir -p "$T"
 tsan_skip=""
@@ -57,4 +58,10 @@ else
     tsan_run "print --substeps 4" "$T/print.in" auto --substeps 4
     tsan_run "print --exact" "$T/print.in" auto --exact
     tsan_run "rounds of the parallel choice" "$T/rounds.in" auto
+    # the random placement's windows on all threads (20000 disks: windows of several tasks)
+    printf '20000\n20000\n1\n2\nperf\n' > "$T/placed.in"
+    tsan_run "random placement in windows" "$T/placed.in" auto
+    # a checkpoint inside the parallel region, every step, in print and perf mode
+    tsan_run "print --checkpoint every step" "$T/print.in" auto --checkpoint "$T/ck" --checkpoint-every 1
+    tsan_run "dense --checkpoint every step" "$T/dense.in" auto --checkpoint "$T/ck" --checkpoint-every 1
 fi
