@@ -45,6 +45,9 @@ struct Output {
     double step0_s;    /* seconds spent writing step 0, and its bytes */
     uint64_t step0_bytes;
     int final_done;    /* the backend has written the final state (io_write_final) */
+    int64_t ck_count;  /* checkpoints written, their seconds and bytes (--stats) */
+    double ck_s;
+    uint64_t ck_bytes;
     double final_s;    /* ... in these seconds, these bytes */
     uint64_t final_bytes;
     double next_show;  /* sim_clock() of the next progress update */
@@ -419,6 +422,7 @@ typedef struct {
     CkHash hash;
     char buf[1 << 16];
     size_t len;
+    uint64_t bytes; /* written so far */
 } CkWriter;
 
 static void ck_flush(CkWriter *w)
@@ -430,6 +434,7 @@ static void ck_flush(CkWriter *w)
         if (got <= 0) sim_fail("cannot write the checkpoint %s: %s", w->path, got < 0 ? strerror(errno) : "short write");
         done += (size_t)got;
     }
+    w->bytes += w->len;
     w->len = 0;
 }
 
@@ -480,6 +485,7 @@ int io_checkpoint_due(const Output *out, int64_t step)
 void io_checkpoint(Output *out, const Sim *sim, int64_t step)
 {
     out_flush(out); /* stdout holds every line through this step before the checkpoint says so */
+    double t0 = sim_clock();
     const Params *par = out->par;
     size_t plen = strlen(out->ck_path);
     char *tmp = sim_calloc(plen + 5, 1);
@@ -526,6 +532,9 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     }
     free(dir);
     free(tmp);
+    out->ck_count++;
+    out->ck_bytes += w->bytes;
+    out->ck_s += sim_clock() - t0;
     free(w);
 }
 
@@ -1611,6 +1620,10 @@ int io_main(int argc, char **argv)
                 "%.1f MB: formatted and written %.4f s (%.0f MB/s)\n", backend_name, (double)io.in_bytes / 1e6,
                 io.read_s, io.parse_s, io.parse_s > 0 ? (double)io.in_bytes / 1e6 / io.parse_s : 0.0,
                 (double)io.out_bytes / 1e6, io.write_s, io.write_s > 0 ? (double)io.out_bytes / 1e6 / io.write_s : 0.0);
+        if (out.ck_count)
+            fprintf(stderr, "%s: %lld checkpoints of %.1f MB: written %.4f s (%.0f MB/s)\n", backend_name,
+                    (long long)out.ck_count, (double)out.ck_bytes / 1e6 / (double)out.ck_count, out.ck_s,
+                    out.ck_s > 0 ? (double)out.ck_bytes / 1e6 / out.ck_s : 0.0);
         fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", backend_name, run_s,
                 st.seconds, sim_clock() - io.start);
     }
