@@ -3,7 +3,8 @@
  * The layers, bottom up: common.h and state.c (state, physics, messages and memory), exact.h (the
  * --exact model), io.h and io.c (options, input, output, checkpoints, the driver), then the backends
  * (seq.c, omp.c with omp_paths.c and omp_exact.c, cuda.cu), which implement the interface below and
- * call io.c's services. Nothing calls upwards.
+ * call io.c's services. Nothing calls upwards, but for the driver reaching its backend through that
+ * interface.
  */
 #ifndef IO_H
 #define IO_H
