@@ -47,6 +47,31 @@ for t in 1 2 3 7; do ck_same "checkpoint: omp $t threads writes seq's checkpoint
 if have_gpu; then ck_same "checkpoint: cuda writes seq's checkpoint file" ./cuda; else
     skip "checkpoint: cuda writes seq's checkpoint file" "no GPU"; fi
 
+# ---- a finished run's last checkpoint, resumed: the tail of its stdout, and the same stderr lines ----
+# (print mode, 40 steps, checkpoints every 13: the file holds step 39; the resumed run prints the final
+# state only, with what the options of the checkpoint ask: %.17g, the pressure over the whole run)
+ck_tail() { # NAME PROGRAM [OPTIONS]
+    local name=$1 prog=$2
+    shift 2
+    rm -f "$C/tail.ck"
+    ./$prog "$C/small.in" --quiet "$@" > "$C/tail.ref" 2> "$C/tail.ref.err"
+    ./$prog "$C/small.in" --quiet "$@" --checkpoint "$C/tail.ck" --checkpoint-every 13 > /dev/null 2>&1
+    if ! ./$prog --resume "$C/tail.ck" --quiet > "$C/tail.out" 2> "$C/tail.err"; then
+        fail "$name" "exit: $(head -c 200 "$C/tail.err")"
+    elif ! tail -n 500 "$C/tail.ref" | cmp -s - "$C/tail.out"; then
+        fail "$name" "the resumed stdout is not the last step of the plain run's"
+    elif ! cmp -s "$C/tail.err" "$C/tail.ref.err"; then
+        fail "$name" "stderr differs: $(head -c 200 "$C/tail.err")"
+    else
+        pass "$name"
+    fi
+}
+ck_tail "resume: --dump17 comes from the checkpoint" seq --dump17
+ck_tail "resume: --pressure comes from the checkpoint, the pressure line over the whole run" omp --pressure
+ck_tail "resume: --substeps 4 --pressure" omp --substeps 4 --pressure --threads 3
+ck_tail "resume: --exact --pressure" seq --exact --pressure
+ck_tail "resume: float, --pressure" omp_f32 --pressure --threads 2
+
 # ---- kill trials ----
 # ck_start SEGMENT MAXDELAY COMMAND...: runs COMMAND (stdout $C/seg.SEGMENT, stderr .err) in the
 # background, waits for its first checkpoint (a resumed run: for its "resuming" line), sleeps a random
