@@ -45,7 +45,8 @@ struct Output {
     double step0_s;    /* seconds spent writing step 0, and its bytes */
     uint64_t step0_bytes;
     int final_done;    /* the backend has written the final state (io_write_final) */
-    int64_t ck_count;  /* checkpoints written, their seconds and bytes (--stats) */
+    int64_t ck_count;  /* checkpoints written, their seconds and bytes (--stats), the last one's step */
+    int64_t ck_step;
     double ck_s;
     uint64_t ck_bytes;
     double final_s;    /* ... in these seconds, these bytes */
@@ -352,8 +353,10 @@ void io_progress(Output *out, int64_t step)
     if (spent < 2.0) return;
     if (step <= out->first) return;
     double left = spent * (double)(out->steps - step) / (double)(step - out->first);
-    fprintf(stderr, "\r%s: step %lld of %lld (%.0f%%), %.0f s left   ", backend_name, (long long)step,
+    fprintf(stderr, "\r%s: step %lld of %lld (%.0f%%), %.0f s left", backend_name, (long long)step,
             (long long)out->steps, 100.0 * (double)step / (double)out->steps, left);
+    if (out->ck_count) fprintf(stderr, "; checkpoint of step %lld in %s", (long long)out->ck_step, out->ck_path);
+    fputs("   ", stderr);
     out->shown = 1;
 }
 
@@ -533,6 +536,7 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     free(dir);
     free(tmp);
     out->ck_count++;
+    out->ck_step = step;
     out->ck_bytes += w->bytes;
     out->ck_s += sim_clock() - t0;
     free(w);
