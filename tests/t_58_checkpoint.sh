@@ -44,8 +44,15 @@ ck_same() { # NAME COMMAND...: the checkpoint of step 39 (every 13) must be seq'
     fi
 }
 for t in 1 2 3 7; do ck_same "checkpoint: omp $t threads writes seq's checkpoint file" ./omp --threads "$t"; done
-if have_gpu; then ck_same "checkpoint: cuda writes seq's checkpoint file" ./cuda; else
-    skip "checkpoint: cuda writes seq's checkpoint file" "no GPU"; fi
+if have_gpu; then
+    ck_same "checkpoint: cuda writes seq's checkpoint file" ./cuda
+    # steps refused (their events overflow a list of 2) and run again around the checkpoints
+    ck_same "checkpoint: cuda with refused steps writes seq's checkpoint file" env SIM_CUDA_EVENTS=2 ./cuda
+    ck_same "checkpoint: cuda with plans of one slice and of several writes seq's checkpoint file" \
+        env SIM_CUDA_PLAN_SPEED=0,1 ./cuda
+else
+    skip "checkpoint: cuda writes seq's checkpoint file" "no GPU"
+fi
 
 # ---- a finished run's last checkpoint, resumed: the tail of its stdout, and the same stderr lines ----
 # (print mode, 40 steps, checkpoints every 13: the file holds step 39; the resumed run prints the final
