@@ -102,7 +102,12 @@ typedef struct {
 /* ---- state.c: messages, memory, the clock and the state's arrays -------------------------------- */
 
 extern const char *sim_program; /* how messages name the program ("seq", "omp", ...); io_main sets it */
-void sim_fail(const char *fmt, ...);        /* "program: message" on stderr, exit status 1 */
+#ifdef __GNUC__
+#define SIM_FAILS __attribute__((noreturn, format(printf, 1, 2)))
+#else
+#define SIM_FAILS
+#endif
+void sim_fail(const char *fmt, ...) SIM_FAILS; /* "program: message" on stderr, exit status 1 */
 void *sim_calloc(size_t count, size_t size); /* zeroed memory, or sim_fail */
 double sim_clock(void);                      /* monotonic clock, seconds */
 int sim_alloc(Sim *sim, int64_t n);          /* 0 on success */
