@@ -14,7 +14,9 @@ LDLIBS = -lm
 SANFLAGS = -std=c99 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=all
 
 HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
-PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda)
+MPICC ?= mpicc
+HAVE_MPICC := $(shell command -v $(MPICC) >/dev/null 2>&1 && echo yes)
+PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda) $(if $(HAVE_MPICC),mpi)
 PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
@@ -26,6 +28,9 @@ all: $(PROGRAMS) $(PROGRAMS_F32) $(TOOLS)
 endif
 ifneq ($(HAVE_NVCC),yes)
 	@echo "cuda skipped: $(NVCC) not found"
+endif
+ifneq ($(HAVE_MPICC),yes)
+	@echo "mpi skipped: $(MPICC) not found (Debian: apt-get install openmpi-bin libopenmpi-dev)"
 endif
 
 # the layers below the backends: state.c (messages, memory, the state's arrays), io.c (the driver)
@@ -59,6 +64,10 @@ seq: seq.c $(BASE) $(HEADERS) Makefile
 
 omp: omp.c omp_paths.c omp_exact.c $(BASE) $(HEADERS) omp_step.h Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_paths.c omp_exact.c $(BASE) -o $@ $(LDLIBS)
+
+# the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler)
+mpi: mpi.c io.c state.c $(HEADERS) Makefile
+	$(MPICC) $(CFLAGS) mpi.c io.c state.c -o $@ $(LDLIBS)
 
 cuda: cuda.cu $(BASE) common.h io.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu $(BASE) -o $@ $(LDLIBS)
@@ -120,4 +129,4 @@ demo: omp
 	@echo "  python3 -m http.server 8000   # in this folder; then http://localhost:8000/viewer/index.html?in=demo.in&src=demo.out"
 
 clean:
-	rm -f seq omp cuda seq_san omp_tsan $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
+	rm -f seq omp cuda mpi seq_san omp_tsan $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
