@@ -146,9 +146,10 @@ static void push(EvList *l, real t, int kind, int64_t i, int64_t j, int64_t a, i
 static void find_events(const Disks *s, const Params *p, double reach, EvList *l)
 {
     int64_t nl = s->own + s->halo;
-    int64_t side = (int64_t)((double)p->L / reach);
+    /* cells at least `reach` wide, and about as many as disks (a huge box needs no more) */
+    int64_t side = (int64_t)((double)p->L / reach), most = (int64_t)sqrt((double)nl) + 1;
+    if (side > most) side = most;
     if (side < 1) side = 1;
-    if (side > 4096) side = 4096;
     double cell = (double)p->L / (double)side;
     int64_t *head = malloc((size_t)(side * side) * sizeof *head), *next = malloc((size_t)(nl ? nl : 1) * sizeof *next);
     for (int64_t c = 0; c < side * side; c++) head[c] = -1;
@@ -196,8 +197,7 @@ static int key_less(const double *x, const double *y)
 /* SPEC.md 3.3 in rounds: an event is accepted when it is the smallest live event of each of its disks
  * (live: both disks undecided). The owners' smallest keys and decisions reach the halo copies every
  * round. chosen[a] gets the event of own disk a, or -1. */
-static void choose(const Disks *s, EvList *l, const int64_t *send, const int *scount, const int *rcount,
-                   int64_t *chosen)
+static void choose(const Disks *s, EvList *l, const int64_t *send, const int *scount, int64_t *chosen)
 {
     int64_t nl = s->own + s->halo, nsend = 0;
     for (int q = 0; q < np; q++) nsend += scount[q];
@@ -230,7 +230,6 @@ static void choose(const Disks *s, EvList *l, const int64_t *send, const int *sc
         memcpy(st + s->own * 5, in, (size_t)got * 5 * sizeof *in);
         free(in);
         free(rc);
-        (void)rcount;
         for (int64_t k = 0; k < l->len; k++) {
             const Ev *e = &l->e[k];
             if (st[e->a * 5 + 4] != 0 || st[e->b * 5 + 4] != 0) continue;
@@ -369,7 +368,7 @@ static double run_steps(Disks *s, const Params *p, Sim *sim, Output *out)
         halo_exchange(s, (double)p->L, reach, &send, scount, rcount);
         find_events(s, p, reach, &l);
         int64_t *chosen = malloc((size_t)(s->own ? s->own : 1) * sizeof *chosen);
-        choose(s, &l, send, scount, rcount, chosen);
+        choose(s, &l, send, scount, chosen);
         move(s, p, &l, chosen);
         free(chosen);
         free(send);
