@@ -88,6 +88,14 @@ typedef struct {
     int64_t first_step; /* steps already run: 0, or the step of the checkpoint a run resumes from */
 } Params;
 
+/* The fields of Params that follow from L and r. */
+static inline void params_derive(Params *p)
+{
+    p->lo = p->r;
+    p->hi = p->L - p->r;
+    p->sigma2 = (p->r + p->r) * (p->r + p->r);
+}
+
 /* ---- state: structure of arrays, n entries each -------------------------------------------------- */
 
 typedef struct {

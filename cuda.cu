@@ -1390,8 +1390,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     double known = host_vmax(sim, par->n); /* largest speed of the newest state read back */
     cuda_warm_join();
     /* perf mode: step 0 is formatted and written by the host threads while the device allocates,
-     * uploads and runs the steps; sim is only read until state_download, and nothing else uses the
-     * host threads before it. A machine without a GPU is refused before any of it is written. */
+     * uploads and runs the steps; sim is only read until state_download_and_write, and nothing else
+     * uses the host threads before it. A machine without a GPU is refused before any of it is written. */
     std::thread step0;
     if (io_step0_pending(out)) {
         int devices = 0;
@@ -1435,12 +1435,10 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                 bt->last = shown;
                 bt->print = shown / k;
             }
-            if (opt->checkpoint) {
-                int64_t every = opt->checkpoint_every, due = ((next + k - 1) / k + every - 1) / every * every;
-                if (due * k <= bt->last && io_checkpoint_due(out, due)) {
-                    bt->last = due * k; /* a print step in this batch can only be this one */
-                    bt->ck = due;
-                }
+            int64_t due = io_checkpoint_next(out, (next + k - 1) / k);
+            if (due && due * k <= bt->last) {
+                bt->last = due * k; /* a print step in this batch can only be this one */
+                bt->ck = due;
             }
             for (int64_t s = bt->first; s <= bt->last; s++) {
                 cur_at[s % RING] = c.cur;

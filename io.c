@@ -45,28 +45,36 @@ struct Output {
     double step0_s;    /* seconds spent writing step 0, and its bytes */
     uint64_t step0_bytes;
     int final_done;    /* the backend has written the final state (io_write_final) */
+    double final_s;    /* ... in these seconds, these bytes */
+    uint64_t final_bytes;
     int64_t ck_count;  /* checkpoints written, their seconds and bytes (--stats), the last one's step */
     int64_t ck_step;
     double ck_s;
     uint64_t ck_bytes;
-    double final_s;    /* ... in these seconds, these bytes */
-    uint64_t final_bytes;
     double next_show;  /* sim_clock() of the next progress update */
     int shown;         /* a progress line is on the terminal */
 };
 
 static uint64_t bytes_written; /* all of stdout, for --stats */
 
+/* Writes all of bytes to fd; NULL, or what went wrong. */
+static const char *write_fd(int fd, const char *bytes, size_t len)
+{
+    size_t done = 0;
+    while (done < len) {
+        ssize_t w = write(fd, bytes + done, len - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) return w < 0 ? strerror(errno) : "short write";
+        done += (size_t)w;
+    }
+    return NULL;
+}
+
 static void write_all(const char *bytes, size_t len)
 {
     bytes_written += len;
-    size_t done = 0;
-    while (done < len) {
-        ssize_t w = write(STDOUT_FILENO, bytes + done, len - done);
-        if (w < 0 && errno == EINTR) continue;
-        if (w <= 0) sim_fail("cannot write output: %s", w < 0 ? strerror(errno) : "short write");
-        done += (size_t)w;
-    }
+    const char *err = write_fd(STDOUT_FILENO, bytes, len);
+    if (err) sim_fail("cannot write output: %s", err);
 }
 
 static void out_flush(Output *out)
@@ -332,14 +340,21 @@ void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int wi
     write_lines(out, step, sim, n, with_counts, NULL, NULL);
 }
 
-void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx)
+/* A whole state written and flushed, its seconds and bytes kept for --stats. */
+static void write_timed(Output *out, int64_t step, const Sim *sim, int with_counts,
+                        void (*await)(void *ctx, int64_t lines), void *ctx, double *secs, uint64_t *bytes)
 {
     double t0 = sim_clock();
     uint64_t before = bytes_written;
-    write_lines(out, out->par->steps, sim, out->par->n, 1, await, ctx);
+    write_lines(out, step, sim, out->par->n, with_counts, await, ctx);
     out_flush(out);
-    out->final_s = sim_clock() - t0;
-    out->final_bytes = bytes_written - before;
+    *secs = sim_clock() - t0;
+    *bytes = bytes_written - before;
+}
+
+void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx)
+{
+    write_timed(out, out->par->steps, sim, 1, await, ctx, &out->final_s, &out->final_bytes);
     out->final_done = 1;
 }
 
@@ -430,13 +445,8 @@ typedef struct {
 
 static void ck_flush(CkWriter *w)
 {
-    size_t done = 0;
-    while (done < w->len) {
-        ssize_t got = write(w->fd, w->buf + done, w->len - done);
-        if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) sim_fail("cannot write the checkpoint %s: %s", w->path, got < 0 ? strerror(errno) : "short write");
-        done += (size_t)got;
-    }
+    const char *err = write_fd(w->fd, w->buf, w->len);
+    if (err) sim_fail("cannot write the checkpoint %s: %s", w->path, err);
     w->bytes += w->len;
     w->len = 0;
 }
@@ -464,6 +474,16 @@ static void ck_put_reals(CkWriter *w, const real *v, int64_t n, real f)
     }
 }
 
+/* FILE.tmp, where a checkpoint is written before it is renamed over FILE (the caller frees it) */
+static char *ck_tmp_name(const char *path)
+{
+    size_t len = strlen(path);
+    char *tmp = sim_calloc(len + 5, 1);
+    memcpy(tmp, path, len);
+    memcpy(tmp + len, ".tmp", 5);
+    return tmp;
+}
+
 int io_step0_pending(const Output *out)
 {
     return out->step0_pending;
@@ -471,12 +491,7 @@ int io_step0_pending(const Output *out)
 
 void io_write_step0(Output *out, const Sim *sim)
 {
-    double t0 = sim_clock();
-    uint64_t before = bytes_written;
-    io_write_lines(out, 0, sim, out->par->n, 0);
-    out_flush(out);
-    out->step0_s = sim_clock() - t0;
-    out->step0_bytes = bytes_written - before;
+    write_timed(out, 0, sim, 0, NULL, NULL, &out->step0_s, &out->step0_bytes);
     out->step0_pending = 0;
 }
 
@@ -485,15 +500,21 @@ int io_checkpoint_due(const Output *out, int64_t step)
     return out->ck_path && step % out->ck_every == 0 && step > out->first && step < out->steps;
 }
 
+int64_t io_checkpoint_next(const Output *out, int64_t step)
+{
+    if (!out->ck_path) return 0;
+    int64_t due = (step + out->ck_every - 1) / out->ck_every * out->ck_every;
+    while (due <= out->first) due += out->ck_every;
+    return io_checkpoint_due(out, due) ? due : 0;
+}
+
 void io_checkpoint(Output *out, const Sim *sim, int64_t step)
 {
     out_flush(out); /* stdout holds every line through this step before the checkpoint says so */
     double t0 = sim_clock();
     const Params *par = out->par;
     size_t plen = strlen(out->ck_path);
-    char *tmp = sim_calloc(plen + 5, 1);
-    memcpy(tmp, out->ck_path, plen);
-    memcpy(tmp + plen, ".tmp", 5);
+    char *tmp = ck_tmp_name(out->ck_path);
     CkWriter *w = sim_calloc(1, sizeof *w);
     w->path = tmp;
     w->fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -549,10 +570,7 @@ static void ck_probe(const char *path)
     struct stat st;
     if (stat(path, &st) == 0 && !S_ISREG(st.st_mode))
         sim_fail("--checkpoint %s: exists and is not a regular file", path);
-    size_t plen = strlen(path);
-    char *tmp = sim_calloc(plen + 5, 1);
-    memcpy(tmp, path, plen);
-    memcpy(tmp + plen, ".tmp", 5);
+    char *tmp = ck_tmp_name(path);
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd < 0) sim_fail("--checkpoint %s: cannot write %s (%s)", path, tmp, strerror(errno));
     close(fd);
@@ -627,9 +645,7 @@ static void ck_read(Options *opt, Params *par, Sim *sim)
     par->r = (real)h.r;
     par->steps = h.steps;
     par->print = h.print;
-    par->lo = par->r;
-    par->hi = par->L - par->r;
-    par->sigma2 = (par->r + par->r) * (par->r + par->r);
+    params_derive(par);
     par->first_step = h.step;
     opt->substeps = (int)h.substeps;
     opt->exact = h.exact;
@@ -916,9 +932,7 @@ static void read_header(Reader *rd, Params *par)
     } else {
         input_error(rd, rd->line, "the mode must be 'print' or 'perf' (found '%s')", mode);
     }
-    par->lo = par->r;
-    par->hi = par->L - par->r;
-    par->sigma2 = (par->r + par->r) * (par->r + par->r);
+    params_derive(par);
 }
 
 static const char *const field_name[5] = {"index i", "x", "y", "vx", "vy"};

@@ -122,6 +122,8 @@ void io_progress(Output *out, int64_t step);
  * through that step, then writes FILE.tmp, syncs it and renames it over FILE, so that FILE is always
  * a whole checkpoint; it fails the run with a message where it cannot. */
 int io_checkpoint_due(const Output *out, int64_t step);
+/* The first whole step from `step` on that is to be saved, or 0 if none is (backends that plan ahead) */
+int64_t io_checkpoint_next(const Output *out, int64_t step);
 void io_checkpoint(Output *out, const Sim *sim, int64_t step);
 /* SIM_FEATURE_STEP0: whether this run's step 0 is the backend's to write, and writing it (sim as the
  * backend received it, before it changes sim; any thread, while no other writes to out). */

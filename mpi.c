@@ -317,12 +317,6 @@ static void migrate(Disks *s, double L)
 
 /* ---- the run: rank 0 scatters the disks, all ranks step, rank 0 gathers the states to print ---- */
 
-typedef struct {
-    int64_t n, steps, substeps;
-    double L, r;
-    int print;
-} RunHeader;
-
 static void gather(const Disks *s, Sim *sim, int64_t n)
 {
     int mine = (int)(s->own * D_LEN), *counts = NULL, *displ = NULL;
@@ -416,13 +410,11 @@ static void scatter(Disks *s, const Sim *sim, int64_t n, double L)
     free(out), free(sc), free(sd), free(count), free(rcount);
 }
 
-static void distributed(const RunHeader *h, Sim *sim, Output *out, RunStats *st)
+/* All ranks: the run of Params p (rank 0's, broadcast to the others as it is: the same machines, the
+ * same build). */
+static void distributed(Params p, Sim *sim, Output *out, RunStats *st)
 {
-    Params p;
-    memset(&p, 0, sizeof p);
-    p.n = h->n, p.steps = h->steps, p.substeps = h->substeps, p.print = h->print;
-    p.L = (real)h->L, p.r = (real)h->r, p.lo = p.r, p.hi = p.L - p.r;
-    p.sigma2 = (p.r + p.r) * (p.r + p.r);
+    MPI_Bcast(&p, (int)sizeof p, MPI_BYTE, 0, MPI_COMM_WORLD);
     Disks s = {NULL, 0, 0, 0};
     scatter(&s, sim, p.n, (double)p.L);
     double secs = run_steps(&s, &p, sim, out);
@@ -434,9 +426,7 @@ static void distributed(const RunHeader *h, Sim *sim, Output *out, RunStats *st)
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
     (void)opt;
-    RunHeader h = {par->n, par->steps, par->substeps, (double)par->L, (double)par->r, par->print};
-    MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, MPI_COMM_WORLD);
-    distributed(&h, sim, out, stats);
+    distributed(*par, sim, out, stats);
     return 0;
 }
 
@@ -460,9 +450,9 @@ int main(int argc, char **argv)
     if (me == 0) {
         rc = io_main(argc, argv);
     } else {
-        RunHeader h;
-        MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, MPI_COMM_WORLD);
-        distributed(&h, NULL, NULL, NULL);
+        Params p;
+        memset(&p, 0, sizeof p);
+        distributed(p, NULL, NULL, NULL);
     }
     MPI_Finalize();
     return rc;
