@@ -117,6 +117,7 @@ extern const char *sim_program; /* how messages name the program ("seq", "omp", 
 #endif
 void sim_fail(const char *fmt, ...) SIM_FAILS; /* "program: message" on stderr, exit status 1 */
 void *sim_calloc(size_t count, size_t size); /* zeroed memory, or sim_fail */
+void *sim_realloc(void *ptr, size_t count, size_t size); /* realloc to count items, or sim_fail */
 double sim_clock(void);                      /* monotonic clock, seconds */
 int sim_alloc(Sim *sim, int64_t n);          /* 0 on success */
 void sim_free(Sim *sim);

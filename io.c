@@ -28,6 +28,13 @@
 
 /* ==== output ============================================================================================ */
 
+/* Seconds and bytes of the untimed parts, for --stats. */
+typedef struct {
+    double start; /* sim_clock() when main began */
+    double read_s, parse_s, write_s;
+    uint64_t in_bytes, out_bytes;
+} IoTimes;
+
 struct Output {
     char *buf;         /* pending bytes */
     size_t len;        /* bytes pending in buf */
@@ -53,6 +60,8 @@ struct Output {
     uint64_t ck_bytes;
     double next_show;  /* sim_clock() of the next progress update */
     int shown;         /* a progress line is on the terminal */
+    IoTimes io;        /* io_main's reading and writing, for --stats */
+    int io_known;      /* io holds them (not so for a backend that reads and writes its own way: mpi) */
 };
 
 static uint64_t bytes_written; /* all of stdout, for --stats */
@@ -204,27 +213,57 @@ static char *put_real(char *p, double v, int dump17)
     return put_fixed8(p, v);
 }
 
-size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts, int dump17)
+void io_set_velocity_scale(real k)
+{
+    v_unscale = k;
+}
+
+size_t io_format_disk(char *dst, int64_t step, int64_t index, const Sim *sim, int64_t k, int with_counts,
+                      int dump17)
 {
     char *p = put_int(dst, step);
     *p++ = ' ';
-    p = put_int(p, i);
+    p = put_int(p, index);
     *p++ = ' ';
-    p = put_real(p, sim->x[i], dump17);
+    p = put_real(p, sim->x[k], dump17);
     *p++ = ' ';
-    p = put_real(p, sim->y[i], dump17);
+    p = put_real(p, sim->y[k], dump17);
     *p++ = ' ';
-    p = put_real(p, sim->vx[i] * v_unscale, dump17);
+    p = put_real(p, sim->vx[k] * v_unscale, dump17);
     *p++ = ' ';
-    p = put_real(p, sim->vy[i] * v_unscale, dump17);
+    p = put_real(p, sim->vy[k] * v_unscale, dump17);
     if (with_counts) {
         *p++ = ' ';
-        p = put_int(p, sim->pc[i]);
+        p = put_int(p, sim->pc[k]);
         *p++ = ' ';
-        p = put_int(p, sim->wc[i]);
+        p = put_int(p, sim->wc[k]);
     }
     *p++ = '\n';
     return (size_t)(p - dst);
+}
+
+size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts, int dump17)
+{
+    return io_format_disk(dst, step, i, sim, i, with_counts, dump17);
+}
+
+void io_format_block(TextBlock *t, int64_t step, const Sim *sim, int64_t from, int64_t to, int64_t base,
+                     int with_counts, int dump17)
+{
+    /* in locals: the blocks' records share cache lines, and every line would move them between cores */
+    char *buf = t->buf;
+    size_t len = 0, cap = t->cap;
+    for (int64_t k = from; k < to; k++) {
+        if (len + IO_LINE_MAX > cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
+            cap = cap ? 2 * cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
+            buf = realloc(buf, cap);
+            if (!buf) sim_fail("out of memory formatting the output (%zu bytes)", cap);
+        }
+        len += io_format_disk(buf + len, step, base + k, sim, k, with_counts, dump17);
+    }
+    t->buf = buf;
+    t->cap = cap;
+    t->len = len;
 }
 
 /* The lines of particles [from, to) of one state, on this thread. */
@@ -281,21 +320,7 @@ void io_text_task(TextJob *j, int64_t r, int64_t k)
     int64_t b = r * TEXT_ROUND + k - (r > 0);
     TextBlock *t = &j->slot[b % (2 * TEXT_ROUND)];
     int64_t from = b * TEXT_LINES, to = from + TEXT_LINES < j->n ? from + TEXT_LINES : j->n;
-    /* in locals: the blocks' records share cache lines, and every line would move them between cores */
-    char *buf = t->buf;
-    size_t len = 0, cap = t->cap;
-    int dump17 = j->out->dump17;
-    for (int64_t i = from; i < to; i++) {
-        if (len + IO_LINE_MAX > cap) { /* some 70 bytes a line as a rule, IO_LINE_MAX at most */
-            cap = cap ? 2 * cap : (size_t)(to - from) * 80 + IO_LINE_MAX;
-            buf = realloc(buf, cap);
-            if (!buf) sim_fail("out of memory formatting the output (%zu bytes)", cap);
-        }
-        len += io_format_line(buf + len, j->step, i, j->sim, j->with_counts, dump17);
-    }
-    t->buf = buf;
-    t->cap = cap;
-    t->len = len;
+    io_format_block(t, j->step, j->sim, from, to, 0, j->with_counts, j->out->dump17);
 }
 
 void io_text_end(TextJob *j)
@@ -739,7 +764,7 @@ static char *slurp(const Options *opt, size_t *size)
         }
         size_t got = fread(buf + len, 1, cap - len - 1, f);
         len += got;
-        if (got == 0) break;
+        if (got == 0 || feof(f)) break; /* at the first end of file: a pipe may not give a second */
     }
     if (ferror(f)) sim_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
     if (f != stdin) fclose(f);
@@ -935,6 +960,32 @@ static void read_header(Reader *rd, Params *par)
     params_derive(par);
 }
 
+size_t io_header_span(const char *text, size_t size)
+{
+    int records = 0;
+    for (size_t pos = 0; pos < size;) {
+        const char *s = text + pos, *nl = memchr(s, '\n', size - pos);
+        if (!nl) return 0; /* the last line may go on past size */
+        int blank = 1;
+        for (const char *p = s; p < nl && blank; p++) blank = is_space(*p);
+        pos = (size_t)(nl - text) + 1;
+        if (!blank && ++records == 5) return pos;
+    }
+    return 0;
+}
+
+void io_read_header(const char *label, char *text, size_t size, Params *par, size_t *body, long *body_line)
+{
+    Reader rd;
+    memset(&rd, 0, sizeof rd);
+    rd.label = label;
+    rd.text = text;
+    rd.size = size;
+    read_header(&rd, par);
+    *body = rd.pos;
+    *body_line = rd.line;
+}
+
 static const char *const field_name[5] = {"index i", "x", "y", "vx", "vy"};
 
 /* The particle lines are parsed in chunks of whole lines, in parallel (backend_parallel), and the
@@ -956,10 +1007,12 @@ typedef struct {
 
 typedef struct {
     const Params *par;
-    Sim *sim;
+    Sim *sim;          /* where the disks go: at their index, or by_line at their line's position */
+    int by_line;
     char *text;
     long line_base;   /* number of the line before the first particle line */
     Chunk *chunk;
+    int64_t nchunk, lines;
     int32_t *line_idx; /* per particle line: its index, or LINE_BLANK, LINE_NO_INDEX, LINE_ZERO_BYTE */
 } Parse;
 
@@ -978,7 +1031,7 @@ static void chunk_error(Chunk *c, long line, const char *fmt, ...)
 
 /* Checks one record and stores its disk; returns its index, or LINE_NO_INDEX after an error that left
  * no valid index (an error after the index returns the index: the duplicate check comes first). */
-static int32_t read_line(const Parse *ps, Chunk *c, long line, char **tok, int ntok)
+static int32_t read_line(const Parse *ps, Chunk *c, long line, int64_t pos, char **tok, int ntok)
 {
     const Params *par = ps->par;
     int64_t n = par->n;
@@ -1017,10 +1070,11 @@ static int32_t read_line(const Parse *ps, Chunk *c, long line, char **tok, int n
             return (int32_t)idx;
         }
     /* a duplicate index writes twice here, and is then reported: the values are never used */
-    ps->sim->x[idx] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
-    ps->sim->y[idx] = (real)v[1];
-    ps->sim->vx[idx] = (real)v[2];
-    ps->sim->vy[idx] = (real)v[3];
+    int64_t at = ps->by_line ? pos : idx;
+    ps->sim->x[at] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
+    ps->sim->y[at] = (real)v[1];
+    ps->sim->vx[at] = (real)v[2];
+    ps->sim->vy[at] = (real)v[3];
     return (int32_t)idx;
 }
 
@@ -1054,34 +1108,76 @@ static void parse_chunk(void *ctx, int64_t k)
             return;
         }
         int ntok = split_line(p, end, tok);
-        *idx = ntok ? read_line(ps, c, line, tok, ntok) : LINE_BLANK;
+        *idx = ntok ? read_line(ps, c, line, c->line0 + i, tok, ntok) : LINE_BLANK;
         if (c->err_line) return;
         p = end + 1;
     }
 }
 
+/* Cuts ps->text's bytes [from, size) into chunks of whole lines and parses them on threads: line_idx
+ * and the chunks' errors say what each line held. by_line: ps->sim is allocated here, a disk per line. */
+static void parse_lines(Parse *ps, size_t from, size_t size, int threads)
+{
+    int64_t nchunk = (int64_t)((size - from) / CHUNK_BYTES) + 1;
+    ps->nchunk = nchunk;
+    ps->chunk = sim_calloc((size_t)nchunk, sizeof *ps->chunk);
+    for (int64_t k = 0; k < nchunk; k++) { /* each ends after the first newline past its share */
+        Chunk *c = &ps->chunk[k];
+        c->from = k ? ps->chunk[k - 1].to : from;
+        size_t cut = from + (size_t)((double)(size - from) * (double)(k + 1) / (double)nchunk);
+        const char *nl = cut < c->from || k == nchunk - 1 ? NULL : memchr(ps->text + cut, '\n', size - cut);
+        c->to = k == nchunk - 1 ? size : cut < c->from ? c->from : nl ? (size_t)(nl - ps->text) + 1 : size;
+    }
+    backend_parallel(threads, nchunk, count_lines, ps);
+    int64_t lines = 0;
+    for (int64_t k = 0; k < nchunk; k++) {
+        ps->chunk[k].line0 = lines;
+        lines += ps->chunk[k].lines;
+    }
+    ps->lines = lines;
+    ps->line_idx = sim_calloc((size_t)lines, sizeof *ps->line_idx);
+    if (ps->by_line && sim_alloc(ps->sim, lines + 1))
+        sim_fail("out of memory for %lld particle lines", (long long)lines);
+    backend_parallel(threads, nchunk, parse_chunk, ps);
+}
+
+void io_parse_piece(const Params *par, char *text, size_t len, int threads, IoPiece *pc)
+{
+    Parse ps;
+    memset(&ps, 0, sizeof ps);
+    memset(pc, 0, sizeof *pc);
+    ps.par = par;
+    ps.sim = &pc->disks;
+    ps.by_line = 1;
+    ps.text = text;
+    parse_lines(&ps, 0, len, threads);
+    for (int64_t k = 0; k < ps.nchunk; k++) {
+        if (ps.chunk[k].err) pc->bad = 1;
+        free(ps.chunk[k].err);
+    }
+    free(ps.chunk);
+    pc->lines = ps.lines;
+    pc->idx = ps.line_idx;
+}
+
+void io_piece_free(IoPiece *pc)
+{
+    sim_free(&pc->disks);
+    free(pc->idx);
+    memset(pc, 0, sizeof *pc);
+}
+
 /* Reads the particle lines, if any; returns how many there were (0 or n). */
 static int64_t read_particles(Reader *rd, const Params *par, Sim *sim, int threads)
 {
-    Parse ps = {par, sim, rd->text, rd->line, NULL, NULL};
-    size_t from = rd->pos, size = rd->size;
-    int64_t nchunk = (int64_t)((size - from) / CHUNK_BYTES) + 1;
-    ps.chunk = sim_calloc((size_t)nchunk, sizeof *ps.chunk);
-    for (int64_t k = 0; k < nchunk; k++) { /* each ends after the first newline past its share */
-        Chunk *c = &ps.chunk[k];
-        c->from = k ? ps.chunk[k - 1].to : from;
-        size_t cut = from + (size_t)((double)(size - from) * (double)(k + 1) / (double)nchunk);
-        const char *nl = cut < c->from || k == nchunk - 1 ? NULL : memchr(rd->text + cut, '\n', size - cut);
-        c->to = k == nchunk - 1 ? size : cut < c->from ? c->from : nl ? (size_t)(nl - rd->text) + 1 : size;
-    }
-    backend_parallel(threads, nchunk, count_lines, &ps);
-    int64_t lines = 0;
-    for (int64_t k = 0; k < nchunk; k++) {
-        ps.chunk[k].line0 = lines;
-        lines += ps.chunk[k].lines;
-    }
-    ps.line_idx = sim_calloc((size_t)lines, sizeof *ps.line_idx);
-    backend_parallel(threads, nchunk, parse_chunk, &ps);
+    Parse ps;
+    memset(&ps, 0, sizeof ps);
+    ps.par = par;
+    ps.sim = sim;
+    ps.text = rd->text;
+    ps.line_base = rd->line;
+    parse_lines(&ps, rd->pos, rd->size, threads);
+    int64_t nchunk = ps.nchunk, lines = ps.lines;
 
     /* In file order up to the first chunk error: count the records, mark the indices seen. */
     Chunk verdict = {0, 0, 0, 0, 0, NULL};
@@ -1378,14 +1474,7 @@ static int64_t generate(const Params *par, uint64_t seed, Sim *sim, int threads)
 }
 
 /* Reads and validates the whole input; generates the disks when the input lists none. */
-/* Seconds and bytes of the untimed parts, for --stats. */
-typedef struct {
-    double start; /* sim_clock() when main began */
-    double read_s, parse_s, write_s;
-    uint64_t in_bytes, out_bytes;
-} IoTimes;
-
-static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io)
+static void read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io, int prepare)
 {
     Reader rd;
     memset(&rd, 0, sizeof rd);
@@ -1394,7 +1483,7 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io
     rd.text = slurp(opt, &rd.size);
     double t1 = sim_clock();
     read_header(&rd, par);
-    backend_prepare(par);
+    if (prepare) backend_prepare(par);
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
                     (long long)par->n);
@@ -1416,6 +1505,12 @@ static void io_read_input(const Options *opt, Params *par, Sim *sim, IoTimes *io
                     (long long)par->n, (unsigned long long)opt->seed);
     }
     free(rd.text);
+}
+
+void io_read_input(const Options *opt, Params *par, Sim *sim)
+{
+    IoTimes io;
+    read_input(opt, par, sim, &io, 0);
 }
 
 /* ==== command line and driver ====================================================================== */
@@ -1461,13 +1556,15 @@ static long long option_value(int argc, char **argv, int *k, long long lo, long 
     return v;
 }
 
-static void parse_args(int argc, char **argv, Options *opt)
+void io_parse_args(int argc, char **argv, Options *opt)
 {
     memset(opt, 0, sizeof *opt);
     opt->seed = DEFAULT_SEED;
     opt->substeps = 1;
     opt->path = NULL;
-    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0, substeps_given = 0;
+    /* omp and mpi (its ranks' threads) share the broad phase: its threads, --check and --broad */
+    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0 || strcmp(backend_name, "mpi" SIM_SUFFIX) == 0;
+    int substeps_given = 0;
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
@@ -1515,6 +1612,11 @@ static void parse_args(int argc, char **argv, Options *opt)
         } else if (strcmp(a, "--checkpoint") == 0) {
             if (k + 1 >= argc) sim_fail("--checkpoint needs a file name");
             opt->checkpoint = argv[++k];
+        } else if (strcmp(a, "--output") == 0) {
+            if (!(backend_features & SIM_FEATURE_OUTPUT))
+                sim_fail("--output is not supported by %s (redirect its standard output)", backend_name);
+            if (k + 1 >= argc) sim_fail("--output needs a file name");
+            opt->output = argv[++k];
         } else if (strcmp(a, "--checkpoint-every") == 0) {
             opt->checkpoint_every = option_value(argc, argv, &k, 1, SIM_MAX_STEPS);
         } else if (strcmp(a, "--resume") == 0) {
@@ -1555,15 +1657,80 @@ static void scale_velocities(Sim *sim, int64_t n, real f)
     }
 }
 
+Output *io_output_open(const Params *par, const Options *opt)
+{
+    signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
+    Output *out = sim_calloc(1, sizeof *out);
+    out->buf = sim_calloc(OUT_BUFFER, 1);
+    out->dump17 = opt->dump17;
+    out->threads = opt->threads;
+    out->progress = isatty(STDERR_FILENO);
+    out->steps = par->steps;
+    out->first = par->first_step;
+    out->ck_path = opt->checkpoint;
+    out->ck_every = opt->checkpoint_every;
+    out->par = par;
+    out->opt = opt;
+    out->start = sim_clock();
+    out->next_show = out->start + 2.0;
+    return out;
+}
+
+void io_output_close(Output *out)
+{
+    out_flush(out);
+    free(out->buf);
+    free(out);
+}
+
+void io_report(Output *out, const Params *par, const Options *opt, const RunStats *st, double run_s, double impulse)
+{
+    if (out->shown) fputc('\n', stderr); /* end the progress line */
+    out->shown = 0;
+    if (!opt->quiet) {
+        double ps = (double)par->n * (double)(par->steps - par->first_step); /* a resumed run: the steps it ran */
+        fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",
+                backend_name, (long long)par->n, (long long)(par->steps - par->first_step), par->print ? "print" : "perf",
+                st->seconds, st->seconds > 0 ? ps / st->seconds : 0.0);
+    }
+    if (opt->stats) {
+        const IoTimes *io = &out->io;
+        fprintf(stderr, "%s: %llu pair tests (%.4g per particle-step), %llu events\n", backend_name,
+                (unsigned long long)st->pair_tests,
+                par->steps > par->first_step ? (double)st->pair_tests / ((double)par->n * (double)(par->steps - par->first_step)) : 0.0,
+                (unsigned long long)st->events);
+        /* the text: the input read and parsed; step 0 and the final state formatted and written */
+        if (out->io_known)
+            fprintf(stderr, "%s: input %.1f MB: read %.4f s, parsed %.4f s (%.0f MB/s); step 0 and final state "
+                    "%.1f MB: formatted and written %.4f s (%.0f MB/s)\n", backend_name, (double)io->in_bytes / 1e6,
+                    io->read_s, io->parse_s, io->parse_s > 0 ? (double)io->in_bytes / 1e6 / io->parse_s : 0.0,
+                    (double)io->out_bytes / 1e6, io->write_s, io->write_s > 0 ? (double)io->out_bytes / 1e6 / io->write_s : 0.0);
+        if (out->ck_count)
+            fprintf(stderr, "%s: %lld checkpoints of %.1f MB: written %.4f s (%.0f MB/s)\n", backend_name,
+                    (long long)out->ck_count, (double)out->ck_bytes / 1e6 / (double)out->ck_count, out->ck_s,
+                    out->ck_s > 0 ? (double)out->ck_bytes / 1e6 / out->ck_s : 0.0);
+        fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", backend_name, run_s,
+                st->seconds, sim_clock() - (out->io_known ? io->start : out->start));
+    }
+    if (opt->pressure) {
+        impulse *= (double)opt->substeps; /* the run's velocities were v / K */
+        double span = (double)par->steps * 4 * (double)par->L;
+        fprintf(stderr,
+                "%s: pressure: wall impulse %.17g over %lld time units on 4 walls of length %.17g: "
+                "P = %.17g\n",
+                backend_name, impulse, (long long)par->steps, (double)par->L,
+                span > 0 ? impulse / span : 0.0);
+    }
+}
+
 int io_main(int argc, char **argv)
 {
     Options opt;
     Params par;
     Sim sim;
     sim_program = backend_name;
-    parse_args(argc, argv, &opt);
+    io_parse_args(argc, argv, &opt);
     if (opt.checkpoint) ck_probe(opt.checkpoint);
-    signal(SIGPIPE, SIG_IGN); /* a closed pipe becomes a write error with a message */
     IoTimes io;
     memset(&io, 0, sizeof io);
     io.start = sim_clock();
@@ -1573,22 +1740,11 @@ int io_main(int argc, char **argv)
         ck_read(&opt, &par, &sim);
         backend_prepare(&par);
     } else {
-        io_read_input(&opt, &par, &sim, &io);
+        read_input(&opt, &par, &sim, &io, 1);
         par.first_step = 0;
     }
 
-    Output out;
-    memset(&out, 0, sizeof out);
-    out.buf = sim_calloc(OUT_BUFFER, 1);
-    out.dump17 = opt.dump17;
-    out.threads = opt.threads;
-    out.progress = isatty(STDERR_FILENO);
-    out.steps = par.steps;
-    out.first = par.first_step;
-    out.ck_path = opt.checkpoint;
-    out.ck_every = opt.checkpoint_every;
-    out.par = &par;
-    out.opt = &opt;
+    Output *out = io_output_open(&par, &opt);
     /* runs that cannot finish are refused before the first byte of output */
     if (opt.exact) exact_check_speeds(&sim, &par);
     if (par.steps * (int64_t)opt.substeps > INT32_MAX)
@@ -1596,8 +1752,8 @@ int io_main(int argc, char **argv)
                 "(S x K must be <= %d)",
                 opt.substeps, (long long)par.steps, INT32_MAX, INT32_MAX);
     /* a resumed run's step 0 is out already; cuda writes it beside its steps, where the host is idle */
-    out.step0_pending = !opt.resume && !par.print && par.steps > 0 && (backend_features & SIM_FEATURE_STEP0);
-    if (!opt.resume && !out.step0_pending) io_write_step0(&out, &sim);
+    out->step0_pending = !opt.resume && !par.print && par.steps > 0 && (backend_features & SIM_FEATURE_STEP0);
+    if (!opt.resume && !out->step0_pending) io_write_step0(out, &sim);
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     par.substeps = opt.substeps;
@@ -1608,55 +1764,28 @@ int io_main(int argc, char **argv)
 
     RunStats st;
     memset(&st, 0, sizeof st);
-    out.start = sim_clock();
-    out.next_show = out.start + 2.0;
-    if (backend_run(&sim, &par, &opt, &out, &st)) return 1;
-    double run_s = sim_clock() - out.start;
-    if (out.step0_pending) sim_fail("internal error: %s did not write step 0", backend_name);
-    io.write_s = out.step0_s;
-    io.out_bytes = out.step0_bytes;
-    if (out.shown) fputc('\n', stderr);
+    out->start = sim_clock();
+    out->next_show = out->start + 2.0;
+    if (backend_run(&sim, &par, &opt, out, &st)) return 1;
+    double run_s = sim_clock() - out->start;
+    if (out->step0_pending) sim_fail("internal error: %s did not write step 0", backend_name);
+    io.write_s = out->step0_s;
+    io.out_bytes = out->step0_bytes;
+    if (out->shown) fputc('\n', stderr);
+    out->shown = 0;
     scale_velocities(&sim, par.n, k);
     v_unscale = 1;
 
-    if (!out.final_done) io_write_final(&out, &sim, NULL, NULL);
-    io.write_s += out.final_s;
-    io.out_bytes += out.final_bytes;
-    if (!opt.quiet) {
-        double ps = (double)par.n * (double)(par.steps - par.first_step); /* a resumed run: the steps it ran */
-        fprintf(stderr, "%s: %lld particles, %lld steps, %s: %.6f s step loop, %.4g particle-steps/s\n",
-                backend_name, (long long)par.n, (long long)(par.steps - par.first_step), par.print ? "print" : "perf",
-                st.seconds, st.seconds > 0 ? ps / st.seconds : 0.0);
-    }
-    if (opt.stats) {
-        fprintf(stderr, "%s: %llu pair tests (%.4g per particle-step), %llu events\n", backend_name,
-                (unsigned long long)st.pair_tests,
-                par.steps > par.first_step ? (double)st.pair_tests / ((double)par.n * (double)(par.steps - par.first_step)) : 0.0,
-                (unsigned long long)st.events);
-        /* the text: the input read and parsed; step 0 and the final state formatted and written */
-        fprintf(stderr, "%s: input %.1f MB: read %.4f s, parsed %.4f s (%.0f MB/s); step 0 and final state "
-                "%.1f MB: formatted and written %.4f s (%.0f MB/s)\n", backend_name, (double)io.in_bytes / 1e6,
-                io.read_s, io.parse_s, io.parse_s > 0 ? (double)io.in_bytes / 1e6 / io.parse_s : 0.0,
-                (double)io.out_bytes / 1e6, io.write_s, io.write_s > 0 ? (double)io.out_bytes / 1e6 / io.write_s : 0.0);
-        if (out.ck_count)
-            fprintf(stderr, "%s: %lld checkpoints of %.1f MB: written %.4f s (%.0f MB/s)\n", backend_name,
-                    (long long)out.ck_count, (double)out.ck_bytes / 1e6 / (double)out.ck_count, out.ck_s,
-                    out.ck_s > 0 ? (double)out.ck_bytes / 1e6 / out.ck_s : 0.0);
-        fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", backend_name, run_s,
-                st.seconds, sim_clock() - io.start);
-    }
-    if (opt.pressure) {
-        double impulse = 0; /* in index order: the same sum in every backend */
+    if (!out->final_done) io_write_final(out, &sim, NULL, NULL);
+    io.write_s += out->final_s;
+    io.out_bytes += out->final_bytes;
+    out->io = io;
+    out->io_known = 1;
+    double impulse = 0; /* in index order: the same sum in every backend */
+    if (opt.pressure)
         for (int64_t i = 0; i < par.n; i++) impulse += sim.wi[i];
-        impulse *= (double)k; /* the run's velocities were v / K */
-        double span = (double)par.steps * 4 * (double)par.L;
-        fprintf(stderr,
-                "%s: pressure: wall impulse %.17g over %lld time units on 4 walls of length %.17g: "
-                "P = %.17g\n",
-                backend_name, impulse, (long long)par.steps, (double)par.L,
-                span > 0 ? impulse / span : 0.0);
-    }
-    free(out.buf);
+    io_report(out, &par, &opt, &st, run_s, impulse);
+    io_output_close(out);
     sim_free(&sim);
     return 0;
 }

@@ -35,6 +35,7 @@ typedef struct {
     const char *checkpoint;   /* --checkpoint FILE: the state written there every checkpoint_every steps */
     int64_t checkpoint_every; /* --checkpoint-every K (default 1000) */
     const char *resume;       /* --resume FILE: go on from that checkpoint instead of reading an input */
+    const char *output;       /* mpi --output FILE: stdout's bytes written into FILE by every rank */
 } Options;
 
 #define SIM_BROAD_AUTO 0
@@ -61,6 +62,7 @@ extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the
 #define SIM_FEATURE_EXACT 4u
 #define SIM_FEATURE_CHECKPOINT 8u /* --checkpoint and --resume */
 #define SIM_FEATURE_STEP0 16u     /* perf mode: the backend writes step 0 (io_write_step0) beside its steps */
+#define SIM_FEATURE_OUTPUT 32u    /* --output FILE: the backend writes what stdout would get into FILE */
 /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
  * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
  * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
@@ -87,6 +89,10 @@ int io_main(int argc, char **argv);
 /* Formats output line i of a state (counts included when with_counts) at dst; returns its length. */
 size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int with_counts,
                       int dump17);
+/* The same for a disk held at position k of sim but printed as disk `index`: a backend that holds a
+ * block of the state (mpi: a rank's block of indices) formats it without a whole-state Sim. */
+size_t io_format_disk(char *dst, int64_t step, int64_t index, const Sim *sim, int64_t k, int with_counts,
+                      int dump17);
 /* Writes a whole state's lines (0 .. n-1), formatted on the backend's threads (backend_parallel) while
  * the lines before are written: step 0, each printed step and the final state (with counts) of every
  * backend go through it or, inside omp's parallel region, through the TextJob below. */
@@ -105,6 +111,10 @@ typedef struct {
     int with_counts;
     TextBlock slot[2 * IO_TEXT_ROUND]; /* two rounds of blocks: one being formatted, one written */
 } TextJob;
+/* The lines of positions [from, to) of sim, position k printed as disk base + k, into t (grown as
+ * needed; t->len is their length): one task of io_text_task, or of a backend's own block (mpi). */
+void io_format_block(TextBlock *t, int64_t step, const Sim *sim, int64_t from, int64_t to, int64_t base,
+                     int with_counts, int dump17);
 void io_text_begin(TextJob *j, Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
 int64_t io_text_tasks(const TextJob *j, int64_t r);
 void io_text_task(TextJob *j, int64_t r, int64_t k);
@@ -114,6 +124,9 @@ void io_write_bytes(Output *out, const char *bytes, size_t len);
  * range) or -3 (nan or inf). */
 int io_parse_real(const char *s, double *out);
 int io_dump17(const Output *out);
+/* What lines multiply velocities by: K while the state holds v / K (--substeps), else 1. io_main sets
+ * it around backend_run itself; a backend that drives itself (mpi) sets it on every rank that formats. */
+void io_set_velocity_scale(real k);
 int io_threads(const Output *out); /* --threads, 0 if not given */
 /* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
 void io_progress(Output *out, int64_t step);
@@ -132,6 +145,43 @@ void io_write_step0(Output *out, const Sim *sim);
 /* The final state (with counts), written by a backend while it still arrives in sim: await(ctx, m)
  * returns once sim's disks 0 .. m-1 hold it. The driver then writes no final state of its own. */
 void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx);
+
+/* ---- io.c's services for a backend that drives itself (mpi: every rank runs its own main) --------- */
+
+/* io_main's pieces, so that such a backend goes through the same options, messages and report. */
+/* The command line into opt (sim_fail, or exit(0) after --help, on what io_main would refuse). */
+void io_parse_args(int argc, char **argv, Options *opt);
+/* The output as io_main sets it up (8 MB buffer, --dump17, --threads, progress on a terminal, a
+ * closed pipe a write error); par and opt must outlive it. Its clock (progress, --stats) starts here. */
+Output *io_output_open(const Params *par, const Options *opt);
+/* Writes what is pending (sim_fail on a write error) and frees out. */
+void io_output_close(Output *out);
+/* What io_main prints on stderr after a run: the timing line (unless --quiet), --stats and, with
+ * --pressure, the pressure of impulse, the index-order sum of the disks' wi as the backend holds them
+ * (velocities v / K: io_report multiplies by K). */
+void io_report(Output *out, const Params *par, const Options *opt, const RunStats *st, double run_s,
+               double impulse);
+/* The whole input as io_main reads it (or the disks it places), failing with seq's one-line message on
+ * bad input; backend_prepare is left to the caller. */
+void io_read_input(const Options *opt, Params *par, Sim *sim);
+/* Reading a regular file in pieces (mpi: each rank its own byte range). io_header_span: the bytes of
+ * text[0, size) through the newline of the header's 5th record, or 0 when they do not hold it whole
+ * (read more, or all). io_read_header: the header of text[0, size) into par as io_main reads it (same
+ * messages, naming label; text[size] must be writable), the offset of the first particle line and
+ * the number of the line before it. */
+size_t io_header_span(const char *text, size_t size);
+void io_read_header(const char *label, char *text, size_t size, Params *par, size_t *body, long *body_line);
+/* Particle lines text[0, len) (whole lines, text[len] writable) parsed on up to `threads` threads with
+ * io_main's per-line checks; the checks that need all lines (count, duplicates) are the caller's. On
+ * bad input only the fact is kept: io_read_input then finds the message. */
+typedef struct {
+    int64_t lines; /* lines of the piece */
+    int32_t *idx;  /* per line: the index its record gives, or < 0 for a blank line */
+    Sim disks;     /* per line: its record's x, y, vx, vy (pc and wc unused) */
+    int bad;       /* some line failed a check (idx is then incomplete) */
+} IoPiece;
+void io_parse_piece(const Params *par, char *text, size_t len, int threads, IoPiece *pc);
+void io_piece_free(IoPiece *pc);
 
 #ifdef __cplusplus
 }

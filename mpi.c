@@ -1,433 +1,498 @@
-/* mpi.c: the MPI backend, a first version (branch mpi-start): the box cut into P vertical strips, each
- * rank holding the disks whose centres lie in its strip and, each step, copies of the disks of other
- * strips within reach of its own (the halo). Every rank finds the events of its own disks, the ranks
- * choose among them in rounds that equal SPEC.md 3.3's greedy walk, each moves its own disks, and disks
- * that left a strip go to their new rank.
- *
- * Not yet done: rank 0 reads the input and writes the output through io.c (so it holds the whole state
- * at those moments); no threads inside a rank; no --pressure, --exact or checkpoints.
+/* mpi.c: the MPI backend: the box cut into np vertical strips, one per rank (mpi.h), each rank holding
+ * the disks whose centres lie in its strip and, during a step, copies of the disks of other strips
+ * within reach of its own (the halo). A step (SPEC.md 3) on every rank:
+ * 1. the ranks agree on the fastest velocity component (a maximum: exact), which sets the reach: two
+ *    disks farther apart than 2r + 2 sqrt(2) vmax cannot meet within the step;
+ * 2. each rank sends copies of its disks within reach of another strip to that strip's rank;
+ * 3. omp's broad phase (omp_broad.c) finds the wall and pair events of the rank's disks and halo, on
+ *    the rank's threads, over a grid that covers the strip and its halo;
+ * 4. the ranks choose in rounds: an event is accepted once it is the smallest live event of both its
+ *    disks (live: neither disk decided); after each round the owners send their disks' smallest keys
+ *    and decisions to the ranks that hold copies. That is SPEC.md 3.3's greedy walk for any number of
+ *    ranks and threads, and an event between disks of two ranks is decided alike on both;
+ * 5. each rank moves its own disks (pair_contact and finish_step for its side, from the state at the
+ *    start of the step), and disks that left the strip go to the rank of their new strip.
+ * Input, output and the pressure's sum go through the ranks' own disks too (mpi_io.c): no rank ever
+ * holds the whole state (but for standard input and random placement, read or made on rank 0).
  */
-#include "io.h"
+#define _XOPEN_SOURCE 700 /* getrusage */
+#include "mpi.h"
 
-#include <mpi.h>
+#include <omp.h>
+#include <sys/resource.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 const char backend_name[] = "mpi" SIM_SUFFIX;
-const char backend_options[] = "";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS;
+const char backend_options[] =
+    "  --threads N  OpenMP threads per rank (default 1: one rank a core)\n"
+    "  --check      also test every pair of a rank's disks and halo each step (O(N^2)); for testing\n"
+    "  --broad B    the broad phase on one rank: grid, paths, mixed or auto (default); with several\n"
+    "               ranks each rank's strip uses the grid\n"
+    "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
+    "               ranks' standard output through itself, at some 100 MB/s)\n"
+    "run as: mpirun -np P mpi INPUT [options]\n";
+const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT;
 
-static int me, np;
+int mpi_me, mpi_np;
+static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
 
-/* A disk as it travels between ranks: seven doubles (ids and counts are exact in a double). */
-enum { D_ID, D_X, D_Y, D_VX, D_VY, D_PC, D_WC, D_LEN };
-
-typedef struct {
-    double *d;    /* D_LEN doubles a disk: own disks first, then the halo */
-    int64_t own, halo, cap;
-} Disks;
-
-typedef struct {
-    real t;
-    int kind;
-    int64_t i, j; /* original indices, i < j (i == j: a wall) */
-    int64_t a, b; /* local indices: a own; b own or halo (a for a wall) */
-} Ev;
-
-typedef struct {
-    Ev *e;
-    int64_t len, cap;
-} EvList;
-
-static void *grow(void *p, int64_t *cap, int64_t need, size_t size)
+int mpi_owner(double x, double L)
 {
-    if (need <= *cap) return p;
-    int64_t c = *cap ? *cap : 1024;
-    while (c < need) c *= 2;
-    void *q = realloc(p, (size_t)c * size);
-    if (!q) sim_fail("out of memory (%lld x %zu bytes)", (long long)c, size);
-    *cap = c;
-    return q;
+    static double box, per_length; /* np / L, once: called several times per disk per step */
+    if (L != box) box = L, per_length = mpi_np / L;
+    int q = (int)(x * per_length);
+    return q < 0 ? 0 : q >= mpi_np ? mpi_np - 1 : q;
 }
 
-static void disks_reserve(Disks *s, int64_t n)
+void local_reserve(Local *l, int64_t n)
 {
-    int64_t cap = s->cap;
-    s->d = grow(s->d, &cap, n, D_LEN * sizeof(double));
-    s->cap = cap;
+    if (n <= l->cap) return;
+    int64_t cap = l->cap ? l->cap : 1024;
+    while (cap < n) cap *= 2;
+    slots_resize(&l->s, cap, l->with_wi);
+    l->cap = cap;
 }
 
-static int owner_of(double x, double L)
+/* ---- disks on the wire: D_LEN doubles each (indices, counts and reals are exact in a double) ---- */
+
+enum { D_ID, D_X, D_Y, D_VX, D_VY, D_PC, D_WC, D_WI, D_LEN };
+
+static void pack(const Slots *s, int64_t q, double *d)
 {
-    int q = (int)(x / (L / np));
-    return q < 0 ? 0 : q >= np ? np - 1 : q;
+    d[D_ID] = s->id[q], d[D_X] = s->x[q], d[D_Y] = s->y[q], d[D_VX] = s->vx[q], d[D_VY] = s->vy[q];
+    d[D_PC] = s->pc[q], d[D_WC] = s->wc[q], d[D_WI] = s->wi ? s->wi[q] : 0;
 }
 
-/* ---- exchanges ------------------------------------------------------------------------------------ */
+static void unpack(Slots *s, int64_t q, const double *d)
+{
+    s->id[q] = (int32_t)d[D_ID], s->x[q] = (real)d[D_X], s->y[q] = (real)d[D_Y];
+    s->vx[q] = (real)d[D_VX], s->vy[q] = (real)d[D_VY];
+    s->pc[q] = (int32_t)d[D_PC], s->wc[q] = (int32_t)d[D_WC];
+    if (s->wi) s->wi[q] = d[D_WI];
+}
 
-/* Sends count[q] records of `width` doubles to each rank q (packed in rank order in `out`) and returns
- * what arrives, in rank order; *got is the number of records. */
+/* Sends count[q] records of `width` doubles to each rank q (packed in rank order in out) and returns
+ * what arrives, in rank order (*got records; rcount[q] from rank q). */
 static double *exchange(const double *out, const int *count, int width, int64_t *got, int *rcount)
 {
-    int *sd = calloc((size_t)np, sizeof *sd), *rd = calloc((size_t)np, sizeof *rd);
-    int *sc = calloc((size_t)np, sizeof *sc), *rc = calloc((size_t)np, sizeof *rc);
+    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
     MPI_Alltoall(count, 1, MPI_INT, rcount, 1, MPI_INT, MPI_COMM_WORLD);
     int64_t total = 0, off = 0;
     for (int q = 0; q < np; q++) {
         sc[q] = count[q] * width;
+        if (q != mpi_me) bytes_sent += (uint64_t)sc[q] * sizeof(double);
         sd[q] = (int)off;
         off += sc[q];
         rc[q] = rcount[q] * width;
         rd[q] = (int)(total * width);
         total += rcount[q];
     }
-    double *in = malloc((size_t)(total ? total : 1) * (size_t)width * sizeof *in);
-    if (!in) sim_fail("out of memory receiving %lld records", (long long)total);
+    double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
     MPI_Alltoallv(out, sc, sd, MPI_DOUBLE, in, rc, rd, MPI_DOUBLE, MPI_COMM_WORLD);
     free(sd), free(rd), free(sc), free(rc);
     *got = total;
     return in;
 }
 
-/* The halo: every own disk within `reach` of another rank's strip, copied there. send[] gets the own
- * disks sent, rank by rank (scount[q] each), for the choice's exchanges. */
-static void halo_exchange(Disks *s, double L, double reach, int64_t **send, int *scount, int *rcount)
-{
-    double w = L / np;
-    int64_t nsend = 0, cap = 0;
-    int64_t *list = NULL;
-    for (int q = 0; q < np; q++) {
-        scount[q] = 0;
-        if (q == me) continue;
-        double lo = q * w - reach, hi = (q + 1) * w + reach;
-        for (int64_t k = 0; k < s->own; k++) {
-            double x = s->d[k * D_LEN + D_X];
-            if (x >= lo && x <= hi) {
-                list = grow(list, &cap, nsend + 1, sizeof *list);
-                list[nsend++] = k;
-                scount[q]++;
-            }
-        }
-    }
-    double *out = malloc((size_t)(nsend ? nsend : 1) * D_LEN * sizeof *out);
-    for (int64_t k = 0; k < nsend; k++) memcpy(out + k * D_LEN, s->d + list[k] * D_LEN, D_LEN * sizeof *out);
-    int64_t got;
-    double *in = exchange(out, scount, D_LEN, &got, rcount);
-    disks_reserve(s, s->own + got);
-    memcpy(s->d + s->own * D_LEN, in, (size_t)got * D_LEN * sizeof *in);
-    s->halo = got;
-    free(in);
-    free(out);
-    *send = list;
-}
+/* ---- the run ----------------------------------------------------------------------------------------- */
 
-/* ---- one step (SPEC.md 3) -------------------------------------------------------------------------- */
+/* A key of SPEC.md 3.3 on the wire and in the rounds: t = 2 (later than any event) for none. */
+typedef struct {
+    double t, kind, i, j, decided;
+} Key;
 
 typedef struct {
-    real x, y, vx, vy;
-} Kin;
+    Params par;       /* the run's */
+    Params lp;        /* the broad phase's: n = own + halo */
+    const Options *opt;
+    Output *out;      /* rank 0's */
+    Broad b;          /* the rank's disks in b.s: own at [0, own), the halo after them */
+    int64_t own, halo;
+    int nt;
+    double reach, w;  /* this step's reach; the strips' width */
+    real vmax;        /* this step's fastest velocity component, over all ranks */
+    /* the halo exchange: the own slots sent, rank by rank (scount), and the copies received */
+    int32_t *send;
+    int64_t nsend;
+    size_t send_cap;
+    int *scount, *rcount;
+    /* the choice */
+    PairEvent *ev;    /* pair events with an own disk */
+    size_t n_ev, ev_cap;
+    int64_t *off;     /* own + 1: CSR of each own slot's events in adj */
+    int32_t *adj;
+    size_t adj_cap;
+    Key *key;         /* own + halo: smallest live key, decided */
+    int32_t *pick;    /* own: the accepted event (an index into ev), -1 for the wall, -2 for none */
+    unsigned char *acc;
+    int32_t *active;  /* own slots still undecided with a live event */
+    double *next;     /* own x 4: the moved state */
+    int64_t cap;      /* per-slot buffers allocated */
+    uint64_t events, rounds, bytes_steps;
+} Run;
 
-static Kin kin(const Disks *s, int64_t k)
+static void run_reserve(Run *r, int64_t n)
 {
-    const double *d = s->d + k * D_LEN;
-    Kin r = {(real)d[D_X], (real)d[D_Y], (real)d[D_VX], (real)d[D_VY]};
-    return r;
+    if (n > r->b.cap) broad_reserve(&r->b, n + n / 4);
+    if (n <= r->cap) return;
+    int64_t cap = n + n / 4;
+    r->off = sim_realloc(r->off, (size_t)cap + 1, sizeof *r->off);
+    r->key = sim_realloc(r->key, (size_t)cap, sizeof *r->key);
+    r->pick = sim_realloc(r->pick, (size_t)cap, sizeof *r->pick);
+    r->acc = sim_realloc(r->acc, (size_t)cap, sizeof *r->acc);
+    r->active = sim_realloc(r->active, (size_t)cap, sizeof *r->active);
+    r->next = sim_realloc(r->next, (size_t)cap * 4, sizeof *r->next);
+    r->cap = cap;
 }
 
-static void push(EvList *l, real t, int kind, int64_t i, int64_t j, int64_t a, int64_t b)
+/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (each
+ * within reach of the strips from (x - reach) / w to (x + reach) / w). */
+static void halo_exchange(Run *r)
 {
-    l->e = grow(l->e, &l->cap, l->len + 1, sizeof *l->e);
-    Ev e = {t, kind, i, j, a, b};
-    l->e[l->len++] = e;
-}
-
-/* The events of the own disks: walls, and pairs with own or halo disks, found in cells as wide as the
- * reach (no pair farther apart can meet within the step). */
-static void find_events(const Disks *s, const Params *p, double reach, EvList *l)
-{
-    int64_t nl = s->own + s->halo;
-    /* cells at least `reach` wide, and about as many as disks (a huge box needs no more) */
-    int64_t side = (int64_t)((double)p->L / reach), most = (int64_t)sqrt((double)nl) + 1;
-    if (side > most) side = most;
-    if (side < 1) side = 1;
-    double cell = (double)p->L / (double)side;
-    int64_t *head = malloc((size_t)(side * side) * sizeof *head), *next = malloc((size_t)(nl ? nl : 1) * sizeof *next);
-    for (int64_t c = 0; c < side * side; c++) head[c] = -1;
-    for (int64_t k = nl - 1; k >= 0; k--) {
-        int64_t cx = (int64_t)(s->d[k * D_LEN + D_X] / cell), cy = (int64_t)(s->d[k * D_LEN + D_Y] / cell);
-        if (cx >= side) cx = side - 1;
-        if (cy >= side) cy = side - 1;
-        next[k] = head[cy * side + cx];
-        head[cy * side + cx] = k;
-    }
-    l->len = 0;
-    for (int64_t a = 0; a < s->own; a++) {
-        Kin u = kin(s, a);
-        int64_t ia = (int64_t)s->d[a * D_LEN + D_ID];
-        real tw = min_time(wall_time(u.x, u.vx, p->lo, p->hi), wall_time(u.y, u.vy, p->lo, p->hi));
-        if (tw <= 1) push(l, tw, 0, ia, ia, a, a);
-        int64_t cx = (int64_t)(u.x / cell), cy = (int64_t)(u.y / cell);
-        if (cx >= side) cx = side - 1;
-        if (cy >= side) cy = side - 1;
-        for (int64_t ny = cy - 1; ny <= cy + 1; ny++)
-            for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
-                if (nx < 0 || ny < 0 || nx >= side || ny >= side) continue;
-                for (int64_t b = head[ny * side + nx]; b >= 0; b = next[b]) {
-                    int64_t ib = (int64_t)s->d[b * D_LEN + D_ID];
-                    if (b == a || (b < s->own && ib < ia)) continue; /* own pairs once, from the lower */
-                    Kin v = kin(s, b);
-                    int lower = ia < ib;
-                    const Kin *ki = lower ? &u : &v, *kj = lower ? &v : &u;
-                    real t = pair_time(ki->x, ki->y, ki->vx, ki->vy, kj->x, kj->y, kj->vx, kj->vy, p->sigma2);
-                    if (t >= 0) push(l, t, 1, lower ? ia : ib, lower ? ib : ia, a, b);
-                }
+    Slots *s = &r->b.s;
+    int np = mpi_np;
+    real vm = 0;
+    for (int64_t q = 0; q < r->own; q++) vm = fastest(vm, s->vx[q], s->vy[q]);
+    double v = vm, all;
+    MPI_Allreduce(&v, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    r->vmax = (real)all;
+    r->reach = (2 * (double)r->par.r + 2.83 * all) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    memset(r->scount, 0, (size_t)np * sizeof *r->scount);
+    r->nsend = 0;
+    for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
+        int64_t *at = NULL;
+        if (pass) {
+            at = sim_calloc((size_t)np, sizeof *at);
+            for (int q = 1; q < np; q++) at[q] = at[q - 1] + r->scount[q - 1];
+            r->send = omp_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
+        }
+        double in0 = mpi_me * r->w + r->reach, in1 = (mpi_me + 1) * r->w - r->reach;
+        for (int64_t k = 0; k < r->own; k++) {
+            double x = s->x[k];
+            if (x > in0 && x < in1) continue; /* within the strip, by more than the reach */
+            int q0 = mpi_owner(x - r->reach, r->par.L), q1 = mpi_owner(x + r->reach, r->par.L);
+            for (int q = q0; q <= q1; q++) {
+                if (q == mpi_me) continue;
+                if (pass) r->send[at[q]++] = (int32_t)k;
+                else r->scount[q]++, r->nsend++;
             }
-    }
-    free(head);
-    free(next);
-}
-
-/* A key as four doubles for the exchanges: t, kind, i, j; t = 2 (later than any event) for none. */
-static int key_less(const double *x, const double *y)
-{
-    return event_before((real)x[0], (int)x[1], (int64_t)x[2], (int64_t)x[3], (real)y[0], (int)y[1],
-                        (int64_t)y[2], (int64_t)y[3]);
-}
-
-/* SPEC.md 3.3 in rounds: an event is accepted when it is the smallest live event of each of its disks
- * (live: both disks undecided). The owners' smallest keys and decisions reach the halo copies every
- * round. chosen[a] gets the event of own disk a, or -1. */
-static void choose(const Disks *s, EvList *l, const int64_t *send, const int *scount, int64_t *chosen)
-{
-    int64_t nl = s->own + s->halo, nsend = 0;
-    for (int q = 0; q < np; q++) nsend += scount[q];
-    /* per local disk: the smallest live key (4 doubles) and decided (1 double) */
-    double *st = malloc((size_t)(nl ? nl : 1) * 5 * sizeof *st);
-    double *out = malloc((size_t)(nsend ? nsend : 1) * 5 * sizeof *out);
-    for (int64_t k = 0; k < nl; k++) st[k * 5 + 4] = 0;
-    for (int64_t a = 0; a < s->own; a++) chosen[a] = -1;
-    for (;;) {
-        for (int64_t k = 0; k < s->own; k++) st[k * 5] = 2, st[k * 5 + 1] = 0, st[k * 5 + 2] = 0, st[k * 5 + 3] = 0;
-        int64_t live = 0;
-        for (int64_t k = 0; k < l->len; k++) {
-            const Ev *e = &l->e[k];
-            if (st[e->a * 5 + 4] != 0 || st[e->b * 5 + 4] != 0) continue;
-            live++;
-            double key[4] = {(double)e->t, e->kind, (double)e->i, (double)e->j};
-            int64_t ends[2] = {e->a, e->b};
-            for (int m = 0; m < (e->a == e->b ? 1 : 2); m++) {
-                int64_t d = ends[m];
-                if (d < s->own && key_less(key, st + d * 5)) memcpy(st + d * 5, key, sizeof key);
-            }
-        }
-        int64_t all;
-        MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
-        if (all == 0) break;
-        for (int64_t k = 0; k < nsend; k++) memcpy(out + k * 5, st + send[k] * 5, 5 * sizeof *out);
-        int64_t got;
-        int *rc = calloc((size_t)np, sizeof *rc);
-        double *in = exchange(out, scount, 5, &got, rc);
-        memcpy(st + s->own * 5, in, (size_t)got * 5 * sizeof *in);
-        free(in);
-        free(rc);
-        for (int64_t k = 0; k < l->len; k++) {
-            const Ev *e = &l->e[k];
-            if (st[e->a * 5 + 4] != 0 || st[e->b * 5 + 4] != 0) continue;
-            double key[4] = {(double)e->t, e->kind, (double)e->i, (double)e->j};
-            if (memcmp(key, st + e->a * 5, sizeof key) != 0 || memcmp(key, st + e->b * 5, sizeof key) != 0)
-                continue;
-            chosen[e->a] = k;
-            if (e->b < s->own) chosen[e->b] = k;
-        }
-        for (int64_t a = 0; a < s->own; a++)
-            if (chosen[a] >= 0) st[a * 5 + 4] = 1;
-        for (int64_t k = 0; k < l->len; k++) { /* a halo partner of an accepted event is decided too */
-            const Ev *e = &l->e[k];
-            if (e->b >= s->own && chosen[e->a] == k) st[e->b * 5 + 4] = 1;
-        }
-    }
-    free(st);
-    free(out);
-}
-
-/* SPEC.md 3.4 and 3.5 for the own disks, from the state at the start of the step. */
-static void move(Disks *s, const Params *p, const EvList *l, const int64_t *chosen)
-{
-    real lo = p->lo, hi = p->hi;
-    double *next = malloc((size_t)(s->own ? s->own : 1) * 4 * sizeof *next);
-    for (int64_t a = 0; a < s->own; a++) {
-        Kin u = kin(s, a);
-        double *d = s->d + a * D_LEN;
-        if (chosen[a] < 0) {
-            u.x = u.x + u.vx;
-            u.y = u.y + u.vy;
-        } else {
-            const Ev *e = &l->e[chosen[a]];
-            if (e->kind == 0) {
-                wall_bounce(&u.x, &u.y, &u.vx, &u.vy, e->t, lo, hi);
-                finish_step(&u.x, &u.y, u.vx, u.vy, e->t, lo, hi);
-                d[D_WC] += 1;
-            } else {
-                int64_t b = e->a == a ? e->b : e->a;
-                Kin v = kin(s, b);
-                int lower = (int64_t)d[D_ID] == e->i;
-                Kin *ki = lower ? &u : &v, *kj = lower ? &v : &u;
-                pair_contact(&ki->x, &ki->y, &ki->vx, &ki->vy, &kj->x, &kj->y, &kj->vx, &kj->vy, e->t);
-                finish_step(&u.x, &u.y, u.vx, u.vy, e->t, lo, hi);
-                d[D_PC] += 1;
-            }
-        }
-        next[a * 4] = u.x, next[a * 4 + 1] = u.y, next[a * 4 + 2] = u.vx, next[a * 4 + 3] = u.vy;
-    }
-    for (int64_t a = 0; a < s->own; a++) {
-        double *d = s->d + a * D_LEN;
-        d[D_X] = clamp_coord((real)next[a * 4], lo, hi);
-        d[D_Y] = clamp_coord((real)next[a * 4 + 1], lo, hi);
-        d[D_VX] = next[a * 4 + 2];
-        d[D_VY] = next[a * 4 + 3];
-    }
-    free(next);
-}
-
-/* Disks that left the strip go to the rank of their new strip. */
-static void migrate(Disks *s, double L)
-{
-    int *count = calloc((size_t)np, sizeof *count), *rcount = calloc((size_t)np, sizeof *rcount);
-    int64_t moving = 0;
-    for (int64_t a = 0; a < s->own; a++) {
-        int q = owner_of(s->d[a * D_LEN + D_X], L);
-        if (q != me) count[q]++, moving++;
-    }
-    double *out = malloc((size_t)(moving ? moving : 1) * D_LEN * sizeof *out);
-    int64_t *at = calloc((size_t)np, sizeof *at), keep = 0;
-    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-    for (int64_t a = 0; a < s->own; a++) {
-        int q = owner_of(s->d[a * D_LEN + D_X], L);
-        if (q != me) memcpy(out + (at[q]++) * D_LEN, s->d + a * D_LEN, D_LEN * sizeof *out);
-        else memmove(s->d + (keep++) * D_LEN, s->d + a * D_LEN, D_LEN * sizeof *out);
-    }
-    int64_t got;
-    double *in = exchange(out, count, D_LEN, &got, rcount);
-    disks_reserve(s, keep + got);
-    memcpy(s->d + keep * D_LEN, in, (size_t)got * D_LEN * sizeof *in);
-    s->own = keep + got;
-    s->halo = 0;
-    free(in), free(out), free(at), free(count), free(rcount);
-}
-
-/* ---- the run: rank 0 scatters the disks, all ranks step, rank 0 gathers the states to print ---- */
-
-static void gather(const Disks *s, Sim *sim, int64_t n)
-{
-    int mine = (int)(s->own * D_LEN), *counts = NULL, *displ = NULL;
-    double *all = NULL;
-    if (me == 0) {
-        counts = calloc((size_t)np, sizeof *counts);
-        displ = calloc((size_t)np, sizeof *displ);
-        all = malloc((size_t)n * D_LEN * sizeof *all);
-    }
-    MPI_Gather(&mine, 1, MPI_INT, counts, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (me == 0)
-        for (int q = 1; q < np; q++) displ[q] = displ[q - 1] + counts[q - 1];
-    MPI_Gatherv(s->d, mine, MPI_DOUBLE, all, counts, displ, MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    if (me == 0) {
-        for (int64_t k = 0; k < n; k++) {
-            const double *d = all + k * D_LEN;
-            int64_t i = (int64_t)d[D_ID];
-            sim->x[i] = (real)d[D_X], sim->y[i] = (real)d[D_Y];
-            sim->vx[i] = (real)d[D_VX], sim->vy[i] = (real)d[D_VY];
-            sim->pc[i] = (int32_t)d[D_PC], sim->wc[i] = (int32_t)d[D_WC];
-        }
-        free(all), free(counts), free(displ);
-    }
-}
-
-static double run_steps(Disks *s, const Params *p, Sim *sim, Output *out)
-{
-    EvList l = {NULL, 0, 0};
-    int *scount = calloc((size_t)np, sizeof *scount), *rcount = calloc((size_t)np, sizeof *rcount);
-    int64_t k = p->substeps, last = p->steps * k;
-    double t0 = MPI_Wtime();
-    for (int64_t sub = 1; sub <= last; sub++) {
-        double vmax = 0, all;
-        for (int64_t a = 0; a < s->own; a++) {
-            double vx = fabs(s->d[a * D_LEN + D_VX]), vy = fabs(s->d[a * D_LEN + D_VY]);
-            vmax = vmax > vx ? vmax : vx;
-            vmax = vmax > vy ? vmax : vy;
-        }
-        MPI_Allreduce(&vmax, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-        /* two disks close in by at most 2 sqrt(2) vmax in a step; margins for rounding */
-        double reach = (2 * (double)p->r + 2.83 * all) * (1 + 1e-6) + 1e-9 * (double)p->L;
-        int64_t *send = NULL;
-        halo_exchange(s, (double)p->L, reach, &send, scount, rcount);
-        find_events(s, p, reach, &l);
-        int64_t *chosen = malloc((size_t)(s->own ? s->own : 1) * sizeof *chosen);
-        choose(s, &l, send, scount, chosen);
-        move(s, p, &l, chosen);
-        free(chosen);
-        free(send);
-        s->halo = 0;
-        migrate(s, (double)p->L);
-        if (sub % k == 0 && p->print && sub < last) {
-            gather(s, sim, p->n);
-            if (me == 0) io_write_lines(out, sub / k, sim, p->n, 0);
-        }
-        if (me == 0 && sub % k == 0) io_progress(out, sub / k);
-    }
-    free(l.e), free(scount), free(rcount);
-    return MPI_Wtime() - t0;
-}
-
-static void scatter(Disks *s, const Sim *sim, int64_t n, double L)
-{
-    int *count = calloc((size_t)np, sizeof *count), *rcount = calloc((size_t)np, sizeof *rcount);
-    double *out = NULL;
-    if (me == 0) {
-        for (int64_t i = 0; i < n; i++) count[owner_of(sim->x[i], L)]++;
-        out = malloc((size_t)n * D_LEN * sizeof *out);
-        int64_t *at = calloc((size_t)np, sizeof *at);
-        for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-        for (int64_t i = 0; i < n; i++) {
-            double *d = out + (at[owner_of(sim->x[i], L)]++) * D_LEN;
-            d[D_ID] = (double)i, d[D_X] = sim->x[i], d[D_Y] = sim->y[i], d[D_VX] = sim->vx[i];
-            d[D_VY] = sim->vy[i], d[D_PC] = sim->pc[i], d[D_WC] = sim->wc[i];
         }
         free(at);
     }
-    int mine;
-    MPI_Scatter(count, 1, MPI_INT, &mine, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    int *sc = NULL, *sd = NULL;
-    if (me == 0) {
-        sc = calloc((size_t)np, sizeof *sc);
-        sd = calloc((size_t)np, sizeof *sd);
-        for (int q = 0; q < np; q++) sc[q] = count[q] * D_LEN;
-        for (int q = 1; q < np; q++) sd[q] = sd[q - 1] + sc[q - 1];
-    }
-    disks_reserve(s, mine);
-    MPI_Scatterv(out, sc, sd, MPI_DOUBLE, s->d, mine * D_LEN, MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    s->own = mine;
-    s->halo = 0;
-    free(out), free(sc), free(sd), free(count), free(rcount);
+    double *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1) * D_LEN, sizeof *out);
+    for (int64_t k = 0; k < r->nsend; k++) pack(s, r->send[k], out + k * D_LEN);
+    int64_t got;
+    double *in = exchange(out, r->scount, D_LEN, &got, r->rcount);
+    run_reserve(r, r->own + got);
+    s = &r->b.s;
+    for (int64_t k = 0; k < got; k++) unpack(s, r->own + k, in + k * D_LEN);
+    r->halo = got;
+    free(in);
+    free(out);
 }
 
-/* All ranks: the run of Params p (rank 0's, broadcast to the others as it is: the same machines, the
- * same build). */
-static void distributed(Params p, Sim *sim, Output *out, RunStats *st)
+/* 3: omp's broad phase over the strip and its halo, on the rank's threads. */
+static void find_events(Run *r, int64_t step)
 {
-    MPI_Bcast(&p, (int)sizeof p, MPI_BYTE, 0, MPI_COMM_WORLD);
-    Disks s = {NULL, 0, 0, 0};
-    scatter(&s, sim, p.n, (double)p.L);
-    double secs = run_steps(&s, &p, sim, out);
-    gather(&s, sim, p.n);
-    if (st) st->seconds = secs;
-    free(s.d);
+    Broad *b = &r->b;
+    r->lp.n = r->own + r->halo;
+    double x0 = mpi_me * r->w - r->reach, x1 = (mpi_me + 1) * r->w + r->reach;
+    b->rx0 = x0 > r->par.lo ? x0 : r->par.lo;
+    b->rx1 = x1 < r->par.hi ? x1 : r->par.hi;
+#pragma omp parallel num_threads(r->nt)
+    {
+        int tid = omp_get_thread_num();
+#pragma omp single
+        b->nt = omp_get_num_threads();
+        if (mpi_np == 1) { /* the box: the cost model weighs all three broad phases by the speeds */
+            broad_count_speeds(b, tid);
+        } else { /* a strip runs the grid, which needs only the fastest component */
+            BroadThread *th = &b->th[tid];
+            th->vmax = tid == 0 ? r->vmax : 0;
+            memset(th->speed_n, 0, sizeof th->speed_n);
+            memset(th->speed_s1, 0, sizeof th->speed_s1);
+        }
+#pragma omp barrier
+        broad_find(b, tid, step, 0);
+    }
+}
+
+static int key_less(const Key *x, const Key *y)
+{
+    return event_before((real)x->t, (int)x->kind, (int64_t)x->i, (int64_t)x->j, (real)y->t, (int)y->kind,
+                        (int64_t)y->i, (int64_t)y->j);
+}
+
+static int key_same(const Key *x, const Key *y)
+{
+    return x->t == y->t && x->kind == y->kind && x->i == y->i && x->j == y->j;
+}
+
+/* The pair events with an own disk, listed under each own disk (CSR). */
+static void list_events(Run *r)
+{
+    int64_t own = r->own;
+    r->n_ev = 0;
+    for (int t = 0; t < r->b.nt; t++) {
+        const Found *f = &r->b.th[t].found;
+        for (size_t k = 0; k < f->len; k++) {
+            const PairEvent *e = &f->ev[k];
+            if (e->a >= own && e->b >= own) continue; /* two copies: their owners decide */
+            r->ev = omp_grow(r->ev, &r->ev_cap, r->n_ev + 1, sizeof *r->ev);
+            r->ev[r->n_ev++] = *e;
+        }
+    }
+    memset(r->off, 0, (size_t)(own + 1) * sizeof *r->off);
+    for (size_t e = 0; e < r->n_ev; e++) {
+        if (r->ev[e].a < own) r->off[r->ev[e].a + 1]++;
+        if (r->ev[e].b < own) r->off[r->ev[e].b + 1]++;
+    }
+    for (int64_t q = 0; q < own; q++) r->off[q + 1] += r->off[q];
+    r->adj = omp_grow(r->adj, &r->adj_cap, (size_t)r->off[own], sizeof *r->adj);
+    int64_t *fill = sim_calloc((size_t)own + 1, sizeof *fill);
+    for (size_t e = 0; e < r->n_ev; e++) {
+        int32_t ends[2] = {r->ev[e].a, r->ev[e].b};
+        for (int u = 0; u < 2; u++)
+            if (ends[u] < own) r->adj[r->off[ends[u]] + fill[ends[u]]++] = (int32_t)e;
+    }
+    free(fill);
+}
+
+/* 4: the rounds. pick[q] ends as the accepted event of own slot q: an index into ev, -1 for its wall
+ * event, -2 for none. */
+static void choose(Run *r)
+{
+    int64_t own = r->own, nl = own + r->halo, na = 0;
+    const Slots *s = &r->b.s;
+    const real *wt = r->b.wall_t;
+    list_events(r);
+    for (int64_t q = 0; q < nl; q++) {
+        Key none = {2, 0, 0, 0, 0};
+        r->key[q] = none;
+    }
+    for (int64_t q = 0; q < own; q++) {
+        r->pick[q] = -2;
+        if (wt[q] >= 0 || r->off[q + 1] > r->off[q]) r->active[na++] = (int32_t)q;
+    }
+    Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out);
+    for (;;) {
+        /* each undecided own disk's smallest live event (a copy's decision may be a round late:
+         * that only delays, as an event is accepted only when it is both disks' smallest) */
+#pragma omp parallel for num_threads(r->nt) schedule(static)
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = r->active[k];
+            Key best = {2, 0, 0, 0, 0};
+            int32_t pick = -2;
+            if (wt[q] >= 0) {
+                Key w = {(double)wt[q], 0, s->id[q], s->id[q], 0};
+                best = w, pick = -1;
+            }
+            for (int64_t u = r->off[q]; u < r->off[q + 1]; u++) {
+                const PairEvent *e = &r->ev[r->adj[u]];
+                int32_t other = e->a == q ? e->b : e->a;
+                if (r->key[other].decided != 0) continue;
+                Key c = {(double)e->t, 1, e->i, e->j, 0};
+                if (key_less(&c, &best)) best = c, pick = r->adj[u];
+            }
+            Key *kq = &r->key[q]; /* its decided flag, read by other threads, stays */
+            kq->t = best.t, kq->kind = best.kind, kq->i = best.i, kq->j = best.j;
+            r->pick[q] = pick;
+        }
+        int64_t live = 0;
+        for (int64_t k = 0; k < na; k++) live += r->pick[r->active[k]] != -2;
+        int64_t all;
+        MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+        if (all == 0) break;
+        r->rounds++;
+        /* the owners' keys and decisions to the copies */
+        for (int64_t k = 0; k < r->nsend; k++) out[k] = r->key[r->send[k]];
+        int64_t got;
+        Key *in = (Key *)exchange((const double *)out, r->scount, 5, &got, r->rcount);
+        memcpy(r->key + own, in, (size_t)got * sizeof *in);
+        free(in);
+        /* accepted: the smallest live event of both its disks, decided alike by both owners */
+#pragma omp parallel for num_threads(r->nt) schedule(static)
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = r->active[k], p = r->pick[q];
+            r->acc[q] = 0;
+            if (p == -1) {
+                r->acc[q] = 1;
+            } else if (p >= 0) {
+                int32_t other = r->ev[p].a == q ? r->ev[p].b : r->ev[p].a;
+                r->acc[q] = r->key[other].decided == 0 && key_same(&r->key[other], &r->key[q]);
+            }
+        }
+        int64_t kept = 0;
+        for (int64_t k = 0; k < na; k++) {
+            int32_t q = r->active[k];
+            if (r->acc[q]) r->key[q].decided = 1;
+            else if (r->pick[q] != -2) r->active[kept++] = q;
+        }
+        na = kept;
+    }
+    /* own disks left without a live event move freely */
+    for (int64_t k = 0; k < na; k++) r->pick[r->active[k]] = -2;
+    free(out);
+}
+
+/* 5: the own disks moved, from the state at the start of the step. */
+static void move(Run *r)
+{
+    Slots *s = &r->b.s;
+    real lo = r->par.lo, hi = r->par.hi;
+    uint64_t events = 0;
+#pragma omp parallel for num_threads(r->nt) schedule(static) reduction(+ : events)
+    for (int64_t q = 0; q < r->own; q++) {
+        real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
+        int32_t p = r->pick[q];
+        if (p == -2) {
+            x = x + vx;
+            y = y + vy;
+        } else if (p == -1) {
+            real t = r->b.wall_t[q], vx0 = vx, vy0 = vy;
+            wall_bounce(&x, &y, &vx, &vy, t, lo, hi);
+            if (s->wi) s->wi[q] += wall_impulse(vx0, vy0, vx, vy);
+            finish_step(&x, &y, vx, vy, t, lo, hi);
+            s->wc[q]++;
+            events++;
+        } else {
+            const PairEvent *e = &r->ev[p];
+            int32_t o = e->a == q ? e->b : e->a;
+            real ox = s->x[o], oy = s->y[o], ovx = s->vx[o], ovy = s->vy[o];
+            if (s->id[q] == e->i) {
+                pair_contact(&x, &y, &vx, &vy, &ox, &oy, &ovx, &ovy, e->t);
+                events++; /* once a pair: from its lower index */
+            } else {
+                pair_contact(&ox, &oy, &ovx, &ovy, &x, &y, &vx, &vy, e->t);
+            }
+            finish_step(&x, &y, vx, vy, e->t, lo, hi);
+            s->pc[q]++;
+        }
+        double *d = r->next + 4 * q;
+        d[0] = clamp_coord(x, lo, hi), d[1] = clamp_coord(y, lo, hi), d[2] = vx, d[3] = vy;
+    }
+#pragma omp parallel for num_threads(r->nt) schedule(static)
+    for (int64_t q = 0; q < r->own; q++) {
+        const double *d = r->next + 4 * q;
+        s->x[q] = (real)d[0], s->y[q] = (real)d[1], s->vx[q] = (real)d[2], s->vy[q] = (real)d[3];
+    }
+    r->events += events;
+}
+
+/* Disks that left the strip go to the rank of their new strip. */
+static void migrate(Run *r)
+{
+    Slots *s = &r->b.s;
+    int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count);
+    int *rcount = sim_calloc((size_t)np, sizeof *rcount);
+    int64_t moving = 0, keep = 0;
+    int32_t *dest = r->b.cell_of; /* free between steps */
+    for (int64_t q = 0; q < r->own; q++) {
+        int o = mpi_owner(s->x[q], r->par.L);
+        dest[q] = o;
+        if (o != mpi_me) count[o]++, moving++;
+    }
+    double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
+    int64_t *at = sim_calloc((size_t)np, sizeof *at);
+    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
+    for (int64_t q = 0; q < r->own; q++) {
+        int o = dest[q];
+        if (o != mpi_me) {
+            pack(s, q, out + (at[o]++) * D_LEN);
+        } else {
+            if (keep != q) {
+                double d[D_LEN];
+                pack(s, q, d);
+                unpack(s, keep, d);
+            }
+            keep++;
+        }
+    }
+    int64_t got;
+    double *in = exchange(out, count, D_LEN, &got, rcount);
+    run_reserve(r, keep + got);
+    s = &r->b.s;
+    for (int64_t k = 0; k < got; k++) unpack(s, keep + k, in + k * D_LEN);
+    r->own = keep + got;
+    r->halo = 0;
+    free(in), free(out), free(at), free(count), free(rcount);
+}
+
+/* Every few steps the own disks are put in the order of the last step's grid cells, as omp keeps its
+ * slots: the broad phase's pairs are then neighbours in memory. (The broad phase's own reordering
+ * would mix the halo in among them.) */
+#define REORDER_EVERY 8
+static void reorder_own(Run *r)
+{
+    Broad *b = &r->b;
+    const Plan *pl = &b->plan;
+    if (pl->mode != MODE_GRID) return;
+    int64_t gx = pl->gx, gy = pl->gy, cells = gx * gy;
+    int32_t *start = b->cell_start; /* free between steps, max_cells + 1 >= cells + 1 */
+    memset(start, 0, (size_t)(cells + 1) * sizeof *start);
+    const Slots *s = &b->s;
+    for (int64_t q = 0; q < r->own; q++) {
+        double cx = ((double)s->x[q] - pl->x0) * pl->inv_h, cy = ((double)s->y[q] - pl->y0) * pl->inv_h;
+        int64_t ix = cx > 0 ? (cx < (double)(gx - 1) ? (int64_t)cx : gx - 1) : 0;
+        int64_t iy = cy > 0 ? (cy < (double)(gy - 1) ? (int64_t)cy : gy - 1) : 0;
+        b->cell_of[q] = (int32_t)(iy * gx + ix);
+        start[b->cell_of[q] + 1]++;
+    }
+    for (int64_t c = 0; c < cells; c++) start[c + 1] += start[c];
+    Slots *d = &b->spare;
+    for (int64_t q = 0; q < r->own; q++) {
+        int32_t to = start[b->cell_of[q]]++;
+        d->x[to] = s->x[q], d->y[to] = s->y[q], d->vx[to] = s->vx[q], d->vy[to] = s->vy[q];
+        d->id[to] = s->id[q], d->pc[to] = s->pc[q], d->wc[to] = s->wc[q];
+        if (s->wi) d->wi[to] = s->wi[q];
+    }
+    Slots t = b->s;
+    b->s = b->spare;
+    b->spare = t;
+}
+
+static Local view(const Run *r)
+{
+    Local l = {r->b.s, r->own, 0, r->b.cap, r->b.s.wi != NULL};
+    return l;
+}
+
+static double run_steps(Run *r, RunStats *st)
+{
+    int64_t k = r->par.substeps, last = r->par.steps * k;
+    double t0 = MPI_Wtime();
+    uint64_t bytes0 = bytes_sent;
+    for (int64_t sub = 1; sub <= last; sub++) {
+        halo_exchange(r);
+        find_events(r, sub);
+        choose(r);
+        move(r);
+        migrate(r);
+        if (sub % REORDER_EVERY == 1) reorder_own(r);
+        if (sub % k) continue;
+        if (r->par.print && sub < last) {
+            Local l = view(r);
+            mpi_write_state(r->out, &r->par, &l, sub / k, 0);
+        }
+        if (mpi_me == 0) io_progress(r->out, sub / k);
+    }
+    double secs = MPI_Wtime() - t0;
+    r->bytes_steps = bytes_sent - bytes0; /* output's traffic aside */
+    uint64_t mine[2] = {r->events, 0}, sum[2];
+    for (int t = 0; t < r->b.nt_max; t++) mine[1] += r->b.th[t].found.tests;
+    MPI_Reduce(mine, sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    st->events = sum[0];
+    st->pair_tests = sum[1];
+    return secs;
 }
 
 int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
-    (void)opt;
-    distributed(*par, sim, out, stats);
-    return 0;
+    (void)sim, (void)par, (void)opt, (void)out, (void)stats;
+    sim_fail("internal error: mpi runs through its own main");
 }
 
 void backend_prepare(const Params *par)
@@ -437,23 +502,111 @@ void backend_prepare(const Params *par)
 
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
-    (void)threads;
+    int nt = threads > 0 ? threads : 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
+}
+
+/* Scales the own disks' velocities by f (a power of two: exact), for --substeps. */
+static void scale_own(Run *r, real f)
+{
+    for (int64_t q = 0; q < r->own; q++) r->b.s.vx[q] = r->b.s.vx[q] * f, r->b.s.vy[q] = r->b.s.vy[q] * f;
 }
 
 int main(int argc, char **argv)
 {
     MPI_Init(&argc, &argv);
-    MPI_Comm_rank(MPI_COMM_WORLD, &me);
-    MPI_Comm_size(MPI_COMM_WORLD, &np);
-    int rc = 0;
-    if (me == 0) {
-        rc = io_main(argc, argv);
-    } else {
-        Params p;
-        memset(&p, 0, sizeof p);
-        distributed(p, NULL, NULL, NULL);
+    MPI_Comm_rank(MPI_COMM_WORLD, &mpi_me);
+    MPI_Comm_size(MPI_COMM_WORLD, &mpi_np);
+    sim_program = backend_name;
+    /* rank 0 parses first, so that a bad option is reported once; the others then parse the same
+     * arguments, which cannot fail */
+    Options opt;
+    int ok = 0;
+    if (mpi_me == 0) {
+        io_parse_args(argc, argv, &opt);
+        ok = 1;
     }
+    MPI_Bcast(&ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (mpi_me != 0) io_parse_args(argc, argv, &opt);
+
+    Run r;
+    memset(&r, 0, sizeof r);
+    r.opt = &opt;
+    r.nt = opt.threads > 0 ? opt.threads : 1;
+    Local l;
+    memset(&l, 0, sizeof l);
+    l.with_wi = opt.pressure;
+    double t_read = MPI_Wtime();
+    mpi_read_input(&opt, &r.par, &l);
+    t_read = MPI_Wtime() - t_read;
+    r.par.first_step = 0;
+    r.par.substeps = opt.substeps;
+    if (opt.output) mpi_output_file(opt.output);
+    if (r.par.steps * (int64_t)opt.substeps > INT32_MAX)
+        sim_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
+                 "(S x K must be <= %d)", opt.substeps, (long long)r.par.steps, INT32_MAX, INT32_MAX);
+    if (mpi_me == 0) r.out = io_output_open(&r.par, &opt);
+    double t_step0 = MPI_Wtime();
+    mpi_write_state(r.out, &r.par, &l, 0, 0);
+    t_step0 = MPI_Wtime() - t_step0;
+
+    /* the disks into the broad phase's slots, which hold them from here on */
+    r.lp = r.par;
+    r.w = (double)r.par.L / mpi_np;
+    broad_init(&r.b, &r.lp, &opt, l.own + 1024, r.nt, opt.pressure);
+    r.own = l.own;
+    run_reserve(&r, l.own + 1024);
+    for (int64_t q = 0; q < l.own; q++) {
+        double d[D_LEN];
+        pack(&l.s, q, d);
+        unpack(&r.b.s, q, d);
+    }
+    slots_free(&l.s);
+    r.scount = sim_calloc((size_t)mpi_np, sizeof *r.scount);
+    r.rcount = sim_calloc((size_t)mpi_np, sizeof *r.rcount);
+
+    /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
+    real k = (real)opt.substeps;
+    scale_own(&r, 1 / k);
+    io_set_velocity_scale(k);
+    RunStats st;
+    memset(&st, 0, sizeof st);
+    double t0 = MPI_Wtime();
+    st.seconds = run_steps(&r, &st);
+    double run_s = MPI_Wtime() - t0;
+    scale_own(&r, k);
+    io_set_velocity_scale(1);
+    Local fin = view(&r);
+    double t_final = MPI_Wtime();
+    mpi_write_state(r.out, &r.par, &fin, r.par.steps, 1);
+    t_final = MPI_Wtime() - t_final;
+    double impulse = opt.pressure ? mpi_impulse_sum(&r.par, &fin) : 0;
+    /* --stats: the steps' traffic between ranks, and each rank's peak memory (the largest and rank 0's) */
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    uint64_t mine[2] = {r.bytes_steps, (uint64_t)ru.ru_maxrss}, sum[2], most[2];
+    MPI_Reduce(mine, sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, most, 2, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
+    if (mpi_me == 0) {
+        int64_t subs = r.par.steps * r.par.substeps;
+        if (opt.stats)
+            fprintf(stderr,
+                    "%s: %d ranks x %d threads; %llu rounds of the choice (%.3g a step); %.4g bytes sent "
+                    "between ranks a step; peak memory: largest rank %.1f MB, rank 0 %.1f MB, all ranks "
+                    "%.1f MB\n",
+                    backend_name, mpi_np, r.nt, (unsigned long long)r.rounds,
+                    subs ? (double)r.rounds / (double)subs : 0.0, subs ? (double)sum[0] / (double)subs : 0.0,
+                    (double)most[1] / 1024, (double)mine[1] / 1024, (double)sum[1] / 1024);
+        if (opt.stats)
+            fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
+                    "state %.4f s\n", backend_name, t_read, t_step0, t_final);
+        io_report(r.out, &r.par, &opt, &st, run_s, impulse);
+        io_output_close(r.out);
+    }
+    broad_free(&r.b);
+    free(r.send), free(r.scount), free(r.rcount), free(r.ev), free(r.off), free(r.adj);
+    free(r.key), free(r.pick), free(r.acc), free(r.active), free(r.next);
     MPI_Finalize();
-    return rc;
+    return 0;
 }

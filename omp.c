@@ -44,25 +44,6 @@ const unsigned backend_features =
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
-#define SCAN_WIDTH 4     /* boxes one group of the scan tests at once */
-#if SCAN_WIDTH != 4
-#error "scan_range writes out the four box tests of a group"
-#endif
-
-
-/* Relative costs of the grid's broad phase per step, against those of the paths' (omp_paths.c):
- * binning one disk, clearing and summing one cell of one thread's histogram, testing one pair of
- * boxes. */
-#define COST_BIN 1.0
-#define COST_CELL 0.3
-#define COST_BOX 0.25
-
-/* ==== types ========================================================================================== */
-
-/* The box swept by one disk over the step, grown by the radius and the rounding margin. */
-typedef struct {
-    real xlo, xhi, ylo, yhi;
-} Span;
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
 typedef struct {
@@ -72,69 +53,25 @@ typedef struct {
     int32_t a, b; /* slots */
 } SeqEvent;
 
-/* The broad phases of a step. */
-enum { MODE_GRID, MODE_PATHS, MODE_MIXED };
-
-/* The plan of one step: its broad phase and the geometry of its grid (MODE_GRID, MODE_MIXED) and
- * paths (MODE_PATHS, MODE_MIXED). */
+/* Per-thread state of the choice and the moves, padded so that threads never share a cache line. */
 typedef struct {
-    int mode;
-    double v_cut; /* MODE_MIXED: disks with a velocity component of v_cut or more are fast */
-    int64_t g;    /* cells per side; g * g cells */
-    double x0, y0; /* lower corner of the grid */
-    double inv_h; /* 1 / cell side */
-    double grow;  /* r plus the rounding margin: half the size of a box at rest */
-    double reach; /* MODE_MIXED: SlowGrid's */
-    PathsPlan paths;
-} Plan;
-
-/* Disks by their fastest velocity component a, for the plan: bin k (1..62) holds a / span in
- * [2^(k-48), 2^(k-47)); bin 0 the disks at rest, bins 1 and 63 everything below and above. */
-#define SPEED_BINS 64
-static inline int speed_bin(double a, double inv_span)
-{
-    double f = a * inv_span;
-    if (!(f > 0)) return 0;
-    uint64_t bits;
-    memcpy(&bits, &f, sizeof bits); /* the binary exponent, without a call to ilogb */
-    int k = (int)(bits >> 52 & 0x7ff) - 1023 + 48;
-    return k < 1 ? 1 : (k > SPEED_BINS - 1 ? SPEED_BINS - 1 : k);
-}
-
-/* Per-thread state, padded so that threads never share a cache line. */
-typedef struct {
-    Found found;      /* pair events found by this thread this step */
     int64_t n_active; /* undecided disks of this thread's range, at active + range start */
     int64_t partial;  /* this thread's part of a prefix sum */
     size_t ev_off;    /* where this thread's events go in the gathered list */
     uint64_t events;
-    real vmax;
-    /* the changes this step to Work's speed_n and speed_s1 */
-    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
-    int32_t *fast;    /* MODE_MIXED: the fast slots this thread binned */
-    size_t fast_len, fast_cap;
     char pad[64];
 } Thread;
 
 typedef struct {
     Sim *sim;         /* the caller's state, original order: filled for printing and at the end */
-    Slots s, spare;   /* the disks in slot order; spare receives the next order */
+    Broad b;          /* the broad phase, and the disks in slot order (b.s) */
     const Params *p;
     const Options *opt;
     Output *out;
     TextJob text;     /* print mode: the state being formatted and written */
     int nt;           /* threads in the parallel region */
-    Plan plan;
     Thread *th;
-    Paths *paths;     /* the broad phase of fast scenes */
-    int32_t *cell_of; /* n: cell of each slot */
-    int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
-    int32_t *cell_start; /* max cells + 1: first box of each cell */
-    int64_t max_cells;
-    Box *boxes;       /* n: the boxes in cell order */
-    int32_t *box_slot; /* n: the slots of those boxes */
     /* the rest is indexed by slot */
-    real *wall_t;   /* n: wall event time, or -1 */
     PairEvent *ev;    /* all pair events of the step */
     size_t n_ev, ev_cap;
     int64_t *off;     /* n + 1: CSR offsets of each disk's events in adj */
@@ -147,12 +84,6 @@ typedef struct {
     real *acc_t;    /* n: time of the accepted event */
     unsigned char *taken; /* n: 1 once the disk has an accepted event */
     int64_t undecided;   /* disks left after a round of the choice */
-    /* the disks by speed_bin, for the plan: how many, and the sum of their axis speeds (each at
-     * most the box) in units of the box / 2^20; kept up to date through the threads' changes, as
-     * only pair collisions change the size of a velocity component */
-    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
-    int64_t path_steps;  /* steps that used the paths' broad phase (--stats) */
-    int64_t mixed_steps; /* steps that used the mixed one (--stats) */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
     SeqEvent *fin_tmp; /* sort_events' buffer */
@@ -165,42 +96,7 @@ static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
     *to = n * (tid + 1) / nt;
 }
 
-void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap) return ptr;
-    size_t c = *cap ? *cap : 64;
-    while (c < need) c *= 2;
-    void *p = realloc(ptr, c * size);
-    if (!p) sim_fail("out of memory (%zu x %zu bytes)", c, size);
-    *cap = c;
-    return p;
-}
-
 /* ==== slots ========================================================================================= */
-
-static void slots_alloc(Slots *s, int64_t n, int with_wi)
-{
-    s->wi = with_wi ? sim_calloc((size_t)n, sizeof *s->wi) : NULL;
-    s->x = sim_calloc((size_t)n, sizeof *s->x);
-    s->y = sim_calloc((size_t)n, sizeof *s->y);
-    s->vx = sim_calloc((size_t)n, sizeof *s->vx);
-    s->vy = sim_calloc((size_t)n, sizeof *s->vy);
-    s->id = sim_calloc((size_t)n, sizeof *s->id);
-    s->pc = sim_calloc((size_t)n, sizeof *s->pc);
-    s->wc = sim_calloc((size_t)n, sizeof *s->wc);
-}
-
-static void slots_free(Slots *s)
-{
-    free(s->x);
-    free(s->y);
-    free(s->vx);
-    free(s->vy);
-    free(s->id);
-    free(s->pc);
-    free(s->wc);
-    free(s->wi);
-}
 
 /* Turns each thread's partial count into the sum of the counts of the threads before it; returns the
  * total. Called by one thread between barriers. */
@@ -218,7 +114,7 @@ static int64_t scan_partials(Work *w, int nt)
 /* Copies the slots of this thread's range back to the caller's state, in original order. */
 static void slots_unpermute(Work *w, int tid)
 {
-    const Slots *s = &w->s;
+    const Slots *s = &w->b.s;
     Sim *sim = w->sim;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
@@ -234,387 +130,6 @@ static void slots_unpermute(Work *w, int tid)
     }
 }
 
-/* ==== broad phase ==================================================================================== */
-
-/* The grid for disks moving at most v along an axis, boxes grown by grow: cells as wide as two boxes
- * can be apart and still overlap (so overlapping boxes lie in the same or neighbouring cells), at
- * most max_cells. Returns its cost: n disks binned, n_box of them with boxes. */
-static double grid_plan(const Work *w, double v, double grow, int64_t n_box, int nt, Plan *pl)
-{
-    const Params *p = w->p;
-    double scale = p->L + 2 * v;
-    pl->grow = grow;
-    double extent = (p->hi - p->lo) + 2 * v + 2 * grow;
-    pl->x0 = p->lo - v - grow;
-    pl->y0 = pl->x0;
-    int64_t gcap = (int64_t)sqrt((double)w->max_cells);
-    while (gcap > 1 && gcap * gcap > w->max_cells) gcap--;
-    while ((gcap + 1) * (gcap + 1) <= w->max_cells) gcap++;
-    /* centres of two overlapping boxes are at most 2 * grow + (displacement in a step) apart */
-    double h = (2 * grow + v) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
-    double gd = extent / h;
-    pl->g = gd < (double)gcap ? (int64_t)gd : gcap;
-    if (pl->g < 1) pl->g = 1;
-    pl->inv_h = (double)pl->g / extent;
-    double cells = (double)pl->g * (double)pl->g, nb = (double)n_box;
-    return (double)p->n * COST_BIN + cells * nt * COST_CELL + COST_BOX * 4.5 * nb * nb / cells;
-}
-
-/* The grid's margin for disks moving at most v along an axis: it covers, with a wide factor to
- * spare, the rounding of positions (about eps * scale) and that of pair_time near a graze. A pair
- * with an event has dd <= (|dv| + |dv| + 2r)^2 (t <= 1 needs c <= -2b <= 2 |dx| |dv|), and
- * |dv| <= 2 sqrt(2) v. */
-static double grid_grow(const Params *p, double v)
-{
-    return p->r + broad_margin(p->r, p->L + 2 * v, 6 * v + 2 * p->r, SIM_REL_MARGIN);
-}
-
-/* Chooses this step's broad phase, whichever the cost model expects to be cheapest (or the one
- * --broad names): the grid, for the fastest disk's displacement vm (slow scenes); the paths of every
- * disk (fast scenes); or mixed, slow disks in the grid and the paths of the fast ones across its
- * cells (omp_paths.c), for each cut between slow and fast at a bin of the disks' speeds. */
-static Plan plan_step(Work *w, int nt)
-{
-    const Params *p = w->p;
-    double span = (double)p->hi - (double)p->lo, unit = span / 1048576;
-    real vm = 0;
-    int64_t n_k[SPEED_BINS] = {0}, s1_k[SPEED_BINS] = {0}, s1 = 0;
-    for (int t = 0; t < nt; t++) {
-        Thread *th = &w->th[t];
-        if (th->vmax > vm) vm = th->vmax;
-        for (int k = 0; k < SPEED_BINS; k++) {
-            w->speed_n[k] += th->speed_n[k];
-            w->speed_s1[k] += th->speed_s1[k];
-            th->speed_n[k] = th->speed_s1[k] = 0;
-        }
-    }
-    for (int k = 0; k < SPEED_BINS; k++) {
-        n_k[k] = w->speed_n[k];
-        s1_k[k] = w->speed_s1[k];
-        s1 += s1_k[k];
-    }
-    int broad = w->opt->broad;
-    Plan best, pl;
-    double cost = grid_plan(w, vm, grid_grow(p, vm), p->n, nt, &best);
-    best.mode = MODE_GRID;
-    best.v_cut = INFINITY;
-    if (broad == SIM_BROAD_GRID) return best;
-    if (broad != SIM_BROAD_AUTO) cost = INFINITY; /* the grid only where nothing else can run */
-    PathsPlan all;
-    double c = paths_plan(p, p->n, vm, (double)s1 * unit, nt, &all);
-    if (c < cost && broad != SIM_BROAD_MIXED) {
-        cost = c;
-        best.mode = MODE_PATHS;
-        best.paths = all;
-    }
-    int64_t n_slow = 0, s1_fast = s1;
-    for (int k = 1; k < SPEED_BINS && broad != SIM_BROAD_PATHS; k++) {
-        n_slow += n_k[k - 1];
-        s1_fast -= s1_k[k - 1];
-        if ((n_slow == 0 && broad == SIM_BROAD_AUTO) || n_slow == p->n) continue;
-        double v = ldexp(span, k - 48);
-        if (v >= vm) break;
-        c = grid_plan(w, v, grid_grow(p, v), n_slow, nt, &pl);
-        pl.reach = all.grow + (pl.grow + v / 2) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * p->L;
-        c += paths_plan_grid(p, p->n - n_slow, n_slow, vm, (double)s1_fast * unit, pl.reach,
-                             1 / pl.inv_h, pl.g, nt, &pl.paths);
-        if (c < cost) {
-            cost = c;
-            best = pl;
-            best.mode = MODE_MIXED;
-            best.v_cut = v;
-        }
-    }
-    return best;
-}
-
-static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
-{
-    real xa = s->x[q], xb = s->x[q] + s->vx[q];
-    real ya = s->y[q], yb = s->y[q] + s->vy[q];
-    b->xlo = (xa < xb ? xa : xb) - grow;
-    b->xhi = (xa < xb ? xb : xa) + grow;
-    b->ylo = (ya < yb ? ya : yb) - grow;
-    b->yhi = (ya < yb ? yb : ya) + grow;
-}
-
-static inline void span_box(const Span *a, const Plan *pl, Box *b)
-{
-    b->xlo = (float)(((double)a->xlo - pl->x0) * pl->inv_h);
-    b->xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
-    b->ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h);
-    b->yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
-}
-
-
-static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
-{
-    double c = ((lo + hi) * 0.5 - origin) * inv_h;
-    if (!(c > 0)) return 0;
-    if (c > (double)(g - 1)) return g - 1;
-    return (int64_t)c;
-}
-
-/* What a binning writes in cell order besides the boxes. */
-enum { BIN_SLOTS, BIN_REORDER };
-
-/* A fast disk's slot (as it will be) goes to this thread's list. */
-static void note_fast(Thread *th, int32_t slot)
-{
-    th->fast = omp_grow(th->fast, &th->fast_cap, th->fast_len + 1, sizeof *th->fast);
-    th->fast[th->fast_len++] = slot;
-}
-
-/* Whether the disk in slot q is fast in a mixed step: its box is empty then (it meets the others
- * along its path, omp_paths.c). */
-static inline int is_fast(const Work *w, int64_t q)
-{
-    real cut = (real)w->plan.v_cut;
-    return SIM_FABS(w->s.vx[q]) >= cut || SIM_FABS(w->s.vy[q]) >= cut;
-}
-
-static const Box empty_box = {INFINITY, -INFINITY, INFINITY, -INFINITY};
-
-/* Counting sort of the slots into the cells of their boxes: per-thread histograms, a prefix sum over
- * cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell order
- * with their slots (BIN_SLOTS); BIN_REORDER moves the disks themselves to the new order (into spare).
- * The wall events (3.1) are found on the way. */
-static void bin_grid(Work *w, int tid, int mode)
-{
-    const Plan *pl = &w->plan;
-    const Slots *s = &w->s;
-    int nt = w->nt;
-    int64_t cells = pl->g * pl->g, from, to;
-    int32_t *h = w->hist + (size_t)tid * (size_t)cells;
-    Thread *th = &w->th[tid];
-    int mixed = pl->mode == MODE_MIXED;
-    th->fast_len = 0;
-    memset(h, 0, (size_t)cells * sizeof *h);
-    range_of(w->p->n, tid, nt, &from, &to);
-    for (int64_t q = from; q < to; q++) {
-        Span b;
-        step_span(s, q, pl->grow, &b);
-        int64_t c = cell_coord(b.ylo, b.yhi, pl->y0, pl->inv_h, pl->g) * pl->g +
-                    cell_coord(b.xlo, b.xhi, pl->x0, pl->inv_h, pl->g);
-        w->cell_of[q] = (int32_t)c;
-        h[c]++;
-        if (mode == BIN_SLOTS) w->wall_t[q] = slot_wall_time(s, w->p, q);
-    }
-#pragma omp barrier
-    int64_t c0, c1, sum = 0;
-    range_of(cells, tid, nt, &c0, &c1);
-    for (int64_t c = c0; c < c1; c++) {
-        int32_t tot = 0;
-        for (int t = 0; t < nt; t++) {
-            int32_t v = w->hist[(size_t)t * (size_t)cells + (size_t)c];
-            w->hist[(size_t)t * (size_t)cells + (size_t)c] = tot;
-            tot += v;
-        }
-        w->cell_start[c] = tot;
-        sum += tot;
-    }
-    w->th[tid].partial = sum;
-#pragma omp barrier
-#pragma omp single
-    w->cell_start[cells] = (int32_t)scan_partials(w, nt);
-    int64_t base = w->th[tid].partial;
-    for (int64_t c = c0; c < c1; c++) {
-        int32_t v = w->cell_start[c];
-        w->cell_start[c] = (int32_t)base;
-        base += v;
-    }
-#pragma omp barrier
-    if (mode == BIN_REORDER) {
-        const Slots *d = &w->spare;
-        for (int64_t q = from; q < to; q++) {
-            int32_t c = w->cell_of[q];
-            int32_t pos = w->cell_start[c] + h[c]++;
-            if (mixed && is_fast(w, q)) {
-                w->boxes[pos] = empty_box;
-                note_fast(th, pos);
-            } else {
-                Span b;
-                step_span(s, q, pl->grow, &b);
-                span_box(&b, pl, &w->boxes[pos]);
-            }
-            w->box_slot[pos] = pos;
-            w->wall_t[pos] = slot_wall_time(s, w->p, q);
-            d->x[pos] = s->x[q];
-            d->y[pos] = s->y[q];
-            d->vx[pos] = s->vx[q];
-            d->vy[pos] = s->vy[q];
-            d->id[pos] = s->id[q];
-            d->pc[pos] = s->pc[q];
-            d->wc[pos] = s->wc[q];
-            if (s->wi) d->wi[pos] = s->wi[q];
-        }
-    } else {
-        for (int64_t q = from; q < to; q++) {
-            int32_t c = w->cell_of[q];
-            int32_t pos = w->cell_start[c] + h[c]++;
-            if (mixed && is_fast(w, q)) {
-                w->boxes[pos] = empty_box;
-                note_fast(th, (int32_t)q);
-            } else {
-                Span b;
-                step_span(s, q, pl->grow, &b);
-                span_box(&b, pl, &w->boxes[pos]);
-            }
-            w->box_slot[pos] = (int32_t)q;
-        }
-    }
-#pragma omp barrier
-    if (mode == BIN_REORDER) {
-#pragma omp single
-        {
-            Slots t = w->s;
-            w->s = w->spare;
-            w->spare = t;
-        }
-    }
-}
-
-/* Narrow phase for two disks whose boxes overlap: the disk with the lower original index is always
- * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. */
-static inline void try_pair(const Work *w, Thread *th, int32_t a, int32_t b)
-{
-    const Slots *s = &w->s;
-    real dx = s->x[b] - s->x[a], dy = s->y[b] - s->y[a];
-    real dvx = s->vx[b] - s->vx[a], dvy = s->vy[b] - s->vy[a];
-    if (!(dx * dvx + dy * dvy < 0)) return;
-    if (s->id[b] < s->id[a]) {
-        int32_t t = a;
-        a = b;
-        b = t;
-    }
-    th->found.tests++;
-    real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
-                       w->p->sigma2);
-    if (t >= 0 && before_walls(t, w->wall_t[a], w->wall_t[b]))
-        found_push(&th->found, t, s->id[a], s->id[b], a, b);
-}
-
-/* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
-static void scan_hits(const Work *w, Thread *th, int32_t a, int32_t b, unsigned m)
-{
-    for (int u = 0; u < SCAN_WIDTH; u++)
-        if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
-}
-
-/* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
- * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
- * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
- * entries) and masks them off. */
-static inline void scan_range(const Work *w, Thread *th, int32_t a, int32_t b0, int32_t b1)
-{
-    const Box *bx = w->boxes, *ba = &w->boxes[a];
-    for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
-        unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
-                     (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
-                     (unsigned)boxes_overlap(ba, &bx[b + 2]) << 2 |
-                     (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
-        int32_t rest = b1 - b;
-        m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
-        if (m) scan_hits(w, th, a, b, m);
-    }
-}
-
-/* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
- * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
- * memory and the three northern cells are contiguous, so two ranges cover them. */
-static void scan_grid(Work *w, int tid)
-{
-    const Plan *pl = &w->plan;
-    Thread *th = &w->th[tid];
-    const int32_t *cs = w->cell_start;
-    int64_t g = pl->g;
-    int64_t chunk = g / (8 * w->nt) + 1;
-#pragma omp for schedule(dynamic, chunk)
-    for (int64_t cy = 0; cy < g; cy++) {
-        for (int64_t cx = 0; cx < g; cx++) {
-            int64_t c = cy * g + cx;
-            int32_t end1 = cs[cx + 1 < g ? c + 2 : c + 1];
-            int32_t lo2 = 0, end2 = 0;
-            if (cy + 1 < g) {
-                int64_t first = (cy + 1) * g + (cx > 0 ? cx - 1 : 0);
-                int64_t last = (cy + 1) * g + (cx + 1 < g ? cx + 1 : cx);
-                lo2 = cs[first];
-                end2 = cs[last + 1];
-            }
-            for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                scan_range(w, th, a, a + 1, end1);
-                scan_range(w, th, a, lo2, end2);
-            }
-        }
-    }
-}
-
-/* ==== --check: the broad phase against all pairs ================================================ */
-
-static int pair_cmp(const void *pa, const void *pb)
-{
-    const PairEvent *a = pa, *b = pb;
-    if (a->i != b->i) return a->i < b->i ? -1 : 1;
-    if (a->j != b->j) return a->j < b->j ? -1 : 1;
-    return 0;
-}
-
-/* The wall event time of the disk in slot q straight from 3.1 (-1: none), for --check. */
-static real check_wall_time(const Slots *s, const Params *p, int64_t q)
-{
-    real tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
-                       wall_time(s->y[q], s->vy[q], p->lo, p->hi));
-    return tw <= 1 ? tw : -1;
-}
-
-/* Every pair event that the choice can accept (before_walls), found by testing all pairs, must be
- * among the broad phase's events, and nothing else. */
-static void check_broad_phase(Work *w, int64_t step)
-{
-    const Slots *s = &w->s;
-    int64_t n = w->p->n;
-    for (int64_t q = 0; q < n; q++)
-        if (w->wall_t[q] != check_wall_time(s, w->p, q))
-            sim_fail("--check: step %lld: disk %d has the wall event time %.17g, not %.17g",
-                    (long long)step, s->id[q], (double)w->wall_t[q],
-                    (double)check_wall_time(s, w->p, q));
-    size_t n_ev = 0;
-    for (int t = 0; t < w->nt; t++) n_ev += w->th[t].found.len;
-    PairEvent *mine = sim_calloc(n_ev, sizeof *mine);
-    n_ev = 0;
-    for (int t = 0; t < w->nt; t++) {
-        const Found *f = &w->th[t].found;
-        if (f->len) memcpy(mine + n_ev, f->ev, f->len * sizeof *mine);
-        n_ev += f->len;
-    }
-    if (n_ev) qsort(mine, n_ev, sizeof *mine, pair_cmp);
-    size_t uniq = 0;
-    for (size_t e = 0; e < n_ev; e++)
-        if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
-    if (uniq != n_ev)
-        sim_fail("--check: step %lld: the broad phase found %zu events more than once",
-                (long long)step, n_ev - uniq);
-    size_t found = 0;
-    for (int64_t qa = 0; qa < n; qa++)
-        for (int64_t qb = qa + 1; qb < n; qb++) {
-            int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
-            real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
-                                 s->vy[b], w->p->sigma2);
-            if (t < 0 || !before_walls(t, w->wall_t[a], w->wall_t[b])) continue;
-            PairEvent key = {t, s->id[a], s->id[b], 0, 0};
-            PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
-            if (!hit || hit->t != t)
-                sim_fail("--check: step %lld: the broad phase missed the event of disks %d and %d "
-                        "at t = %.17g",
-                        (long long)step, key.i, key.j, t);
-            found++;
-        }
-    if (found != uniq)
-        sim_fail("--check: step %lld: the broad phase found %zu events, all pairs %zu",
-                (long long)step, uniq, found);
-    free(mine);
-}
-
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
 /* Gathers the threads' pair events, builds each slot's list of them (CSR: count, prefix, fill; the
@@ -628,7 +143,7 @@ static void build_lists(Work *w, int tid)
         size_t total = 0;
         for (int t = 0; t < nt; t++) {
             w->th[t].ev_off = total;
-            total += w->th[t].found.len;
+            total += w->b.th[t].found.len;
         }
         w->n_ev = total;
         w->ev = omp_grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
@@ -636,7 +151,8 @@ static void build_lists(Work *w, int tid)
         w->off[n] = (int64_t)(2 * total);
     }
     Thread *th = &w->th[tid];
-    if (th->found.len) memcpy(w->ev + th->ev_off, th->found.ev, th->found.len * sizeof *w->ev);
+    const Found *f = &w->b.th[tid].found;
+    if (f->len) memcpy(w->ev + th->ev_off, f->ev, f->len * sizeof *w->ev);
     range_of(n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         w->off[q] = 0;
@@ -644,7 +160,7 @@ static void build_lists(Work *w, int tid)
         w->acc_p[q] = -1;
     }
 #pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + th->found.len; e++) {
+    for (size_t e = th->ev_off; e < th->ev_off + f->len; e++) {
 #pragma omp atomic
         w->off[w->ev[e].a]++;
 #pragma omp atomic
@@ -660,10 +176,10 @@ static void build_lists(Work *w, int tid)
         sum += c;
         if (c > 0) {
             act[na++] = (int32_t)q;
-        } else if (w->wall_t[q] >= 0) {
+        } else if (w->b.wall_t[q] >= 0) {
             w->taken[q] = 1;
             w->acc_p[q] = (int32_t)q;
-            w->acc_t[q] = w->wall_t[q];
+            w->acc_t[q] = w->b.wall_t[q];
         }
     }
     th->n_active = na;
@@ -677,7 +193,7 @@ static void build_lists(Work *w, int tid)
         w->off[q] = sum;
     }
 #pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + th->found.len; e++) {
+    for (size_t e = th->ev_off; e < th->ev_off + f->len; e++) {
         int64_t pos;
 #pragma omp atomic capture
         pos = --w->off[w->ev[e].a];
@@ -750,7 +266,7 @@ static void choose_small(Work *w)
 {
     size_t len = 0;
     for (int t = 0; t < w->nt; t++) {
-        const Found *f = &w->th[t].found;
+        const Found *f = &w->b.th[t].found;
         w->fin = omp_grow(w->fin, &w->fin_cap, len + 3 * f->len, sizeof *w->fin);
         for (size_t k = 0; k < f->len; k++) {
             const PairEvent *pe = &f->ev[k];
@@ -759,9 +275,9 @@ static void choose_small(Work *w)
             int32_t ends[2] = {pe->a, pe->b};
             for (int u = 0; u < 2; u++) {
                 int32_t q = ends[u];
-                if (w->taken[q] || w->wall_t[q] < 0) continue;
+                if (w->taken[q] || w->b.wall_t[q] < 0) continue;
                 w->taken[q] = 1; /* marks the wall event as listed; cleared before the walk */
-                SeqEvent x = {w->wall_t[q], 0, w->s.id[q], w->s.id[q], q, q};
+                SeqEvent x = {w->b.wall_t[q], 0, w->b.s.id[q], w->b.s.id[q], q, q};
                 w->fin[len++] = x;
             }
         }
@@ -773,7 +289,7 @@ static void choose_small(Work *w)
 /* The last undecided disks: their remaining events sorted and walked, as seq.c does. */
 static void finish_sequential(Work *w)
 {
-    const Slots *s = &w->s;
+    const Slots *s = &w->b.s;
     size_t len = 0;
     for (int t = 0; t < w->nt; t++) {
         int64_t from, to;
@@ -781,8 +297,8 @@ static void finish_sequential(Work *w)
         for (int64_t k = 0; k < w->th[t].n_active; k++) {
             int32_t q = w->active[from + k];
             w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-            if (w->wall_t[q] >= 0) {
-                SeqEvent e = {w->wall_t[q], 0, s->id[q], s->id[q], q, q};
+            if (w->b.wall_t[q] >= 0) {
+                SeqEvent e = {w->b.wall_t[q], 0, s->id[q], s->id[q], q, q};
                 w->fin[len++] = e;
             }
             for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
@@ -802,7 +318,7 @@ static void finish_sequential(Work *w)
  * every round makes progress; once few disks remain the sequential walk ends the step. */
 static void choose_events(Work *w, int tid)
 {
-    const int32_t *id = w->s.id;
+    const int32_t *id = w->b.s.id;
     Thread *th = &w->th[tid];
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
@@ -812,10 +328,10 @@ static void choose_events(Work *w, int tid)
         for (int64_t k = 0; k < na; k++) {
             int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
             real bt = 0;
-            if (w->wall_t[q] >= 0) {
+            if (w->b.wall_t[q] >= 0) {
                 bp = q;
                 bi = bj = id[q];
-                bt = w->wall_t[q];
+                bt = w->b.wall_t[q];
             }
             for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
                 const PairEvent *e = &w->ev[w->adj[u]];
@@ -873,39 +389,22 @@ static void choice_defaults(Work *w, int tid)
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         w->taken[q] = 0;
-        w->acc_p[q] = w->wall_t[q] >= 0 ? (int32_t)q : -1;
-        w->acc_t[q] = w->wall_t[q];
+        w->acc_p[q] = w->b.wall_t[q] >= 0 ? (int32_t)q : -1;
+        w->acc_t[q] = w->b.wall_t[q];
     }
 }
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
-
-static inline real fastest(real vm, real vx, real vy)
-{
-    real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
-    if (ax > vm) vm = ax;
-    return ay > vm ? ay : vm;
-}
-
-/* Adds a disk of velocity (vx, vy) to a histogram of speeds (sign -1: removes it): its speed_bin and
- * its axis speeds, each at most the box, in units of the box / 2^20. */
-static inline void note_speed(int64_t *n, int64_t *s1, real vx, real vy, double inv_span, int sign)
-{
-    double ax = SIM_FABS(vx) * inv_span, ay = SIM_FABS(vy) * inv_span;
-    int k = speed_bin((double)fastest(0, vx, vy), inv_span);
-    n[k] += sign;
-    s1[k] += sign * ((int64_t)((ax < 1 ? ax : 1) * 1048576) + (int64_t)((ay < 1 ? ay : 1) * 1048576));
-}
 
 /* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
  * notes the largest velocity component it leaves and the disks' next steps, for the next step's
  * plan. */
 static void move_range(Work *w, int tid)
 {
-    Slots *s = &w->s;
+    Slots *s = &w->b.s;
     real lo = w->p->lo, hi = w->p->hi, vm = 0;
     double inv_span = 1 / ((double)hi - (double)lo);
-    Thread *th = &w->th[tid];
+    BroadThread *th = &w->b.th[tid];
     uint64_t events = 0;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
@@ -943,7 +442,7 @@ static void move_range(Work *w, int tid)
         vm = fastest(vm, s->vx[i], s->vy[i]);
     }
     th->vmax = vm;
-    th->events += events;
+    w->th[tid].events += events;
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -965,44 +464,17 @@ static void print_state(Work *w, int tid, int64_t step)
 static void step_run(Work *w, int tid, int64_t step)
 {
     const Params *p = w->p;
-    Thread *th = &w->th[tid];
-
-    /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
-    th->found.len = 0;
-#pragma omp single
-    {
-        w->plan = plan_step(w, w->nt);
-        if (w->plan.mode != MODE_GRID) paths_ready(w->paths, &w->plan.paths, p->n, w->nt);
-        w->path_steps += w->plan.mode == MODE_PATHS;
-        w->mixed_steps += w->plan.mode == MODE_MIXED;
-    }
 
     /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
-     * narrow phase */
-    if (w->plan.mode == MODE_PATHS) {
-        paths_find(w->paths, &w->s, p, w->wall_t, NULL, NULL, 0, &th->found, tid, w->nt);
-    } else {
-        /* reordered on a run's first step too: a resumed run starts from the original order */
-        int first = step == p->first_step * p->substeps + 1;
-        bin_grid(w, tid, step % REORDER_EVERY == 1 || first ? BIN_REORDER : BIN_SLOTS);
-        scan_grid(w, tid);
-        if (w->plan.mode == MODE_MIXED) {
-            const Plan *pl = &w->plan;
-            SlowGrid slow = {w->boxes, w->cell_start, w->box_slot, pl->g, pl->x0, pl->inv_h,
-                             pl->reach};
-            paths_find(w->paths, &w->s, p, w->wall_t, &slow, th->fast, (int64_t)th->fast_len,
-                       &th->found, tid, w->nt);
-        }
-    }
-    if (w->opt->check) {
-#pragma omp single
-        check_broad_phase(w, step);
-    }
+     * narrow phase; reordered every few steps, and on a run's first step too (a resumed run starts
+     * from the original order) */
+    int first = step == p->first_step * p->substeps + 1;
+    broad_find(&w->b, tid, step, step % REORDER_EVERY == 1 || first);
 
     /* the greedy choice (3.3): on one thread when there are few pair events, else in rounds (every
      * thread counts the events itself, so all take the same branch) */
     size_t total = 0;
-    for (int t = 0; t < w->nt; t++) total += w->th[t].found.len;
+    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
     if (total <= SMALL_CHOICE) {
         choice_defaults(w, tid);
 #pragma omp barrier
@@ -1036,8 +508,8 @@ static void step_run(Work *w, int tid, int64_t step)
 static void slots_fill(Work *w, int tid)
 {
     const Sim *sim = w->sim;
-    Slots *s = &w->s;
-    Thread *th = &w->th[tid];
+    Slots *s = &w->b.s;
+    BroadThread *th = &w->b.th[tid];
     double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
@@ -1082,17 +554,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.p = par;
     w.opt = opt;
     w.out = out;
-    /* at most n cells, and per-thread histograms of at most 8n counts in all */
-    w.max_cells = nt_max <= 8 ? n : 8 * n / nt_max;
-    if (w.max_cells < 1) w.max_cells = 1;
-    slots_alloc(&w.s, n, sim->wi != NULL);
-    slots_alloc(&w.spare, n, sim->wi != NULL);
+    broad_init(&w.b, par, opt, n, nt_max, sim->wi != NULL);
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
-    w.cell_of = sim_calloc((size_t)n, sizeof *w.cell_of);
-    w.hist = sim_calloc((size_t)nt_max * (size_t)w.max_cells, sizeof *w.hist);
-    w.cell_start = sim_calloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
-    w.boxes = sim_calloc((size_t)n + SCAN_WIDTH, sizeof *w.boxes);
-    w.wall_t = sim_calloc((size_t)n, sizeof *w.wall_t);
     w.off = sim_calloc((size_t)n + 1, sizeof *w.off);
     w.active = sim_calloc((size_t)n, sizeof *w.active);
     w.best_p = sim_calloc((size_t)n, sizeof *w.best_p);
@@ -1100,14 +563,12 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.acc_p = sim_calloc((size_t)n, sizeof *w.acc_p);
     w.acc_t = sim_calloc((size_t)n, sizeof *w.acc_t);
     w.taken = sim_calloc((size_t)n, sizeof *w.taken);
-    w.box_slot = sim_calloc((size_t)n, sizeof *w.box_slot);
-    w.paths = paths_new(nt_max);
 
     double t0 = 0;
 #pragma omp parallel
     {
 #pragma omp single
-        w.nt = omp_get_num_threads();
+        w.nt = w.b.nt = omp_get_num_threads();
         int tid = omp_get_thread_num();
         slots_fill(&w, tid);
 #pragma omp single
@@ -1120,32 +581,23 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 
     uint64_t visits = 0, overlaps = 0;
     for (int t = 0; t < nt_max; t++) {
-        visits += w.th[t].found.visits;
-        overlaps += w.th[t].found.overlaps;
-        st->pair_tests += w.th[t].found.tests;
+        visits += w.b.th[t].found.visits;
+        overlaps += w.b.th[t].found.overlaps;
+        st->pair_tests += w.b.th[t].found.tests;
         st->events += w.th[t].events;
-        free(w.th[t].found.ev);
-        free(w.th[t].fast);
     }
     int64_t steps = par->steps * par->substeps;
     if (opt->stats) {
-        double ps = (double)(w.path_steps + w.mixed_steps) * (double)n;
+        double ps = (double)(w.b.path_steps + w.b.mixed_steps) * (double)n;
         fprintf(stderr,
                 "%s: broad phase: grid in %lld, paths in %lld, mixed in %lld of %lld steps; paths: "
                 "%.4g cells visited and %.4g pairs of visits overlapping in time per particle-step\n",
-                backend_name, (long long)(steps - w.path_steps - w.mixed_steps),
-                (long long)w.path_steps, (long long)w.mixed_steps, (long long)steps,
+                backend_name, (long long)(steps - w.b.path_steps - w.b.mixed_steps),
+                (long long)w.b.path_steps, (long long)w.b.mixed_steps, (long long)steps,
                 ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
     }
-    slots_free(&w.s);
-    slots_free(&w.spare);
+    broad_free(&w.b);
     free(w.th);
-    free(w.cell_of);
-    free(w.hist);
-    free(w.cell_start);
-    free(w.boxes);
-    paths_free(w.paths);
-    free(w.wall_t);
     free(w.ev);
     free(w.off);
     free(w.adj);
@@ -1155,7 +607,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.acc_p);
     free(w.acc_t);
     free(w.taken);
-    free(w.box_slot);
     free(w.fin);
     free(w.fin_tmp);
     return 0;

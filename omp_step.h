@@ -9,6 +9,8 @@
 
 #include "io.h"
 
+#include <string.h>
+
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
 typedef struct {
     real *x, *y, *vx, *vy;
@@ -128,6 +130,109 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt);
  * with the slow disks. */
 void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
                 const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
+
+/* ---- omp_broad.c: the broad phase of a step over a set of slots (omp.c: all disks; mpi.c: a rank's
+ * own disks and halo) ------------------------------------------------------------------------------ */
+
+/* Disks by their fastest velocity component a, for the plan: bin k (1..62) holds a / span in
+ * [2^(k-48), 2^(k-47)); bin 0 the disks at rest, bins 1 and 63 everything below and above. */
+#define SPEED_BINS 64
+static inline int speed_bin(double a, double inv_span)
+{
+    double f = a * inv_span;
+    if (!(f > 0)) return 0;
+    uint64_t bits;
+    memcpy(&bits, &f, sizeof bits); /* the binary exponent, without a call to ilogb */
+    int k = (int)(bits >> 52 & 0x7ff) - 1023 + 48;
+    return k < 1 ? 1 : (k > SPEED_BINS - 1 ? SPEED_BINS - 1 : k);
+}
+
+static inline real fastest(real vm, real vx, real vy)
+{
+    real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+    if (ax > vm) vm = ax;
+    return ay > vm ? ay : vm;
+}
+
+/* Adds a disk of velocity (vx, vy) to a histogram of speeds (sign -1: removes it): its speed_bin and
+ * its axis speeds, each at most the box, in units of the box / 2^20. */
+static inline void note_speed(int64_t *n, int64_t *s1, real vx, real vy, double inv_span, int sign)
+{
+    double ax = SIM_FABS(vx) * inv_span, ay = SIM_FABS(vy) * inv_span;
+    int k = speed_bin((double)fastest(0, vx, vy), inv_span);
+    n[k] += sign;
+    s1[k] += sign * ((int64_t)((ax < 1 ? ax : 1) * 1048576) + (int64_t)((ay < 1 ? ay : 1) * 1048576));
+}
+
+/* The broad phases of a step. */
+enum { MODE_GRID, MODE_PATHS, MODE_MIXED };
+
+/* The plan of one step: its broad phase and the geometry of its grid (MODE_GRID, MODE_MIXED) and
+ * paths (MODE_PATHS, MODE_MIXED). */
+typedef struct {
+    int mode;
+    double v_cut;  /* MODE_MIXED: disks with a velocity component of v_cut or more are fast */
+    int64_t gx, gy; /* cells per row and per column (equal over the box) */
+    int64_t g;     /* gx: a square grid's side, for MODE_MIXED's SlowGrid */
+    double x0, y0; /* lower corner of the grid */
+    double inv_h;  /* 1 / cell side */
+    double grow;   /* r plus the rounding margin: half the size of a box at rest */
+    double reach;  /* MODE_MIXED: SlowGrid's */
+    PathsPlan paths;
+} Plan;
+
+/* Per-thread state of the broad phase, padded so that threads never share a cache line. */
+typedef struct {
+    Found found;     /* pair events found by this thread this step */
+    int64_t partial; /* this thread's part of a prefix sum */
+    real vmax;       /* the fastest velocity component of its disks (its last move) */
+    /* the changes since the last plan to Broad's speed_n and speed_s1 */
+    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
+    int32_t *fast;   /* MODE_MIXED: the fast slots this thread binned */
+    size_t fast_len, fast_cap;
+    char pad[64];
+} BroadThread;
+
+typedef struct {
+    Slots s, spare;   /* the disks, p->n of them; spare receives the next order */
+    const Params *p;  /* p->n: the slots of this step */
+    const Options *opt;
+    double rx0, rx1, ry0, ry1; /* where the centres lie (the box unless the caller narrows it) */
+    int nt, nt_max;   /* threads in the parallel region; BroadThreads allocated */
+    int with_wi;
+    Plan plan;
+    BroadThread *th;
+    Paths *paths;     /* the broad phase of fast scenes */
+    int64_t cap;      /* slots allocated */
+    int64_t max_cells;
+    int32_t *cell_of; /* by slot: its cell */
+    int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
+    int32_t *cell_start; /* max cells + 1: first box of each cell */
+    Box *boxes;       /* the boxes in cell order */
+    int32_t *box_slot; /* the slots of those boxes */
+    real *wall_t;     /* by slot: wall event time, or -1 */
+    /* the disks by speed_bin, for the plan: how many, and the sum of their axis speeds (each at
+     * most the box) in units of the box / 2^20; kept up to date through the threads' changes, as
+     * only pair collisions change the size of a velocity component */
+    int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
+    int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
+} Broad;
+
+/* Slots for cap disks (grown by broad_reserve, outside a parallel region, contents of s kept), the
+ * buffers of nt_max threads, the region the box. */
+void broad_init(Broad *b, const Params *p, const Options *opt, int64_t cap, int nt_max, int with_wi);
+void broad_reserve(Broad *b, int64_t cap);
+void broad_free(Broad *b);
+/* Slots reallocated to n disks (contents kept, wi only when with_wi), and freed */
+void slots_resize(Slots *s, int64_t n, int with_wi);
+void slots_free(Slots *s);
+/* Called by every thread of the team: the speed histograms and fastest component counted afresh from
+ * the slots (a caller whose set of disks changes every step; omp.c keeps them up to date instead). */
+void broad_count_speeds(Broad *b, int tid);
+/* Called by every thread of the team (b->nt of them): plans the step and finds every wall event into
+ * b->wall_t and every pair event that before_walls admits into b->th[tid].found (reorder: the slots
+ * are moved into cell order on the way; step names the step in --check's messages). */
+void broad_find(Broad *b, int tid, int64_t step, int reorder);
 
 /* ---- omp_exact.c ---------------------------------------------------------------------------------- */
 

@@ -34,6 +34,15 @@ void *sim_calloc(size_t count, size_t size)
     return p;
 }
 
+void *sim_realloc(void *ptr, size_t count, size_t size)
+{
+    if (count == 0) count = 1;
+    if (count > SIZE_MAX / size) sim_fail("out of memory (%zu x %zu bytes)", count, size);
+    void *p = realloc(ptr, count * size);
+    if (!p) sim_fail("out of memory (%zu x %zu bytes)", count, size);
+    return p;
+}
+
 double sim_clock(void)
 {
     struct timespec ts;

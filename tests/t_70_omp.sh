@@ -10,30 +10,7 @@ D=$TMP/omp
 mkdir -p "$D"
 
 # name and tools/gen arguments, one scene a line
-omp_scenes() {
-    cat <<'SCENES'
-slow_print       400 --speed 0.5 --steps 40 --mode print
-fast_print       300 --assignment --L 300 --steps 20 --mode print
-fast_dilute      300 --assignment --L 3000 --steps 20 --mode print
-dense_gas        500 --r 5 --fraction 0.05 --speed 4 --steps 40
-packed           600 --fraction 0.45 --speed 0.2 --steps 30 --mode print
-dilute           200 --fraction 0.01 --speed 3 --steps 40 --mode print
-overlap_print    300 --fraction 0.5 --overlap --speed 1 --steps 30 --mode print
-overlap_fast     200 --overlap --assignment --L 100 --steps 20 --mode print
-tiny_radius      300 --r 0.001 --fraction 0.1 --speed 2 --steps 30 --mode print
-one_disk         1 --fraction 0.1 --speed 3 --steps 50 --mode print
-two_disks        2 --fraction 0.3 --speed 3 --steps 50 --mode print
-mid_dense        3000 --fraction 0.4 --speed 1 --steps 8
-mid_overlap      3000 --fraction 0.6 --overlap --speed 1 --steps 6
-mid_fast         2500 --assignment --L 1500 --steps 6
-rounds_deep      12000 --fraction 3 --overlap --speed 0.3 --steps 2
-fast_seed2       400 --assignment --L 400 --steps 15 --seed 2
-fast_seed3       400 --assignment --L 200 --overlap --steps 15 --seed 3 --mode print
-dense_seed4      800 --r 5 --fraction 0.3 --speed 4 --steps 25 --seed 4
-slow_seed5       2000 --fraction 0.4 --speed 0.1 --steps 20 --seed 5
-rounds_print     12000 --fraction 1.5 --overlap --speed 3 --steps 2 --mode print
-SCENES
-}
+omp_scenes() { grep -v '^#' tests/omp_scenes.txt; }
 
 SUF=""     # program suffix: "" for the double build, _f32 for the float one
 omp_compare() { # name input [extra options]

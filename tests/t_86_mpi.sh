@@ -1,9 +1,17 @@
-# mpi (mpi.c): the same bytes as seq for several rank counts, oversubscribed on this machine:
+# mpi (mpi.c, mpi_io.c): the same bytes as seq for 1 to 8 ranks, oversubscribed on this machine:
 # - the bundled inputs at 2 and 3 ranks (four of them at 8), the worked examples at 1 and 4, the hard
-#   cases at 3, generated scenes (fast, mixed, dense, print, overlapping, three disks) at 2, 5 and 8,
-#   --substeps 2 at 3 ranks;
-# - bad input and unsupported options refused with one stderr line (mpirun -q), nothing on stdout and
-#   mpirun's exit status non-zero.
+#   cases at 3;
+# - the omp tests' generated scenes (tests/omp_scenes.txt) at 1 to 8 ranks and 1, 2, 3 and 7 threads
+#   per rank, each scene at its own pair of combinations;
+# - random placement (--seed), standard input, --dump17, --substeps 2, --pressure (the pressure line
+#   too), --stats, --check;
+# - the input read in byte ranges by every rank: files whose lines fall on the ranges' edges, blank
+#   lines, CRLF;
+# - --output FILE: the same bytes in FILE, written by every rank at its offset;
+# - bad input (on the lines of any rank, duplicate or missing indices, too many lines) refused with
+#   seq's one stderr line, nothing on stdout and mpirun's exit status non-zero. mpirun -q (Open MPI 4)
+#   keeps mpirun's own notice of the failed job off stderr; an mpirun without -q (Open MPI 5) adds
+#   it, and there only the program's lines ("mpi: ...") are counted.
 # SKIP where mpirun or ./mpi is missing (.ci/run installs OpenMPI).
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 M=$TMP/mpi
@@ -11,51 +19,157 @@ mkdir -p "$M"
 if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi ]; then
     skip "mpi" "no mpirun or no ./mpi (apt-get install openmpi-bin libopenmpi-dev, then make)"
 else
-    ranks() { # NAME EXPECTED "P..." ARGS...: mpi at each rank count must print EXPECTED's bytes
-        local name=$1 expected=$2 counts=$3 p bad=""
+    MPIRUN=(mpirun)
+    mpirun -q -np 1 true > /dev/null 2>&1 && MPIRUN+=(-q)
+    run_mpi() { # P T ARGS...: mpi on P ranks of T threads
+        local p=$1 t=$2
+        shift 2
+        "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi "$@" --threads "$t"
+    }
+    expect_mpi_error() { # NAME PATTERN ARGS...: expect_error, but for mpirun's own notice without -q
+        local name=$1 pattern=$2 rc problems=""
+        shift 2
+        "${MPIRUN[@]}" -np 3 --oversubscribe ./mpi "$@" > "$M/eout" 2> "$M/eerr" < /dev/null
+        rc=$?
+        [ "${#MPIRUN[@]}" -eq 2 ] || { grep '^mpi: ' "$M/eerr" > "$M/eerr1"; mv "$M/eerr1" "$M/eerr"; }
+        [ "$rc" -ne 0 ] || problems="exit status 0;"
+        [ ! -s "$M/eout" ] || problems="$problems $(wc -c < "$M/eout") bytes on stdout;"
+        [ "$(wc -l < "$M/eerr")" -eq 1 ] || problems="$problems $(wc -l < "$M/eerr") stderr lines;"
+        grep -Eq -e "$pattern" "$M/eerr" || problems="$problems message '$(head -c 200 "$M/eerr")';"
+        if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
+    }
+    ranks() { # NAME EXPECTED "P[xT]..." ARGS...: mpi at each rank (x thread) count prints EXPECTED's bytes
+        local name=$1 expected=$2 counts=$3 c p t bad=""
         shift 3
-        for p in $counts; do
-            if ! mpirun -q -np "$p" --oversubscribe ./mpi "$@" --quiet > "$M/out" 2> "$M/err"; then
-                bad="$bad $p:exit($(head -c 150 "$M/err"))"
+        for c in $counts; do
+            p=${c%x*} t=1
+            [ "$c" != "$p" ] && t=${c#*x}
+            if ! run_mpi "$p" "$t" "$@" --quiet > "$M/out" 2> "$M/err" < "${STDIN_FILE:-/dev/null}"; then
+                bad="$bad $c:exit($(head -c 150 "$M/err"))"
             elif ! cmp -s "$M/out" "$expected"; then
-                bad="$bad $p:differs"
+                bad="$bad $c:differs"
             fi
         done
-        if [ -z "$bad" ]; then pass "mpi $name: seq's bytes at $counts ranks"; else fail "mpi $name" "$bad"; fi
+        if [ -z "$bad" ]; then pass "mpi $name: seq's bytes at $counts ranks(xthreads)"; else fail "mpi $name" "$bad"; fi
     }
     for f in inputs/*.in; do
         b=$(basename "$f" .in)
-        counts="2 3"
-        case $b in random_1000_perf | dense_gas | overlapping_print | course_testcase2) counts="2 3 8" ;; esac
+        counts="2 3x2"
+        case $b in random_1000_perf | dense_gas | overlapping_print | course_testcase2) counts="2 3x2 8" ;; esac
         ranks "inputs/$b" "outputs/$b.out" "$counts" "$f"
     done
     for f in tests/cases/*.in; do ranks "cases/$(basename "$f" .in)" "${f%.in}.out" "1 4" "$f"; done
     for f in tests/hard/*.in; do
         [ -f "${f%.in}.out" ] && ranks "hard/$(basename "$f" .in)" "${f%.in}.out" "3" "$f"
     done
-    k=0
-    while read -r args; do
-        k=$((k + 1))
-        # shellcheck disable=SC2086
-        tools/gen $args > "$M/gen$k.in"
-        ./seq "$M/gen$k.in" --quiet > "$M/gen$k.ref"
-        ranks "tools/gen $args" "$M/gen$k.ref" "2 5 8" "$M/gen$k.in"
-    done <<'SCENES'
-400 --assignment --L 2000 --steps 20
-1500 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 10
-600 --r 5 --fraction 0.3 --speed 4 --steps 10
-300 --fraction 0.2 --speed 2 --steps 15 --mode print
-1200 --fraction 2 --overlap --speed 0.5 --steps 3
-3 --L 10 --speed 3 --steps 50 --mode print
-SCENES
-    ./seq "$M/gen1.in" --quiet --substeps 2 > "$M/sub.ref"
-    ranks "--substeps 2" "$M/sub.ref" "3" "$M/gen1.in" --substeps 2
 
+    # the omp tests' scenes: every thread count they use, across 1 to 8 ranks
+    combos=("1x7 2x3" "3x2 5x1" "8x1 2x7" "4x2 1x3" "6x1 3x3" "2x2 7x1")
+    k=0
+    while read -r name args; do
+        # shellcheck disable=SC2086
+        tools/gen $args > "$M/$name.in"
+        ./seq "$M/$name.in" --quiet > "$M/$name.ref"
+        ranks "$name" "$M/$name.ref" "${combos[k % ${#combos[@]}]}" "$M/$name.in"
+        k=$((k + 1))
+    done < <(grep -v '^#' tests/omp_scenes.txt)
+
+    # random placement, standard input, --dump17, --substeps, a mixed scene
+    printf '300\n400\n1\n15\nprint\n' > "$M/random.in"
+    ./seq "$M/random.in" --quiet --seed 7 > "$M/random.ref"
+    ranks "random placement --seed 7" "$M/random.ref" "3 4x2" "$M/random.in" --seed 7
+    # standard input reaches rank 0 only where mpirun passes it on with its end (Open MPI 5.0's mpirun
+    # kept an MPI program's standard input open here: the program waited for more)
+    if timeout 15 mpirun -np 1 ./mpi - --quiet < "$M/one_disk.in" 2> /dev/null | cmp -s - "$M/one_disk.ref"; then
+        STDIN_FILE=$M/fast_print.in ranks "standard input" "$M/fast_print.ref" "3" -
+    else
+        skip "mpi standard input" "this mpirun does not pass on the end of its standard input"
+    fi
+    ./seq "$M/overlap_print.in" --quiet --dump17 > "$M/dump17.ref"
+    ranks "--dump17" "$M/dump17.ref" "2 5" "$M/overlap_print.in" --dump17
+    tools/gen 400 --assignment --L 2000 --steps 20 > "$M/sub.in"
+    ./seq "$M/sub.in" --quiet --substeps 2 > "$M/sub.ref"
+    ranks "--substeps 2" "$M/sub.ref" "3 2x2" "$M/sub.in" --substeps 2
+    tools/gen 1500 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 10 > "$M/mixed.in"
+    ./seq "$M/mixed.in" --quiet > "$M/mixed.ref"
+    ranks "mixed scene" "$M/mixed.ref" "1x2 5" "$M/mixed.in"
+
+    # --pressure: the same bytes and the same pressure line as seq
+    ./seq "$M/dense_gas.in" --quiet --pressure > "$M/pr.ref" 2> "$M/pr.err"
+    ranks "--pressure" "$M/pr.ref" "3x2" "$M/dense_gas.in" --pressure
+    run_mpi 4 1 "$M/dense_gas.in" --quiet --pressure > /dev/null 2> "$M/pr2.err"
+    if [ "$(sed 's/^seq: //' "$M/pr.err")" = "$(sed 's/^mpi: //' "$M/pr2.err")" ] && [ -s "$M/pr.err" ]; then
+        pass "mpi --pressure: seq's pressure line at 4 ranks"
+    else
+        fail "mpi --pressure" "seq '$(cat "$M/pr.err")', mpi '$(cat "$M/pr2.err")'"
+    fi
+    # --stats names the ranks and the rounds; --check finds nothing missing on fast and overlapping scenes
+    if run_mpi 3 2 "$M/mid_dense.in" --stats > /dev/null 2> "$M/st.err" &&
+        grep -q "3 ranks x 2 threads" "$M/st.err" && grep -q "pair tests" "$M/st.err"; then
+        pass "mpi --stats"
+    else
+        fail "mpi --stats" "$(head -c 300 "$M/st.err")"
+    fi
+    for s in mid_fast mid_overlap; do
+        if run_mpi 3 1 "$M/$s.in" --quiet --check > /dev/null 2> "$M/ck.err"; then
+            pass "mpi --check at 3 ranks: $s"
+        else
+            fail "mpi --check: $s" "$(head -c 300 "$M/ck.err")"
+        fi
+    done
+
+    # the input in byte ranges: blank lines, CRLF, lines that straddle the ranges' edges, a last line
+    # without a newline
+    awk 'NR > 5 && NR % 7 == 0 { print "" } { print }' "$M/slow_print.in" > "$M/blank.in"
+    ranks "blank lines between the particle lines" "$M/slow_print.ref" "2 3 7" "$M/blank.in"
+    sed 's/$/\r/' "$M/slow_print.in" > "$M/crlf.in"
+    ./seq "$M/crlf.in" --quiet > "$M/crlf.ref"
+    ranks "CRLF line ends" "$M/crlf.ref" "4" "$M/crlf.in"
+    head -c -1 "$M/slow_print.in" > "$M/nonl.in"
+    ranks "no newline at the end" "$M/slow_print.ref" "3" "$M/nonl.in"
+    printf '2\n10\n1\n3\nprint\n\n\n\n0 2 2 1 0\n\n\n\n1 7 7 -1 0\n\n\n' > "$M/two.in"
+    ./seq "$M/two.in" --quiet > "$M/two.ref"
+    ranks "two disks, more ranks than lines" "$M/two.ref" "5 8" "$M/two.in"
+
+    # bad input, found by any rank: seq's message, once
+    bad_case() { # NAME FILE: mpi at 3 ranks must print seq's message (program name aside), once
+        local name=$1 f=$2 want
+        want=$(./seq "$f" 2>&1 > /dev/null | sed 's/^seq: //')
+        expect_mpi_error "mpi bad input ($name): seq's message at 3 ranks" \
+            "^mpi: $(printf '%s' "$want" | sed 's/[][\.*^$(){}+?|]/\\&/g')\$" "$f"
+    }
     printf '3\n10\n1\n5\nperf\n1 2 3\n' > "$M/bad.in"
-    expect_error "mpi: bad input refused, 3 ranks" "bad.in:6: expected 5 fields" \
-        mpirun -q -np 3 --oversubscribe ./mpi "$M/bad.in"
-    expect_error "mpi: --pressure refused" "--pressure is not supported by mpi" \
-        mpirun -q -np 2 --oversubscribe ./mpi "$M/gen1.in" --pressure
-    expect_error "mpi: --checkpoint refused" "not supported by mpi" \
-        mpirun -q -np 2 --oversubscribe ./mpi "$M/gen1.in" --checkpoint "$M/ck"
+    bad_case "a short line" "$M/bad.in"
+    awk 'NR == 300 { $2 = "abc" } { print }' "$M/slow_print.in" > "$M/bad_late.in"
+    bad_case "a bad real on the last rank's lines" "$M/bad_late.in"
+    awk 'NR == 380 { $1 = 3 } { print }' "$M/slow_print.in" > "$M/dup.in"
+    bad_case "an index given twice, far apart" "$M/dup.in"
+    head -n 300 "$M/slow_print.in" > "$M/short.in"
+    bad_case "too few lines" "$M/short.in"
+    { cat "$M/slow_print.in"; echo "400 1 1 0 0"; } > "$M/long.in"
+    bad_case "too many lines" "$M/long.in"
+    awk 'NR == 200 { $3 = "1e999" } NR == 350 { $1 = 12 } { print }' "$M/slow_print.in" > "$M/two_bad.in"
+    bad_case "two problems: the first line's wins" "$M/two_bad.in"
+    printf '3\n10\n1\nfive\nperf\n' > "$M/bad_header.in"
+    bad_case "a bad header" "$M/bad_header.in"
+    expect_mpi_error "mpi: --exact refused" "--exact is not supported by mpi" "$M/sub.in" --exact
+    expect_mpi_error "mpi: --checkpoint refused" "not supported by mpi" "$M/sub.in" --checkpoint "$M/ck"
+    expect_mpi_error "mpi: --output into a missing folder refused" "cannot create the output" \
+        "$M/sub.in" --output "$M/no/such/file"
+    expect_error "seq: --output refused" "--output is not supported by seq" ./seq "$M/sub.in" --output "$M/x"
+
+    # --output: every rank writes its lines at their offset; an older, longer file is replaced
+    head -c 100000 /dev/urandom > "$M/written.out"
+    if run_mpi 4 1 "$M/slow_print.in" --quiet --output "$M/written.out" > "$M/out" 2> "$M/err" &&
+        [ ! -s "$M/out" ] && cmp -s "$M/written.out" "$M/slow_print.ref"; then
+        pass "mpi --output: seq's bytes in the file at 4 ranks, nothing on stdout"
+    else
+        fail "mpi --output" "$(head -c 200 "$M/err")"
+    fi
+    ./seq "$M/mid_dense.in" --quiet > "$M/mid.ref"
+    if run_mpi 3 2 "$M/mid_dense.in" --quiet --output "$M/written.out" && cmp -s "$M/written.out" "$M/mid.ref"; then
+        pass "mpi --output: perf mode at 3 ranks x 2 threads"
+    else
+        fail "mpi --output (perf)"
+    fi
 fi

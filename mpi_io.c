@@ -1,0 +1,532 @@
+/* mpi_io.c: the MPI backend's input and output, spread over the ranks as its steps are (mpi.h).
+ *
+ * Two ways of sharing out the disks: by strip (mpi_owner: whom a disk belongs to during the steps) and
+ * by index block (rank q answers for the indices [q N / P, (q + 1) N / P): the duplicate check of the
+ * input, the formatting of the output and the order of the pressure's sum). Everything that crosses
+ * between the two goes through one exchange (MPI_Alltoallv), so that each rank holds about its share.
+ *
+ * Messages: io.c alone words them. Whatever a rank finds wrong with the input, every rank learns that
+ * something is, and rank 0 reads the whole input once more with io.c's own reader, which prints seq's
+ * line and exits; the other ranks wait in a collective rank 0 never joins, until mpirun ends the job.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include "mpi.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define HEAD_BYTES 65536          /* bytes rank 0 reads first for the header (doubled until it is whole) */
+#define SCATTER_DISKS (1 << 20)   /* disks rank 0 sends out per round when it holds the whole state */
+#define TEXT_PIECE 8192           /* output lines formatted per task and sent per message (< 13 MB) */
+#define TAG_TEXT 71
+#define TAG_SUM 72
+
+/* A disk between ranks. */
+typedef struct {
+    real x, y, vx, vy;
+    int64_t id;
+    int32_t pc, wc;
+} Disk;
+
+/* ---- sharing out ------------------------------------------------------------------------------------ */
+
+/* The first index of rank q's block (q = np: n) */
+static int64_t block_lo(int64_t n, int q)
+{
+    return n * q / mpi_np;
+}
+
+static int block_of(int64_t n, int64_t i)
+{
+    int q = (int)(i * mpi_np / n);
+    while (q + 1 < mpi_np && block_lo(n, q + 1) <= i) q++;
+    while (q > 0 && block_lo(n, q) > i) q--;
+    return q;
+}
+
+/* Sends item k of m (each `size` bytes) to rank dest[k]; returns what arrives, rank by rank, and its
+ * count in *got. Every count is below 2^31: no rank sends or receives more than the N disks. */
+static void *exchange(const void *items, size_t size, const int *dest, int64_t m, int64_t *got)
+{
+    int np = mpi_np;
+    int *sc = sim_calloc((size_t)np, sizeof *sc), *sd = sim_calloc((size_t)np, sizeof *sd);
+    int *rc = sim_calloc((size_t)np, sizeof *rc), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int64_t *at = sim_calloc((size_t)np, sizeof *at);
+    for (int64_t k = 0; k < m; k++) sc[dest[k]]++;
+    for (int q = 1; q < np; q++) at[q] = sd[q] = sd[q - 1] + sc[q - 1];
+    char *out = sim_realloc(NULL, (size_t)m, size);
+    for (int64_t k = 0; k < m; k++)
+        memcpy(out + (size_t)(at[dest[k]]++) * size, (const char *)items + (size_t)k * size, size);
+    MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
+    int64_t total = 0;
+    for (int q = 0; q < np; q++) {
+        if (total + rc[q] > INT_MAX) sim_fail("internal error: more than 2^31 disks for one rank");
+        rd[q] = (int)total;
+        total += rc[q];
+    }
+    char *in = sim_realloc(NULL, (size_t)total, size);
+    MPI_Datatype t;
+    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
+    MPI_Type_commit(&t);
+    MPI_Alltoallv(out, sc, sd, t, in, rc, rd, t, MPI_COMM_WORLD);
+    MPI_Type_free(&t);
+    free(out), free(sc), free(sd), free(rc), free(rd), free(at);
+    *got = total;
+    return in;
+}
+
+/* Adds m disks (their counts zero, wi zero) to l's own. */
+static void local_append(Local *l, const Disk *d, int64_t m)
+{
+    local_reserve(l, l->own + m);
+    Slots *s = &l->s;
+    for (int64_t k = 0; k < m; k++) {
+        int64_t at = l->own + k;
+        s->x[at] = d[k].x, s->y[at] = d[k].y, s->vx[at] = d[k].vx, s->vy[at] = d[k].vy;
+        s->id[at] = (int32_t)d[k].id;
+        s->pc[at] = 0, s->wc[at] = 0;
+        if (l->with_wi) s->wi[at] = 0;
+    }
+    l->own += m;
+}
+
+/* Each rank's disks of its index block, from wherever they are: position k holds disk lo + k. */
+static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *lo, int64_t *m)
+{
+    int64_t n = par->n, own = l->own;
+    const Slots *s = &l->s;
+    Disk *d = sim_realloc(NULL, (size_t)own, sizeof *d);
+    int *dest = sim_realloc(NULL, (size_t)own, sizeof *dest);
+    for (int64_t k = 0; k < own; k++) {
+        Disk e = {s->x[k], s->y[k], s->vx[k], s->vy[k], s->id[k], s->pc[k], s->wc[k]};
+        d[k] = e;
+        dest[k] = block_of(n, s->id[k]);
+    }
+    int64_t got;
+    Disk *in = exchange(d, sizeof *d, dest, own, &got);
+    free(d), free(dest);
+    *lo = block_lo(n, mpi_me);
+    *m = block_lo(n, mpi_me + 1) - *lo;
+    if (got != *m)
+        sim_fail("internal error: %lld disks of block %d, not %lld", (long long)got, mpi_me, (long long)*m);
+    if (sim_alloc(blk, *m)) sim_fail("out of memory for %lld disks", (long long)*m);
+    for (int64_t k = 0; k < got; k++) {
+        int64_t at = in[k].id - *lo;
+        blk->x[at] = in[k].x, blk->y[at] = in[k].y, blk->vx[at] = in[k].vx, blk->vy[at] = in[k].vy;
+        blk->pc[at] = in[k].pc, blk->wc[at] = in[k].wc;
+    }
+    free(in);
+}
+
+/* ---- input --------------------------------------------------------------------------------------- */
+
+enum { HEAD_FILE, HEAD_ROOT };
+
+/* What rank 0 learns before the particle lines, for every rank. */
+typedef struct {
+    Params par;
+    int64_t body, size; /* HEAD_FILE: the particle lines are bytes [body, size) of the file */
+    int32_t mode;       /* HEAD_FILE: each rank reads its share; HEAD_ROOT: rank 0 holds every disk */
+} Head;
+
+/* Reads up to len bytes at off; returns the count (short at the end of the file), or -1 (errno). */
+static int64_t read_at(int fd, char *buf, size_t len, int64_t off)
+{
+    size_t done = 0;
+    while (done < len) {
+        ssize_t got = pread(fd, buf + done, len - done, (off_t)(off + (int64_t)done));
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) return -1;
+        if (got == 0) break;
+        done += (size_t)got;
+    }
+    return (int64_t)done;
+}
+
+/* Rank 0: the header of the regular file fd, from as much of the file's start as holds it whole. */
+static void read_head(const Options *opt, int fd, Head *h)
+{
+    size_t cap = HEAD_BYTES, got = 0, span = 0;
+    char *buf = NULL;
+    for (;;) {
+        buf = sim_realloc(buf, cap + 1, 1);
+        int64_t r = read_at(fd, buf + got, cap - got, (int64_t)got);
+        if (r < 0) sim_fail("%s: cannot read the input (%s)", opt->label, strerror(errno));
+        got += (size_t)r;
+        span = io_header_span(buf, got);
+        if (span || got < cap) break; /* whole, or the whole file */
+        cap *= 2;
+    }
+    size_t body;
+    long body_line;
+    io_read_header(opt->label, buf, span ? span : got, &h->par, &body, &body_line);
+    h->body = (int64_t)body;
+    free(buf);
+}
+
+/* Every rank but rank 0 after bad input: rank 0 prints seq's message (io.c's reader finds it again) and
+ * exits, which ends the job; the others wait for it in a barrier it never joins. */
+static void input_failed(const Options *opt)
+{
+    if (mpi_me == 0) {
+        Params p;
+        Sim all;
+        io_read_input(opt, &p, &all);
+        sim_fail("%s: the input changed while it was read", opt->label);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    exit(1);
+}
+
+/* This rank's share of the particle lines: the lines that start in [a, b) of the file, where a and b
+ * cut [body, size) in np parts. Returns the buffer (NULL: no lines) and sets *text, *len to the lines
+ * (text[len] writable), or sets *err to an errno. */
+static char *read_share(const Options *opt, const Head *h, char **text, size_t *len, int *err)
+{
+    int64_t span = h->size - h->body, np = mpi_np, me = mpi_me;
+    int64_t a = h->body + span / np * me + span % np * me / np;
+    int64_t b = h->body + span / np * (me + 1) + span % np * (me + 1) / np;
+    *text = NULL, *len = 0, *err = 0;
+    if (a >= b) return NULL;
+    int fd = open(opt->path, O_RDONLY);
+    if (fd < 0) {
+        *err = errno;
+        return NULL;
+    }
+    /* from the byte before a, which says whether a line starts at a */
+    int64_t lo = a > h->body ? a - 1 : a, cap = b - lo, got;
+    char *buf = sim_realloc(NULL, (size_t)cap + 1, 1);
+    if ((got = read_at(fd, buf, (size_t)cap, lo)) < 0) goto fail;
+    int64_t s = a; /* the first line start >= a */
+    if (a > h->body) {
+        char *nl = memchr(buf, '\n', (size_t)got);
+        s = nl ? lo + (nl - buf) + 1 : b;
+    }
+    if (s >= b) { /* no line starts in [a, b) */
+        close(fd);
+        free(buf);
+        return NULL;
+    }
+    /* the lines end before the first line start >= b: after the first newline from b - 1 on */
+    int64_t from = b - 1 - lo, e = -1;
+    for (;;) {
+        char *nl = from < got ? memchr(buf + from, '\n', (size_t)(got - from)) : NULL;
+        if (nl) {
+            e = lo + (nl - buf) + 1;
+            break;
+        }
+        if (got < cap) { /* the end of the file */
+            e = lo + got;
+            break;
+        }
+        from = got;
+        int64_t more = cap < HEAD_BYTES ? HEAD_BYTES : cap;
+        buf = sim_realloc(buf, (size_t)(cap + more) + 1, 1);
+        int64_t r = read_at(fd, buf + cap, (size_t)more, lo + cap);
+        if (r < 0) goto fail;
+        got = cap + r;
+        cap += more;
+    }
+    close(fd);
+    *text = buf + (s - lo);
+    *len = (size_t)(e - s);
+    return buf;
+fail:
+    *err = errno ? errno : EIO;
+    close(fd);
+    free(buf);
+    return NULL;
+}
+
+/* A regular file, every rank its share: parsed, checked together (record count, then duplicates at
+ * the index blocks' ranks), and sent to the strips' ranks. Returns 0, or 1 where the input lists no
+ * disks (random placement). */
+static int read_particles(const Options *opt, const Head *h, const Params *par, Local *l)
+{
+    char *text;
+    size_t len;
+    int err;
+    char *buf = read_share(opt, h, &text, &len, &err);
+    IoPiece pc;
+    memset(&pc, 0, sizeof pc);
+    if (buf) io_parse_piece(par, text, len, opt->threads, &pc);
+    free(buf);
+    int64_t records = 0;
+    if (!pc.bad)
+        for (int64_t k = 0; k < pc.lines; k++) records += pc.idx[k] >= 0;
+    int64_t mine[3] = {err, pc.bad, records}, all[3];
+    MPI_Allreduce(mine, all, 3, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    if (all[0]) {
+        int64_t worst;
+        MPI_Allreduce(&mine[0], &worst, 1, MPI_INT64_T, MPI_MAX, MPI_COMM_WORLD);
+        if (mpi_me == 0)
+            sim_fail("%s: cannot read the input on every rank (%s)", opt->label, strerror((int)worst));
+        MPI_Barrier(MPI_COMM_WORLD);
+        exit(1);
+    }
+    if (all[1] || (all[2] && all[2] != par->n)) input_failed(opt);
+    if (!all[2]) {
+        io_piece_free(&pc);
+        return 1;
+    }
+
+    /* each index once: rank q marks the indices of its block */
+    int64_t n = par->n, got;
+    int32_t *ids = sim_realloc(NULL, (size_t)records, sizeof *ids);
+    int *dest = sim_realloc(NULL, (size_t)records, sizeof *dest);
+    Disk *d = sim_realloc(NULL, (size_t)records, sizeof *d);
+    for (int64_t k = 0, m = 0; k < pc.lines; k++) {
+        if (pc.idx[k] < 0) continue;
+        const Sim *p = &pc.disks;
+        Disk e = {p->x[k], p->y[k], p->vx[k], p->vy[k], pc.idx[k], 0, 0};
+        d[m] = e;
+        ids[m] = pc.idx[k];
+        dest[m++] = block_of(n, pc.idx[k]);
+    }
+    io_piece_free(&pc);
+    int32_t *in = exchange(ids, sizeof *ids, dest, records, &got);
+    int64_t lo = block_lo(n, mpi_me);
+    unsigned char *have = sim_calloc((size_t)((block_lo(n, mpi_me + 1) - lo) / 8 + 1), 1);
+    int dup = 0;
+    for (int64_t k = 0; k < got && !dup; k++) {
+        int64_t i = in[k] - lo;
+        dup = (have[i / 8] >> (i % 8)) & 1;
+        have[i / 8] |= (unsigned char)(1u << (i % 8));
+    }
+    free(have), free(in), free(ids);
+    int any;
+    MPI_Allreduce(&dup, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (any) input_failed(opt);
+
+    for (int64_t k = 0; k < records; k++) dest[k] = mpi_owner(d[k].x, par->L);
+    Disk *mine_now = exchange(d, sizeof *d, dest, records, &got);
+    free(d), free(dest);
+    local_append(l, mine_now, got);
+    free(mine_now);
+    return 0;
+}
+
+/* Rank 0 holds every disk (all; the other ranks NULL) and sends each to its strip's rank, a round of
+ * SCATTER_DISKS at a time. */
+static void scatter(const Params *par, const Sim *all, Local *l)
+{
+    int np = mpi_np;
+    int *count = sim_calloc((size_t)np, sizeof *count), *displ = sim_calloc((size_t)np, sizeof *displ);
+    int *dest = NULL;
+    Disk *d = NULL;
+    if (mpi_me == 0) {
+        dest = sim_realloc(NULL, SCATTER_DISKS, sizeof *dest);
+        d = sim_realloc(NULL, SCATTER_DISKS, sizeof *d);
+    }
+    MPI_Datatype t;
+    MPI_Type_contiguous((int)sizeof(Disk), MPI_BYTE, &t);
+    MPI_Type_commit(&t);
+    for (int64_t first = 0; first < par->n; first += SCATTER_DISKS) {
+        int64_t m = par->n - first < SCATTER_DISKS ? par->n - first : SCATTER_DISKS;
+        if (mpi_me == 0) {
+            memset(count, 0, (size_t)np * sizeof *count);
+            for (int64_t k = 0; k < m; k++) count[dest[k] = mpi_owner(all->x[first + k], par->L)]++;
+            for (int q = 1; q < np; q++) displ[q] = displ[q - 1] + count[q - 1];
+            for (int64_t k = 0; k < m; k++) {
+                int64_t i = first + k;
+                Disk e = {all->x[i], all->y[i], all->vx[i], all->vy[i], i, 0, 0};
+                d[displ[dest[k]]++] = e;
+            }
+            for (int q = 0; q < np; q++) displ[q] -= count[q];
+        }
+        int got;
+        MPI_Scatter(count, 1, MPI_INT, &got, 1, MPI_INT, 0, MPI_COMM_WORLD);
+        Disk *in = sim_realloc(NULL, (size_t)got, sizeof *in);
+        MPI_Scatterv(d, count, displ, t, in, got, t, 0, MPI_COMM_WORLD);
+        local_append(l, in, got);
+        free(in);
+    }
+    MPI_Type_free(&t);
+    free(count), free(displ), free(dest), free(d);
+}
+
+void mpi_read_input(const Options *opt, Params *par, Local *l)
+{
+    Head h;
+    memset(&h, 0, sizeof h);
+    Sim all; /* HEAD_ROOT: the whole state, on rank 0 only */
+    memset(&all, 0, sizeof all);
+    if (mpi_me == 0) {
+        struct stat st;
+        int fd = strcmp(opt->path, "-") == 0 ? -1 : open(opt->path, O_RDONLY);
+        if (fd >= 0 && fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) {
+            h.mode = HEAD_FILE;
+            h.size = (int64_t)st.st_size;
+            read_head(opt, fd, &h);
+        } else {
+            /* standard input, a pipe, or what cannot be opened: io.c reads it whole or says why not */
+            h.mode = HEAD_ROOT;
+            io_read_input(opt, &h.par, &all);
+        }
+        if (fd >= 0) close(fd);
+    }
+    MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, MPI_COMM_WORLD);
+    *par = h.par;
+    par->substeps = opt->substeps;
+    par->first_step = 0;
+    backend_prepare(par);
+    l->own = l->halo = 0;
+    if (h.mode == HEAD_FILE && read_particles(opt, &h, par, l)) {
+        /* no particle lines: rank 0 places the disks as io.c does (and says so) */
+        h.mode = HEAD_ROOT;
+        if (mpi_me == 0) {
+            Params p;
+            io_read_input(opt, &p, &all);
+        }
+    }
+    if (h.mode == HEAD_ROOT) {
+        scatter(par, &all, l); /* the one case where rank 0 holds the whole state */
+        sim_free(&all);
+    }
+}
+
+/* ---- output ----------------------------------------------------------------------------------------- */
+
+static int out_fd = -1;     /* --output's file, on every rank; -1: rank 0's stdout */
+static int64_t out_size;    /* its bytes so far (the same on every rank) */
+
+void mpi_output_file(const char *path)
+{
+    int err = 0;
+    if (mpi_me == 0) {
+        int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+        if (fd < 0) sim_fail("%s: cannot create the output (%s)", path, strerror(errno));
+        close(fd);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    out_fd = open(path, O_WRONLY);
+    if (out_fd < 0) err = errno;
+    int worst;
+    MPI_Allreduce(&err, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (worst) {
+        if (mpi_me == 0) sim_fail("%s: cannot open the output on every rank (%s)", path, strerror(worst));
+        MPI_Barrier(MPI_COMM_WORLD); /* rank 0 never joins: mpirun ends the job */
+    }
+}
+
+/* This rank's pieces t[0, pieces) into the output file at its offset among the ranks' lines. */
+static void write_at_offset(const TextBlock *t, int64_t pieces)
+{
+    int64_t mine = 0, before = 0, all;
+    for (int64_t k = 0; k < pieces; k++) mine += (int64_t)t[k].len;
+    MPI_Exscan(&mine, &before, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    if (mpi_me == 0) before = 0; /* MPI_Exscan leaves rank 0's undefined */
+    int64_t at = out_size + before;
+    for (int64_t k = 0; k < pieces; k++) {
+        for (size_t done = 0; done < t[k].len;) {
+            ssize_t w = pwrite(out_fd, t[k].buf + done, t[k].len - done, (off_t)at);
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) sim_fail("cannot write the output (%s)", w < 0 ? strerror(errno) : "no progress");
+            done += (size_t)w;
+            at += w;
+        }
+    }
+    MPI_Allreduce(&mine, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    out_size += all;
+}
+
+typedef struct {
+    TextBlock *t;
+    const Sim *blk;
+    int64_t step, lo, m;
+    int with_counts, dump17;
+} Format;
+
+static void format_task(void *ctx, int64_t k)
+{
+    Format *f = ctx;
+    int64_t from = k * TEXT_PIECE, to = from + TEXT_PIECE < f->m ? from + TEXT_PIECE : f->m;
+    io_format_block(&f->t[k], f->step, f->blk, from, to, f->lo, f->with_counts, f->dump17);
+}
+
+void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t step, int with_counts)
+{
+    int how[2] = {0, 0}; /* rank 0's --dump17 and --threads */
+    if (mpi_me == 0) how[0] = io_dump17(out), how[1] = io_threads(out);
+    MPI_Bcast(how, 2, MPI_INT, 0, MPI_COMM_WORLD);
+    Sim blk;
+    int64_t lo, m;
+    gather_block(par, l, &blk, &lo, &m);
+    int64_t pieces = (m + TEXT_PIECE - 1) / TEXT_PIECE;
+    Format f = {sim_calloc((size_t)pieces, sizeof(TextBlock)), &blk, step, lo, m, with_counts, how[0]};
+    backend_parallel(how[1], pieces, format_task, &f);
+    sim_free(&blk);
+    if (out_fd >= 0) {
+        write_at_offset(f.t, pieces);
+        for (int64_t k = 0; k < pieces; k++) free(f.t[k].buf);
+        free(f.t);
+        return;
+    }
+    for (int64_t k = 0; k < pieces; k++) {
+        if (mpi_me == 0) io_write_bytes(out, f.t[k].buf, f.t[k].len);
+        else MPI_Send(f.t[k].buf, (int)f.t[k].len, MPI_CHAR, 0, TAG_TEXT, MPI_COMM_WORLD);
+        free(f.t[k].buf);
+    }
+    free(f.t);
+    if (mpi_me != 0) return;
+    /* the other blocks in rank order, a piece at a time */
+    char *buf = NULL;
+    size_t cap = 0;
+    for (int q = 1; q < mpi_np; q++) {
+        int64_t qm = block_lo(par->n, q + 1) - block_lo(par->n, q);
+        for (int64_t k = 0; k < (qm + TEXT_PIECE - 1) / TEXT_PIECE; k++) {
+            MPI_Status st;
+            int len;
+            MPI_Probe(q, TAG_TEXT, MPI_COMM_WORLD, &st);
+            MPI_Get_count(&st, MPI_CHAR, &len);
+            if ((size_t)len + 1 > cap) {
+                cap = (size_t)len + 1;
+                free(buf);
+                buf = sim_realloc(NULL, cap, 1);
+            }
+            MPI_Recv(buf, len, MPI_CHAR, q, TAG_TEXT, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            io_write_bytes(out, buf, (size_t)len);
+        }
+    }
+    free(buf);
+}
+
+double mpi_impulse_sum(const Params *par, const Local *l)
+{
+    typedef struct {
+        int64_t id;
+        double wi;
+    } Wall;
+    int64_t n = par->n, own = l->own, got;
+    Wall *w = sim_realloc(NULL, (size_t)own, sizeof *w);
+    int *dest = sim_realloc(NULL, (size_t)own, sizeof *dest);
+    for (int64_t k = 0; k < own; k++) {
+        w[k].id = l->s.id[k];
+        w[k].wi = l->s.wi ? l->s.wi[k] : 0;
+        dest[k] = block_of(n, w[k].id);
+    }
+    Wall *in = exchange(w, sizeof *w, dest, own, &got);
+    free(w), free(dest);
+    int64_t lo = block_lo(n, mpi_me);
+    double *blk = sim_realloc(NULL, (size_t)got, sizeof *blk);
+    for (int64_t k = 0; k < got; k++) blk[in[k].id - lo] = in[k].wi;
+    free(in);
+    if (got != block_lo(n, mpi_me + 1) - lo)
+        sim_fail("internal error: %lld impulses of block %d", (long long)got, mpi_me);
+    /* seq's loop over the indices, passed along the blocks: rank 0, 1, ..., np - 1, back to 0 */
+    double sum = 0;
+    if (mpi_me > 0) MPI_Recv(&sum, 1, MPI_DOUBLE, mpi_me - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    for (int64_t k = 0; k < got; k++) sum += blk[k];
+    free(blk);
+    if (mpi_np > 1) {
+        MPI_Send(&sum, 1, MPI_DOUBLE, (mpi_me + 1) % mpi_np, TAG_SUM, MPI_COMM_WORLD);
+        if (mpi_me == 0) MPI_Recv(&sum, 1, MPI_DOUBLE, mpi_np - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    }
+    return mpi_me == 0 ? sum : 0;
+}
