@@ -18,6 +18,7 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
   io          the text path: reading, parsing, formatting and writing, whole process (MB/s);
               `io gpu` adds cuda on gases of 1e7 and 1e8 disks
   exact       --exact against the default step, seq and omp, on dense gases
+  mpi         mpi's strong and weak scaling and memory per rank on gases, against omp (needs mpirun)
   accuracy    what accuracy costs in time: sub-steps, --exact and float against the hard-disk
               equation of state (--quick: CI-sized)
   gpu-check   on a GPU machine: build, make test, compute-sanitizer memcheck
@@ -30,7 +31,7 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
 
 common options (before or after the subcommand; each sets the variable its scripts read):
   --repeats K      timed runs per point (REPEATS)
-  --threads LIST   omp thread counts, space- or comma-separated (THREADS)
+  --threads LIST   omp thread counts (mpi: threads per rank), space- or comma-separated (THREADS)
   --base REV       also time revision REV's build beside this tree, row by row (BASE_REV; io, perf)
   --work DIR       scratch files (WORK; default bench/tmp)
   --help           this text
@@ -48,7 +49,7 @@ while [ $# -gt 0 ]; do
         -h | --help)
             if [ $given = 0 ]; then usage; exit 0; fi
             args+=("$1"); shift ;;
-        sweep | targets | io | exact | accuracy | gpu-sweep | variants | viewer | plots | gpu-*)
+        sweep | targets | io | exact | mpi | accuracy | gpu-sweep | variants | viewer | plots | gpu-*)
             if [ $given = 0 ] && [ ${#args[@]} -eq 0 ]; then cmd=$1 given=1; else args+=("$1"); fi
             shift ;;
         *) args+=("$1"); shift ;;
@@ -68,7 +69,7 @@ if [ "${1:-}" = --help ] && [ "$cmd" != sweep ] && [ "$cmd" != accuracy ]; then
     exit 0
 fi
 case $cmd in
-    sweep | targets | io | exact | accuracy | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
+    sweep | targets | io | exact | mpi | accuracy | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
     gpu-sweep) exec bash bench/cmd/gpu_sweep.sh "$@" ;;
     gpu-check | gpu-memcheck | gpu-perf | gpu-host | gpu-big | gpu-profile | gpu-targets | gpu-all)
         exec bash bench/cmd/gpu.sh "${cmd#gpu-}" "$@" ;;

@@ -1,0 +1,147 @@
+#!/usr/bin/env bash
+# ./bench.sh mpi: the MPI backend's scaling on gases (fraction 0.2, speeds up to r/2), against omp on
+# as many threads, one CSV row per measurement and a summary line per target at the end:
+#   strong  a gas of STRONG_N disks (default 4e6 on 16 or more cores, 4e5 below) at each rank count
+#           of RANKS x each count of THREADS per rank, and omp at the same total of threads;
+#   weak    PER_RANK disks (default 2.5e5) per rank at each rank count of RANKS;
+#   memory  a gas of MEM_N disks (default 2e6) at 1 and 4 ranks: the largest rank's peak memory;
+#   copies  RANKS independent copies of omp on one thread each (a gas of PER_RANK disks, one core each),
+#           at once: what sharing the machine alone costs, the bound of weak scaling (not in the default;
+#           its rows give the slowest copy's step loop as best_loop_s, the mean as median_loop_s).
+# Each point is REPEATS runs (default 3) after one discarded warm-up; rows give the best and median
+# step loop (the program's own seconds) and the best whole process (wall clock: reading, steps,
+# writing the output into a file: omp through its stdout, mpi with --output). mpi's rows add the bytes sent between ranks a step, the rounds of the choice a step and
+# the largest rank's and all ranks' peak memory (mpi --stats).
+#   ./bench.sh mpi                          all three
+#   PARTS="strong" RANKS="1 4 16" ./bench.sh mpi
+# Variables: PARTS ("strong weak memory"), RANKS (default: powers of two up to the cores), THREADS
+# (threads per rank, default "1"), STEPS (20), STRONG_N, PER_RANK, MEM_N, REPEATS, WORK (bench/tmp).
+# MPIRUN_FLAGS adds options to mpirun (default "--bind-to core" where ranks x threads fit the cores).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+die() { echo "bench.sh mpi: $*" >&2; exit 1; }
+. bench/cmd/lib.sh
+
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+CORES=$(nproc)
+REPEATS=${REPEATS:-3}
+PARTS=${PARTS:-"strong weak memory"}
+THREADS=${THREADS:-1}
+STEPS=${STEPS:-20}
+WORK=${WORK:-bench/tmp}
+if [ -z "${RANKS:-}" ]; then
+    RANKS=1
+    for ((p = 2; p <= CORES; p *= 2)); do RANKS="$RANKS $p"; done
+fi
+if [ "$CORES" -ge 16 ]; then STRONG_N=$(integer "${STRONG_N:-4e6}"); else STRONG_N=$(integer "${STRONG_N:-4e5}"); fi
+PER_RANK=$(integer "${PER_RANK:-2.5e5}")
+MEM_N=$(integer "${MEM_N:-2e6}")
+
+command -v mpirun > /dev/null || die "no mpirun (apt-get install openmpi-bin libopenmpi-dev)"
+make -s omp mpi tools/gen > /dev/null
+[ -x ./mpi ] || die "./mpi was not built (no mpicc?)"
+mkdir -p "$WORK"
+machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$CORES"
+echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS STEPS=$STEPS"
+echo "part,program,ranks,threads,n,steps,best_loop_s,median_loop_s,best_wall_s,loop_particle_steps_per_s,bytes_per_step,rounds_per_step,largest_rank_mb,all_ranks_mb"
+
+gas() { # N: the input of a gas of N disks (made once)
+    local f=$WORK/mpi_gas_$1.in
+    [ -s "$f" ] || tools/gen "$1" --fraction 0.2 --speed 0.5 --steps "$STEPS" --seed 3 > "$f"
+    echo "$f"
+}
+now_ns() { date +%s%N; }
+best_of() { printf '%s\n' "$@" | sort -g | head -1; }
+median_of() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
+stat_of() { sed -n "s/.*$2.*/\1/p" "$1" | tail -n 1; }
+
+# run PART PROGRAM RANKS THREADS N INPUT: one CSV row; LOOP_RATE is left with its best rate
+run() {
+    local part=$1 prog=$2 ranks=$3 threads=$4 n=$5 input=$6 k s e walls=() loops=() cmd sink=$WORK/mpi_bench.out
+    if [ "$prog" = omp ]; then
+        cmd=(./omp "$input" --stats --threads "$threads")
+    else
+        local flags=${MPIRUN_FLAGS:-}
+        if [ -z "${MPIRUN_FLAGS+x}" ]; then
+            if [ $((ranks * threads)) -le "$CORES" ]; then
+                flags="--bind-to core --map-by slot:PE=$threads"
+            else
+                flags="--oversubscribe --bind-to none"
+            fi
+        fi
+        # shellcheck disable=SC2206
+        cmd=(mpirun -np "$ranks" $flags ./mpi "$input" --stats --threads "$threads" --output "$sink")
+        sink=/dev/null
+    fi
+    echo "# ${cmd[*]}"
+    for ((k = 0; k <= REPEATS; k++)); do
+        s=$(now_ns)
+        "${cmd[@]}" > "$sink" 2> "$WORK/mpi_last.err" || die "failed: ${cmd[*]}: $(head -c 300 "$WORK/mpi_last.err")"
+        e=$(now_ns)
+        [ "$k" -eq 0 ] && continue
+        walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e9 }')")
+        loops+=("$(loop_seconds "$WORK/mpi_last.err")")
+    done
+    local bl ml bw
+    bl=$(best_of "${loops[@]}") ml=$(median_of "${loops[@]}") bw=$(best_of "${walls[@]}")
+    local err=$WORK/mpi_last.err
+    LOOP_RATE=$(awk -v n="$n" -v s="$STEPS" -v l="$bl" 'BEGIN { printf "%.4g", n * s / l }')
+    printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$part" "$prog" "$ranks" "$threads" "$n" "$STEPS" \
+        "$bl" "$ml" "$bw" "$LOOP_RATE" \
+        "$(stat_of "$err" '; \([0-9.e+]*\) bytes sent between ranks a step')" \
+        "$(stat_of "$err" '(\([0-9.e+]*\) a step)')" \
+        "$(stat_of "$err" 'largest rank \([0-9.]*\) MB')" "$(stat_of "$err" 'all ranks \([0-9.]*\) MB')"
+}
+
+summary=()
+for part in $PARTS; do
+    case $part in
+        strong)
+            input=$(gas "$STRONG_N")
+            for t in $THREADS; do
+                for p in $RANKS; do
+                    [ $((p * t)) -le "$CORES" ] || continue
+                    run strong omp 1 $((p * t)) "$STRONG_N" "$input"
+                    omp_rate=$LOOP_RATE
+                    run strong mpi "$p" "$t" "$STRONG_N" "$input"
+                    summary+=("strong N=$STRONG_N: mpi ${p}x$t $LOOP_RATE particle-steps/s against omp $((p * t)) threads $omp_rate: $(awk -v a="$LOOP_RATE" -v b="$omp_rate" 'BEGIN { printf "%.2f", a / b }')x")
+                done
+            done
+            ;;
+        weak)
+            base=""
+            for p in $RANKS; do
+                n=$((PER_RANK * p))
+                run weak mpi "$p" 1 "$n" "$(gas "$n")"
+                [ -z "$base" ] && base=$LOOP_RATE
+                summary+=("weak $PER_RANK a rank: $p ranks $LOOP_RATE particle-steps/s, efficiency $(awk -v a="$LOOP_RATE" -v b="$base" -v p="$p" 'BEGIN { printf "%.0f%%", 100 * a / (p * b) }')")
+            done
+            ;;
+        memory)
+            input=$(gas "$MEM_N")
+            run memory mpi 1 1 "$MEM_N" "$input"
+            one=$(stat_of "$WORK/mpi_last.err" 'largest rank \([0-9.]*\) MB')
+            run memory mpi 4 1 "$MEM_N" "$input"
+            four=$(stat_of "$WORK/mpi_last.err" 'largest rank \([0-9.]*\) MB')
+            summary+=("memory N=$MEM_N: largest rank at 4 ranks $four MB against 1 rank $one MB: $(awk -v a="$four" -v b="$one" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
+            ;;
+        copies)
+            input=$(gas "$PER_RANK")
+            one=""
+            for p in $RANKS; do
+                echo "# $p copies at once: taskset -c CORE ./omp $input --threads 1"
+                for ((c = 0; c < p; c++)); do
+                    taskset -c "$c" ./omp "$input" --threads 1 > /dev/null 2> "$WORK/mpi_copy$c.err" &
+                done
+                wait
+                worst=$(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | sort -g | tail -n 1)
+                mean=$(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | awk '{ s += $1 } END { printf "%.4f", s / NR }')
+                echo "copies,omp,$p,1,$PER_RANK,$STEPS,$worst,$mean,,,,,,"
+                [ -z "$one" ] && one=$worst
+                summary+=("copies of omp at once, $PER_RANK disks each: $p copies, slowest step loop $worst s against $one s alone: $(awk -v a="$one" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
+            done
+            ;;
+        *) die "unknown part '$part' (strong, weak, memory, copies)" ;;
+    esac
+done
+for line in "${summary[@]}"; do echo "# $line"; done
