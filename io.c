@@ -1561,9 +1561,11 @@ void io_parse_args(int argc, char **argv, Options *opt)
     memset(opt, 0, sizeof *opt);
     opt->seed = DEFAULT_SEED;
     opt->substeps = 1;
+    opt->balance = SIM_BALANCE_EVERY;
     opt->path = NULL;
     /* omp and mpi (its ranks' threads) share the broad phase: its threads, --check and --broad */
-    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0 || strcmp(backend_name, "mpi" SIM_SUFFIX) == 0;
+    int is_mpi = strcmp(backend_name, "mpi" SIM_SUFFIX) == 0;
+    int own_threads = strcmp(backend_name, "omp" SIM_SUFFIX) == 0 || is_mpi;
     int substeps_given = 0;
     for (int k = 1; k < argc; k++) {
         const char *a = argv[k];
@@ -1609,6 +1611,8 @@ void io_parse_args(int argc, char **argv, Options *opt)
             else if (strcmp(val, "mixed") == 0) opt->broad = SIM_BROAD_MIXED;
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
             else sim_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
+        } else if (is_mpi && strcmp(a, "--balance") == 0) {
+            opt->balance = option_value(argc, argv, &k, 0, SIM_MAX_STEPS);
         } else if (strcmp(a, "--checkpoint") == 0) {
             if (k + 1 >= argc) sim_fail("--checkpoint needs a file name");
             opt->checkpoint = argv[++k];

@@ -36,7 +36,10 @@ typedef struct {
     int64_t checkpoint_every; /* --checkpoint-every K (default 1000) */
     const char *resume;       /* --resume FILE: go on from that checkpoint instead of reading an input */
     const char *output;       /* mpi --output FILE: stdout's bytes written into FILE by every rank */
+    int64_t balance;          /* mpi --balance K: steps between moves of the cuts by measured time (0: never) */
 } Options;
+
+#define SIM_BALANCE_EVERY 0 /* mpi's default --balance: by count at the start only */
 
 #define SIM_BROAD_AUTO 0
 #define SIM_BROAD_GRID 1

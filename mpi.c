@@ -12,6 +12,8 @@
  *    ranks and threads, and an event between disks of two ranks is decided alike on both;
  * 5. each rank moves its own disks (pair_contact and finish_step for its side, from the state at the
  *    start of the step), and disks that left the strip go to the rank of their new strip.
+ * The strips start with equal counts of disks; with --balance K the cuts between them move every K
+ * steps so that the ranks' measured work evens out (balance).
  * Input, output and the pressure's sum go through the ranks' own disks too (mpi_io.c): no rank ever
  * holds the whole state (but for standard input and random placement, read or made on rank 0).
  */
@@ -32,18 +34,33 @@ const char backend_options[] =
     "               ranks each rank's strip uses the grid\n"
     "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
     "               ranks' standard output through itself, at some 100 MB/s)\n"
+    "  --balance K  every K steps, move the cuts between strips so that each rank has as much\n"
+    "               work as measured (default 0: cuts placed by count at the start only)\n"
     "run as: mpirun -np P mpi INPUT [options]\n";
 const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT;
 
 int mpi_me, mpi_np;
 static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
+static double waited;       /* seconds in the steps' MPI calls: what the balance leaves out */
 
-int mpi_owner(double x, double L)
+double *mpi_cut;
+
+void mpi_strips_equal(double L)
 {
-    static double box, per_length; /* np / L, once: called several times per disk per step */
-    if (L != box) box = L, per_length = mpi_np / L;
-    int q = (int)(x * per_length);
-    return q < 0 ? 0 : q >= mpi_np ? mpi_np - 1 : q;
+    mpi_cut = sim_realloc(mpi_cut, (size_t)mpi_np + 1, sizeof *mpi_cut);
+    for (int q = 0; q <= mpi_np; q++) mpi_cut[q] = L * q / mpi_np;
+}
+
+int mpi_owner(double x)
+{
+    if (x >= mpi_cut[mpi_me] && x < mpi_cut[mpi_me + 1]) return mpi_me; /* most disks stay */
+    int lo = 0, hi = mpi_np - 1; /* the last q with cut[q] <= x (0 below the box, np - 1 above) */
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (mpi_cut[mid] <= x) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
 }
 
 void local_reserve(Local *l, int64_t n)
@@ -79,7 +96,9 @@ static double *exchange(const double *out, const int *count, int width, int64_t 
 {
     int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
     int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
+    double t0 = MPI_Wtime();
     MPI_Alltoall(count, 1, MPI_INT, rcount, 1, MPI_INT, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0;
     int64_t total = 0, off = 0;
     for (int q = 0; q < np; q++) {
         sc[q] = count[q] * width;
@@ -91,7 +110,9 @@ static double *exchange(const double *out, const int *count, int width, int64_t 
         total += rcount[q];
     }
     double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
+    t0 = MPI_Wtime();
     MPI_Alltoallv(out, sc, sd, MPI_DOUBLE, in, rc, rd, MPI_DOUBLE, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0;
     free(sd), free(rd), free(sc), free(rc);
     *got = total;
     return in;
@@ -112,7 +133,7 @@ typedef struct {
     Broad b;          /* the rank's disks in b.s: own at [0, own), the halo after them */
     int64_t own, halo;
     int nt;
-    double reach, w;  /* this step's reach; the strips' width */
+    double reach;     /* this step's */
     real vmax;        /* this step's fastest velocity component, over all ranks */
     /* the halo exchange: the own slots sent, rank by rank (scount), and the copies received */
     int32_t *send;
@@ -132,6 +153,8 @@ typedef struct {
     double *next;     /* own x 4: the moved state */
     int64_t cap;      /* per-slot buffers allocated */
     uint64_t events, rounds, bytes_steps;
+    double busy;      /* seconds of the steps since the last balance, MPI calls left out */
+    int64_t moves;    /* times the balance moved the cuts */
 } Run;
 
 static void run_reserve(Run *r, int64_t n)
@@ -156,8 +179,9 @@ static void halo_exchange(Run *r)
     int np = mpi_np;
     real vm = 0;
     for (int64_t q = 0; q < r->own; q++) vm = fastest(vm, s->vx[q], s->vy[q]);
-    double v = vm, all;
+    double v = vm, all, t0 = MPI_Wtime();
     MPI_Allreduce(&v, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0;
     r->vmax = (real)all;
     r->reach = (2 * (double)r->par.r + 2.83 * all) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
@@ -169,11 +193,11 @@ static void halo_exchange(Run *r)
             for (int q = 1; q < np; q++) at[q] = at[q - 1] + r->scount[q - 1];
             r->send = omp_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         }
-        double in0 = mpi_me * r->w + r->reach, in1 = (mpi_me + 1) * r->w - r->reach;
+        double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
         for (int64_t k = 0; k < r->own; k++) {
             double x = s->x[k];
             if (x > in0 && x < in1) continue; /* within the strip, by more than the reach */
-            int q0 = mpi_owner(x - r->reach, r->par.L), q1 = mpi_owner(x + r->reach, r->par.L);
+            int q0 = mpi_owner(x - r->reach), q1 = mpi_owner(x + r->reach);
             for (int q = q0; q <= q1; q++) {
                 if (q == mpi_me) continue;
                 if (pass) r->send[at[q]++] = (int32_t)k;
@@ -199,7 +223,7 @@ static void find_events(Run *r, int64_t step)
 {
     Broad *b = &r->b;
     r->lp.n = r->own + r->halo;
-    double x0 = mpi_me * r->w - r->reach, x1 = (mpi_me + 1) * r->w + r->reach;
+    double x0 = mpi_cut[mpi_me] - r->reach, x1 = mpi_cut[mpi_me + 1] + r->reach;
     b->rx0 = x0 > r->par.lo ? x0 : r->par.lo;
     b->rx1 = x1 < r->par.hi ? x1 : r->par.hi;
 #pragma omp parallel num_threads(r->nt)
@@ -304,7 +328,9 @@ static void choose(Run *r)
         int64_t live = 0;
         for (int64_t k = 0; k < na; k++) live += r->pick[r->active[k]] != -2;
         int64_t all;
+        double t0 = MPI_Wtime();
         MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+        waited += MPI_Wtime() - t0;
         if (all == 0) break;
         r->rounds++;
         /* the owners' keys and decisions to the copies */
@@ -391,7 +417,7 @@ static void migrate(Run *r)
     int64_t moving = 0, keep = 0;
     int32_t *dest = r->b.cell_of; /* free between steps */
     for (int64_t q = 0; q < r->own; q++) {
-        int o = mpi_owner(s->x[q], r->par.L);
+        int o = mpi_owner(s->x[q]);
         dest[q] = o;
         if (o != mpi_me) count[o]++, moving++;
     }
@@ -454,6 +480,57 @@ static void reorder_own(Run *r)
     b->spare = t;
 }
 
+/* ---- the balance ---------------------------------------------------------------------------------- */
+
+#define BALANCE_BINS 256   /* histogram bins a rank */
+#define BALANCE_SLACK 1.05 /* the cuts move when the busiest rank has this much more than the mean */
+
+/* Moves the cuts, alike on every rank (rank 0 places them), so that every strip holds an equal share
+ * of the work, a disk weighing what the last steps cost its rank per disk (by_time; else every disk
+ * 1): a rank on a slower core, or with a denser part of the box, gets a narrower strip. The disks
+ * that the new cuts put in another strip go there in the next migrate; the events found do not
+ * depend on the cuts, so neither do the bytes printed. */
+static void balance(Run *r, int by_time)
+{
+    int np = mpi_np;
+    int64_t bins = (int64_t)BALANCE_BINS * (np < 4096 ? np : 4096);
+    double L = r->par.L, load = by_time ? r->busy : (double)r->own, most = 0;
+    double wt = r->own ? load / (double)r->own : 0;
+    double *h = sim_calloc((size_t)bins, sizeof *h), *all = NULL, *cut = sim_calloc((size_t)np + 2, sizeof *cut);
+    const Slots *s = &r->b.s;
+    for (int64_t q = 0; q < r->own; q++) {
+        double c = (double)s->x[q] / L * (double)bins;
+        h[c > 0 ? (c < (double)bins ? (int64_t)c : bins - 1) : 0] += wt;
+    }
+    if (mpi_me == 0) all = sim_calloc((size_t)bins, sizeof *all);
+    MPI_Reduce(h, all, (int)bins, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(&load, &most, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    if (mpi_me == 0) {
+        double total = 0, acc = 0;
+        for (int64_t k = 0; k < bins; k++) total += all[k];
+        if (total > 0 && most > BALANCE_SLACK * total / np) {
+            cut[np + 1] = 1; /* moved */
+            int q = 1;
+            for (int64_t k = 0; k < bins && q < np; k++) {
+                while (q < np && acc + all[k] >= total * q / np) { /* within bin k, linearly */
+                    double f = all[k] > 0 ? (total * q / np - acc) / all[k] : 0;
+                    cut[q++] = ((double)k + f) * L / (double)bins;
+                }
+                acc += all[k];
+            }
+            while (q < np) cut[q++] = L;
+            cut[np] = L;
+        }
+    }
+    MPI_Bcast(cut, np + 2, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    if (cut[np + 1] != 0) {
+        memcpy(mpi_cut, cut, (size_t)(np + 1) * sizeof *cut);
+        r->moves++;
+    }
+    r->busy = 0;
+    free(h), free(all), free(cut);
+}
+
 static Local view(const Run *r)
 {
     Local l = {r->b.s, r->own, 0, r->b.cap, r->b.s.wi != NULL};
@@ -465,11 +542,19 @@ static double run_steps(Run *r, RunStats *st)
     int64_t k = r->par.substeps, last = r->par.steps * k;
     double t0 = MPI_Wtime();
     uint64_t bytes0 = bytes_sent;
+    int64_t every = r->opt->balance;
+    if (mpi_np > 1) { /* an equal count of disks a rank to begin with */
+        balance(r, 0);
+        migrate(r);
+    }
     for (int64_t sub = 1; sub <= last; sub++) {
+        double ts = MPI_Wtime(), w0 = waited;
         halo_exchange(r);
         find_events(r, sub);
         choose(r);
         move(r);
+        r->busy += MPI_Wtime() - ts - (waited - w0);
+        if (every && mpi_np > 1 && sub % every == 0) balance(r, 1);
         migrate(r);
         if (sub % REORDER_EVERY == 1) reorder_own(r);
         if (sub % k) continue;
@@ -553,7 +638,6 @@ int main(int argc, char **argv)
 
     /* the disks into the broad phase's slots, which hold them from here on */
     r.lp = r.par;
-    r.w = (double)r.par.L / mpi_np;
     broad_init(&r.b, &r.lp, &opt, l.own + 1024, r.nt, opt.pressure);
     r.own = l.own;
     run_reserve(&r, l.own + 1024);
@@ -585,9 +669,10 @@ int main(int argc, char **argv)
     /* --stats: the steps' traffic between ranks, and each rank's peak memory (the largest and rank 0's) */
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
-    uint64_t mine[2] = {r.bytes_steps, (uint64_t)ru.ru_maxrss}, sum[2], most[2];
-    MPI_Reduce(mine, sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(mine, most, 2, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
+    uint64_t mine[3] = {r.bytes_steps, (uint64_t)ru.ru_maxrss, (uint64_t)r.own}, sum[3], most[3], least[3];
+    MPI_Reduce(mine, sum, 3, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, least, 3, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
     if (mpi_me == 0) {
         int64_t subs = r.par.steps * r.par.substeps;
         if (opt.stats)
@@ -598,6 +683,10 @@ int main(int argc, char **argv)
                     backend_name, mpi_np, r.nt, (unsigned long long)r.rounds,
                     subs ? (double)r.rounds / (double)subs : 0.0, subs ? (double)sum[0] / (double)subs : 0.0,
                     (double)most[1] / 1024, (double)mine[1] / 1024, (double)sum[1] / 1024);
+        if (opt.stats)
+            fprintf(stderr, "%s: the cuts between strips moved %lld times (--balance %lld); disks a rank at "
+                    "the end %llu to %llu\n", backend_name, (long long)r.moves, (long long)opt.balance,
+                    (unsigned long long)least[2], (unsigned long long)most[2]);
         if (opt.stats)
             fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
                     "state %.4f s\n", backend_name, t_read, t_step0, t_final);

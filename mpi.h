@@ -1,8 +1,9 @@
 /* mpi.h: what the MPI backend's steps (mpi.c) and its distributed input and output (mpi_io.c) share.
  *
- * The box is cut into np vertical strips of equal width, one per rank; a rank owns the disks whose
- * centres lie in its strip (mpi_owner) and never holds the whole state: input, output and the
- * pressure's sum all go through the ranks' own disks.
+ * The box is cut into np vertical strips, one per rank: rank q owns the disks whose centres lie in
+ * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The strips start equal; the steps move the cuts so that
+ * every rank has about as much work (mpi.c's balance). No rank ever holds the whole state: input,
+ * output and the pressure's sum all go through the ranks' own disks.
  */
 #ifndef MPI_H_SIM
 #define MPI_H_SIM
@@ -12,6 +13,8 @@
 #include <mpi.h>
 
 extern int mpi_me, mpi_np; /* this rank and the number of ranks */
+/* np + 1 cuts, the same on every rank: mpi_cut[0] = 0, mpi_cut[np] = L, never decreasing */
+extern double *mpi_cut;
 
 /* A rank's disks in omp's slots: its own at [0, own), copies of other ranks' disks within reach of
  * its strip (the halo) at [own, own + halo) during a step. s.id holds each disk's original index;
@@ -22,9 +25,11 @@ typedef struct {
     int with_wi;
 } Local;
 
-/* mpi.c: grows l to hold n disks (contents kept); the strip (rank) of a centre x in a box of side L */
+/* mpi.c: grows l to hold n disks (contents kept); np strips of equal width in a box of side L; the
+ * strip (rank) of a centre x */
 void local_reserve(Local *l, int64_t n);
-int mpi_owner(double x, double L);
+void mpi_strips_equal(double L);
+int mpi_owner(double x);
 
 /* ---- mpi_io.c: collective calls (every rank calls them, in the same order) ---------------------- */
 

@@ -304,7 +304,7 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     MPI_Allreduce(&dup, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     if (any) input_failed(opt);
 
-    for (int64_t k = 0; k < records; k++) dest[k] = mpi_owner(d[k].x, par->L);
+    for (int64_t k = 0; k < records; k++) dest[k] = mpi_owner(d[k].x);
     Disk *mine_now = exchange(d, sizeof *d, dest, records, &got);
     free(d), free(dest);
     local_append(l, mine_now, got);
@@ -331,7 +331,7 @@ static void scatter(const Params *par, const Sim *all, Local *l)
         int64_t m = par->n - first < SCATTER_DISKS ? par->n - first : SCATTER_DISKS;
         if (mpi_me == 0) {
             memset(count, 0, (size_t)np * sizeof *count);
-            for (int64_t k = 0; k < m; k++) count[dest[k] = mpi_owner(all->x[first + k], par->L)]++;
+            for (int64_t k = 0; k < m; k++) count[dest[k] = mpi_owner(all->x[first + k])]++;
             for (int q = 1; q < np; q++) displ[q] = displ[q - 1] + count[q - 1];
             for (int64_t k = 0; k < m; k++) {
                 int64_t i = first + k;
@@ -376,6 +376,7 @@ void mpi_read_input(const Options *opt, Params *par, Local *l)
     par->substeps = opt->substeps;
     par->first_step = 0;
     backend_prepare(par);
+    mpi_strips_equal(par->L);
     l->own = l->halo = 0;
     if (h.mode == HEAD_FILE && read_particles(opt, &h, par, l)) {
         /* no particle lines: rank 0 places the disks as io.c does (and says so) */

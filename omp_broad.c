@@ -196,8 +196,10 @@ static double grid_plan(const Broad *b, double v, double grow, int64_t n_box, in
         if ((ex / side) * (ey / side) > (double)b->max_cells) side = sqrt(ex * ey / (double)b->max_cells);
         pl->gx = (int64_t)(ex / side);
         pl->gy = (int64_t)(ey / side);
-        if (pl->gx < 1) pl->gx = 1;
+        if (pl->gx < 1) pl->gx = 1; /* a strip narrower than a cell: then gy alone is bounded */
         if (pl->gy < 1) pl->gy = 1;
+        if (pl->gy > b->max_cells / pl->gx) pl->gy = b->max_cells / pl->gx;
+        if (pl->gx > b->max_cells / pl->gy) pl->gx = b->max_cells / pl->gy;
         double wx = ex / (double)pl->gx, wy = ey / (double)pl->gy; /* both >= side */
         pl->inv_h = 1 / (wx > wy ? wx : wy);
     }

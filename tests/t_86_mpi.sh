@@ -5,6 +5,7 @@
 #   per rank, each scene at its own pair of combinations;
 # - random placement (--seed), standard input, --dump17, --substeps 2, --pressure (the pressure line
 #   too), --stats, --check;
+# - the strips' cuts: by count (a gas crowded in one corner shared out), moved every step (--balance);
 # - the input read in byte ranges by every rank: files whose lines fall on the ranges' edges, blank
 #   lines, CRLF;
 # - --output FILE: the same bytes in FILE, written by every rank at its offset;
@@ -93,6 +94,28 @@ else
     tools/gen 1500 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 10 > "$M/mixed.in"
     ./seq "$M/mixed.in" --quiet > "$M/mixed.ref"
     ranks "mixed scene" "$M/mixed.ref" "1x2 5" "$M/mixed.in"
+
+    # the cuts between the strips: placed by count at the start, and with --balance K moved by the
+    # ranks' measured times every K steps (disks migrate by the moved cuts); a gas crowded into the
+    # box's lower-left quarter, where strips of equal width would leave most ranks without a disk
+    for s in mid_dense mid_fast overlap_print packed; do
+        ranks "$s, --balance 1" "$M/$s.ref" "3 5x2" "$M/$s.in" --balance 1
+    done
+    ranks "mid_dense, --balance 3" "$M/mid_dense.ref" "4" "$M/mid_dense.in" --balance 3
+    awk 'NR == 2 { $1 = 4 * $1 } { print }' "$M/mid_dense.in" > "$M/corner.in"
+    ./seq "$M/corner.in" --quiet > "$M/corner.ref"
+    ranks "a gas in one corner of the box" "$M/corner.ref" "4 6x1" "$M/corner.in"
+    read -r lo hi <<< "$(run_mpi 4 1 "$M/corner.in" --quiet --stats 2>&1 > /dev/null |
+        sed -n 's/.*disks a rank at the end \([0-9]*\) to \([0-9]*\).*/\1 \2/p')"
+    # 3000 disks within the first of 4 equal strips; by count each rank holds about 750 (less the
+    # steps' drift)
+    if [ "${lo:-0}" -ge 500 ] && [ "${hi:-9999}" -le 1000 ]; then
+        pass "mpi: a gas crowded in one corner shared out by count ($lo to $hi disks a rank of 4)"
+    else
+        fail "mpi: a gas crowded in one corner" "${lo:-?} to ${hi:-?} disks a rank of 4"
+    fi
+    expect_mpi_error "mpi: --balance -1 refused" "balance" "$M/sub.in" --balance -1
+    expect_error "seq: --balance refused" "unknown option '--balance'" ./seq "$M/sub.in" --balance 4
 
     # --pressure: the same bytes and the same pressure line as seq
     ./seq "$M/dense_gas.in" --quiet --pressure > "$M/pr.ref" 2> "$M/pr.err"

@@ -7,7 +7,10 @@
 #   memory  a gas of MEM_N disks (default 2e6) at 1 and 4 ranks: the largest rank's peak memory;
 #   copies  RANKS independent copies of omp on one thread each (a gas of PER_RANK disks, one core each),
 #           at once: what sharing the machine alone costs, the bound of weak scaling (not in the default;
-#           its rows give the slowest copy's step loop as best_loop_s, the mean as median_loop_s).
+#           its rows give the slowest copy's step loop as best_loop_s, the mean as median_loop_s);
+#   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
+#           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
+#           time every 4 steps (--balance 4) (not in the default).
 # Each point is REPEATS runs (default 3) after one discarded warm-up; rows give the best and median
 # step loop (the program's own seconds) and the best whole process (wall clock: reading, steps,
 # writing the output into a file: omp through its stdout, mpi with --output). mpi's rows add the bytes sent between ranks a step, the rounds of the choice a step and
@@ -16,7 +19,8 @@
 #   PARTS="strong" RANKS="1 4 16" ./bench.sh mpi
 # Variables: PARTS ("strong weak memory"), RANKS (default: powers of two up to the cores), THREADS
 # (threads per rank, default "1"), STEPS (20), STRONG_N, PER_RANK, MEM_N, REPEATS, WORK (bench/tmp).
-# MPIRUN_FLAGS adds options to mpirun (default "--bind-to core" where ranks x threads fit the cores).
+# MPIRUN_FLAGS adds options to mpirun (default "--bind-to core" where ranks x threads fit the cores);
+# MPI_ARGS adds options to mpi (e.g. "--balance 0": strips of equal width throughout).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 die() { echo "bench.sh mpi: $*" >&2; exit 1; }
@@ -42,7 +46,7 @@ make -s omp mpi tools/gen > /dev/null
 [ -x ./mpi ] || die "./mpi was not built (no mpicc?)"
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$CORES"
-echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS STEPS=$STEPS"
+echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS STEPS=$STEPS MPI_ARGS=${MPI_ARGS:-}"
 echo "part,program,ranks,threads,n,steps,best_loop_s,median_loop_s,best_wall_s,loop_particle_steps_per_s,bytes_per_step,rounds_per_step,largest_rank_mb,all_ranks_mb"
 
 gas() { # N: the input of a gas of N disks (made once)
@@ -70,7 +74,8 @@ run() {
             fi
         fi
         # shellcheck disable=SC2206
-        cmd=(mpirun -np "$ranks" $flags ./mpi "$input" --stats --threads "$threads" --output "$sink")
+        # shellcheck disable=SC2206
+        cmd=(mpirun -np "$ranks" $flags ./mpi "$input" --stats --threads "$threads" --output "$sink" ${MPI_ARGS:-})
         sink=/dev/null
     fi
     echo "# ${cmd[*]}"
@@ -141,7 +146,21 @@ for part in $PARTS; do
                 summary+=("copies of omp at once, $PER_RANK disks each: $p copies, slowest step loop $worst s against $one s alone: $(awk -v a="$one" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
             done
             ;;
-        *) die "unknown part '$part' (strong, weak, memory, copies)" ;;
+        balance)
+            p=${RANKS##* } n=$((PER_RANK * ${RANKS##* }))
+            input=$(gas "$n")
+            echo "# a busy loop on core $((p - 1)) (taskset -c $((p - 1)) sh -c 'while :; do :; done')"
+            taskset -c $((p - 1)) sh -c 'while :; do :; done' &
+            hog=$!
+            rates=()
+            for k in 0 4; do
+                MPI_ARGS="--balance $k" run balance mpi "$p" 1 "$n" "$input"
+                rates+=("$LOOP_RATE")
+            done
+            kill "$hog"
+            summary+=("balance, $p ranks, the last one's core shared with a busy loop: --balance 0 ${rates[0]}, --balance 4 ${rates[1]} particle-steps/s: $(awk -v a="${rates[1]}" -v b="${rates[0]}" 'BEGIN { printf "%.2f", a / b }')x")
+            ;;
+        *) die "unknown part '$part' (strong, weak, memory, copies, balance)" ;;
     esac
 done
 for line in "${summary[@]}"; do echo "# $line"; done
