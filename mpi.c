@@ -150,7 +150,6 @@ typedef struct {
     int32_t *pick;    /* own: the accepted event (an index into ev), -1 for the wall, -2 for none */
     unsigned char *acc;
     int32_t *active;  /* own slots still undecided with a live event */
-    double *next;     /* own x 4: the moved state */
     int64_t cap;      /* per-slot buffers allocated */
     uint64_t events, rounds, bytes_steps;
     double busy;      /* seconds of the steps since the last balance, MPI calls left out */
@@ -167,7 +166,6 @@ static void run_reserve(Run *r, int64_t n)
     r->pick = sim_realloc(r->pick, (size_t)cap, sizeof *r->pick);
     r->acc = sim_realloc(r->acc, (size_t)cap, sizeof *r->acc);
     r->active = sim_realloc(r->active, (size_t)cap, sizeof *r->active);
-    r->next = sim_realloc(r->next, (size_t)cap * 4, sizeof *r->next);
     r->cap = cap;
 }
 
@@ -364,10 +362,11 @@ static void choose(Run *r)
     free(out);
 }
 
-/* 5: the own disks moved, from the state at the start of the step. */
+/* 5: the own disks moved, from the state at the start of the step (partners' too: read from b.s,
+ * written into b.spare's positions and velocities, which then change places with b.s's). */
 static void move(Run *r)
 {
-    Slots *s = &r->b.s;
+    Slots *s = &r->b.s, *n = &r->b.spare;
     real lo = r->par.lo, hi = r->par.hi;
     uint64_t events = 0;
 #pragma omp parallel for num_threads(r->nt) schedule(static) reduction(+ : events)
@@ -397,14 +396,14 @@ static void move(Run *r)
             finish_step(&x, &y, vx, vy, e->t, lo, hi);
             s->pc[q]++;
         }
-        double *d = r->next + 4 * q;
-        d[0] = clamp_coord(x, lo, hi), d[1] = clamp_coord(y, lo, hi), d[2] = vx, d[3] = vy;
+        n->x[q] = clamp_coord(x, lo, hi), n->y[q] = clamp_coord(y, lo, hi), n->vx[q] = vx, n->vy[q] = vy;
     }
-#pragma omp parallel for num_threads(r->nt) schedule(static)
-    for (int64_t q = 0; q < r->own; q++) {
-        const double *d = r->next + 4 * q;
-        s->x[q] = (real)d[0], s->y[q] = (real)d[1], s->vx[q] = (real)d[2], s->vy[q] = (real)d[3];
-    }
+    /* the new state becomes the disks' (the copies' old one is not needed any more) */
+    real *t;
+    t = s->x, s->x = n->x, n->x = t;
+    t = s->y, s->y = n->y, n->y = t;
+    t = s->vx, s->vx = n->vx, n->vx = t;
+    t = s->vy, s->vy = n->vy, n->vy = t;
     r->events += events;
 }
 
@@ -414,7 +413,7 @@ static void migrate(Run *r)
     Slots *s = &r->b.s;
     int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count);
     int *rcount = sim_calloc((size_t)np, sizeof *rcount);
-    int64_t moving = 0, keep = 0;
+    int64_t moving = 0, keep;
     int32_t *dest = r->b.cell_of; /* free between steps */
     for (int64_t q = 0; q < r->own; q++) {
         int o = mpi_owner(s->x[q]);
@@ -424,17 +423,20 @@ static void migrate(Run *r)
     double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
     int64_t *at = sim_calloc((size_t)np, sizeof *at);
     for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-    for (int64_t q = 0; q < r->own; q++) {
-        int o = dest[q];
-        if (o != mpi_me) {
-            pack(s, q, out + (at[o]++) * D_LEN);
-        } else {
-            if (keep != q) {
-                double d[D_LEN];
-                pack(s, q, d);
-                unpack(s, keep, d);
-            }
-            keep++;
+    for (int64_t q = 0; q < r->own; q++)
+        if (dest[q] != mpi_me) pack(s, q, out + (at[dest[q]]++) * D_LEN);
+    /* the leavers' slots refilled from the end: the rest keep their places (and their cell order) */
+    keep = r->own;
+    for (int64_t q = 0; q < keep;) {
+        if (dest[q] == mpi_me) {
+            q++;
+            continue;
+        }
+        if (q != --keep) {
+            s->x[q] = s->x[keep], s->y[q] = s->y[keep], s->vx[q] = s->vx[keep], s->vy[q] = s->vy[keep];
+            s->id[q] = s->id[keep], s->pc[q] = s->pc[keep], s->wc[q] = s->wc[keep];
+            if (s->wi) s->wi[q] = s->wi[keep];
+            dest[q] = dest[keep];
         }
     }
     int64_t got;
@@ -695,7 +697,7 @@ int main(int argc, char **argv)
     }
     broad_free(&r.b);
     free(r.send), free(r.scount), free(r.rcount), free(r.ev), free(r.off), free(r.adj);
-    free(r.key), free(r.pick), free(r.acc), free(r.active), free(r.next);
+    free(r.key), free(r.pick), free(r.acc), free(r.active);
     MPI_Finalize();
     return 0;
 }
