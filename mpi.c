@@ -1,8 +1,9 @@
 /* mpi.c: the MPI backend: the box cut into np vertical strips, one per rank (mpi.h), each rank holding
  * the disks whose centres lie in its strip and, during a step, copies of the disks of other strips
  * within reach of its own (the halo). A step (SPEC.md 3) on every rank:
- * 1. the ranks agree on the fastest velocity component (a maximum: exact), which sets the reach: two
- *    disks farther apart than 2r + 2 sqrt(2) vmax cannot meet within the step;
+ * 1. every rank knows the fastest velocity component (a maximum: exact; sent with the last step's
+ *    migration), which sets the reach: two disks farther apart than 2r + 2 sqrt(2) vmax cannot meet
+ *    within the step;
  * 2. each rank sends copies of its disks within reach of another strip to that strip's rank;
  * 3. omp's broad phase (omp_broad.c) finds the wall and pair events of the rank's disks and halo, on
  *    the rank's threads, over a grid that covers the strip and its halo;
@@ -91,14 +92,11 @@ static void unpack(Slots *s, int64_t q, const double *d)
 }
 
 /* Sends count[q] records of `width` doubles to each rank q (packed in rank order in out) and returns
- * what arrives, in rank order (*got records; rcount[q] from rank q). */
-static double *exchange(const double *out, const int *count, int width, int64_t *got, int *rcount)
+ * what arrives, in rank order (*got records), where rank q sends rcount[q]: one collective. */
+static double *exchange_known(const double *out, const int *count, int width, int64_t *got, const int *rcount)
 {
     int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
     int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
-    double t0 = MPI_Wtime();
-    MPI_Alltoall(count, 1, MPI_INT, rcount, 1, MPI_INT, MPI_COMM_WORLD);
-    waited += MPI_Wtime() - t0;
     int64_t total = 0, off = 0;
     for (int q = 0; q < np; q++) {
         sc[q] = count[q] * width;
@@ -110,12 +108,21 @@ static double *exchange(const double *out, const int *count, int width, int64_t 
         total += rcount[q];
     }
     double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
-    t0 = MPI_Wtime();
+    double t0 = MPI_Wtime();
     MPI_Alltoallv(out, sc, sd, MPI_DOUBLE, in, rc, rd, MPI_DOUBLE, MPI_COMM_WORLD);
     waited += MPI_Wtime() - t0;
     free(sd), free(rd), free(sc), free(rc);
     *got = total;
     return in;
+}
+
+/* exchange_known, the counts sent first (rcount[q] is set to rank q's). */
+static double *exchange(const double *out, const int *count, int width, int64_t *got, int *rcount)
+{
+    double t0 = MPI_Wtime();
+    MPI_Alltoall(count, 1, MPI_INT, rcount, 1, MPI_INT, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0;
+    return exchange_known(out, count, width, got, rcount);
 }
 
 /* ---- the run ----------------------------------------------------------------------------------------- */
@@ -169,18 +176,21 @@ static void run_reserve(Run *r, int64_t n)
     r->cap = cap;
 }
 
+/* The fastest velocity component of the own disks. */
+static real own_vmax(const Run *r)
+{
+    real vm = 0;
+    for (int64_t q = 0; q < r->own; q++) vm = fastest(vm, r->b.s.vx[q], r->b.s.vy[q]);
+    return vm;
+}
+
 /* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (each
  * within reach of the strips from (x - reach) / w to (x + reach) / w). */
 static void halo_exchange(Run *r)
 {
     Slots *s = &r->b.s;
     int np = mpi_np;
-    real vm = 0;
-    for (int64_t q = 0; q < r->own; q++) vm = fastest(vm, s->vx[q], s->vy[q]);
-    double v = vm, all, t0 = MPI_Wtime();
-    MPI_Allreduce(&v, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-    waited += MPI_Wtime() - t0;
-    r->vmax = (real)all;
+    double all = r->vmax; /* over all ranks: found by the last migrate */
     r->reach = (2 * (double)r->par.r + 2.83 * all) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
@@ -323,18 +333,17 @@ static void choose(Run *r)
             kq->t = best.t, kq->kind = best.kind, kq->i = best.i, kq->j = best.j;
             r->pick[q] = pick;
         }
-        int64_t live = 0;
+        int64_t live = 0, all;
         for (int64_t k = 0; k < na; k++) live += r->pick[r->active[k]] != -2;
-        int64_t all;
         double t0 = MPI_Wtime();
         MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
         waited += MPI_Wtime() - t0;
         if (all == 0) break;
         r->rounds++;
-        /* the owners' keys and decisions to the copies */
+        /* the owners' keys and decisions to the copies (as many as the halo's disks: known) */
         for (int64_t k = 0; k < r->nsend; k++) out[k] = r->key[r->send[k]];
         int64_t got;
-        Key *in = (Key *)exchange((const double *)out, r->scount, 5, &got, r->rcount);
+        Key *in = (Key *)exchange_known((const double *)out, r->scount, 5, &got, r->rcount);
         memcpy(r->key + own, in, (size_t)got * sizeof *in);
         free(in);
         /* accepted: the smallest live event of both its disks, decided alike by both owners */
@@ -415,6 +424,7 @@ static void migrate(Run *r)
     int *rcount = sim_calloc((size_t)np, sizeof *rcount);
     int64_t moving = 0, keep;
     int32_t *dest = r->b.cell_of; /* free between steps */
+    double vm = own_vmax(r); /* over all the moved disks, those about to leave too */
     for (int64_t q = 0; q < r->own; q++) {
         int o = mpi_owner(s->x[q]);
         dest[q] = o;
@@ -439,8 +449,21 @@ static void migrate(Run *r)
             dest[q] = dest[keep];
         }
     }
+    /* the counts, and with them the fastest velocity component of the moved disks (a maximum: the
+     * same whichever rank holds a disk), which sets the next step's reach */
+    double *head = sim_calloc(2 * (size_t)np, sizeof *head), *rhead = sim_calloc(2 * (size_t)np, sizeof *rhead);
+    for (int q = 0; q < np; q++) head[2 * q] = count[q], head[2 * q + 1] = vm;
+    double t0 = MPI_Wtime();
+    MPI_Alltoall(head, 2, MPI_DOUBLE, rhead, 2, MPI_DOUBLE, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0;
+    for (int q = 0; q < np; q++) {
+        rcount[q] = (int)rhead[2 * q];
+        if (rhead[2 * q + 1] > vm) vm = rhead[2 * q + 1];
+    }
+    r->vmax = (real)vm;
+    free(head), free(rhead);
     int64_t got;
-    double *in = exchange(out, count, D_LEN, &got, rcount);
+    double *in = exchange_known(out, count, D_LEN, &got, rcount);
     run_reserve(r, keep + got);
     s = &r->b.s;
     for (int64_t k = 0; k < got; k++) unpack(s, keep + k, in + k * D_LEN);
@@ -545,6 +568,9 @@ static double run_steps(Run *r, RunStats *st)
     double t0 = MPI_Wtime();
     uint64_t bytes0 = bytes_sent;
     int64_t every = r->opt->balance;
+    double vm = own_vmax(r), all; /* the first step's fastest component; migrate finds the others' */
+    MPI_Allreduce(&vm, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    r->vmax = (real)all;
     if (mpi_np > 1) { /* an equal count of disks a rank to begin with */
         balance(r, 0);
         migrate(r);

@@ -94,6 +94,11 @@ else
     tools/gen 1500 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 10 > "$M/mixed.in"
     ./seq "$M/mixed.in" --quiet > "$M/mixed.ref"
     ranks "mixed scene" "$M/mixed.ref" "1x2 5" "$M/mixed.in"
+    # two fast disks among slow ones, crossing the strips for 200 steps: the fastest velocity (the
+    # reach) must count the disks that leave a strip as well as those that stay
+    tools/gen 400 --speed 0.5 --fast 0.005 --steps 200 --mode print > "$M/fast_few.in"
+    ./seq "$M/fast_few.in" --quiet > "$M/fast_few.ref"
+    ranks "two fast disks crossing the strips" "$M/fast_few.ref" "2 5 8" "$M/fast_few.in"
 
     # the cuts between the strips: placed by count at the start, and with --balance K moved by the
     # ranks' measured times every K steps (disks migrate by the moved cuts); a gas crowded into the
