@@ -13,8 +13,8 @@
  *    ranks and threads, and an event between disks of two ranks is decided alike on both;
  * 5. each rank moves its own disks (pair_contact and finish_step for its side, from the state at the
  *    start of the step), and disks that left the strip go to the rank of their new strip.
- * The strips start with equal counts of disks; with --balance K the cuts between them move every K
- * steps so that the ranks' measured work evens out (balance).
+ * The strips start with equal counts of disks (cuts placed as the input is shared out); with
+ * --balance K the cuts move every K steps so that the ranks' measured work evens out (balance).
  * Input, output and the pressure's sum go through the ranks' own disks too (mpi_io.c): no rank ever
  * holds the whole state (but for standard input and random placement, read or made on rank 0).
  */
@@ -46,10 +46,53 @@ static double waited;       /* seconds in the steps' MPI calls: what the balance
 
 double *mpi_cut;
 
-void mpi_strips_equal(double L)
+#define CUT_BINS 256 /* histogram bins a rank (up to 4096 ranks) */
+
+int64_t mpi_cut_bins(void)
 {
-    mpi_cut = sim_realloc(mpi_cut, (size_t)mpi_np + 1, sizeof *mpi_cut);
-    for (int q = 0; q <= mpi_np; q++) mpi_cut[q] = L * q / mpi_np;
+    return (int64_t)CUT_BINS * (mpi_np < 4096 ? mpi_np : 4096);
+}
+
+void mpi_cut_add(double *h, double x, double L, double w)
+{
+    int64_t bins = mpi_cut_bins();
+    double c = x / L * (double)bins;
+    h[c > 0 ? (c < (double)bins ? (int64_t)c : bins - 1) : 0] += w;
+}
+
+int mpi_place_cuts(const double *h, double load, double L, double slack)
+{
+    int np = mpi_np;
+    int64_t bins = mpi_cut_bins();
+    double *all = NULL, most = 0, *cut = sim_calloc((size_t)np + 2, sizeof *cut);
+    if (mpi_me == 0) all = sim_calloc((size_t)bins, sizeof *all);
+    MPI_Reduce(h, all, (int)bins, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(&load, &most, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    if (mpi_me == 0) { /* rank 0 places them: the same cuts on every rank */
+        double total = 0, acc = 0;
+        for (int64_t k = 0; k < bins; k++) total += all[k];
+        if (!mpi_cut || (total > 0 && most > slack * total / np)) {
+            cut[np + 1] = 1; /* moved */
+            int q = 1;
+            for (int64_t k = 0; k < bins && q < np && total > 0; k++) {
+                while (q < np && acc + all[k] >= total * q / np) { /* within bin k, linearly */
+                    double f = all[k] > 0 ? (total * q / np - acc) / all[k] : 0;
+                    cut[q++] = ((double)k + f) * L / (double)bins;
+                }
+                acc += all[k];
+            }
+            for (; q < np; q++) cut[q] = total > 0 ? L : L * q / np; /* nothing weighed: equal strips */
+            cut[np] = L;
+        }
+    }
+    MPI_Bcast(cut, np + 2, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    int moved = cut[np + 1] != 0;
+    if (moved) {
+        if (!mpi_cut) mpi_cut = sim_calloc((size_t)np + 1, sizeof *mpi_cut);
+        memcpy(mpi_cut, cut, (size_t)(np + 1) * sizeof *cut);
+    }
+    free(all), free(cut);
+    return moved;
 }
 
 int mpi_owner(double x)
@@ -184,14 +227,14 @@ static real own_vmax(const Run *r)
     return vm;
 }
 
-/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (each
- * within reach of the strips from (x - reach) / w to (x + reach) / w). */
+/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (a disk at
+ * x to the strips of mpi_owner(x - reach) to mpi_owner(x + reach)). */
 static void halo_exchange(Run *r)
 {
     Slots *s = &r->b.s;
     int np = mpi_np;
-    double all = r->vmax; /* over all ranks: found by the last migrate */
-    r->reach = (2 * (double)r->par.r + 2.83 * all) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    /* vmax: over all ranks, found by the last migrate */
+    r->reach = (2 * (double)r->par.r + 2.83 * (double)r->vmax) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
     for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
@@ -277,20 +320,20 @@ static void list_events(Run *r)
             r->ev[r->n_ev++] = *e;
         }
     }
+    /* off[q] counts slot q's events, then ends its list (an inclusive sum); filling each list from
+     * its end leaves off[q] at its start */
     memset(r->off, 0, (size_t)(own + 1) * sizeof *r->off);
     for (size_t e = 0; e < r->n_ev; e++) {
-        if (r->ev[e].a < own) r->off[r->ev[e].a + 1]++;
-        if (r->ev[e].b < own) r->off[r->ev[e].b + 1]++;
+        if (r->ev[e].a < own) r->off[r->ev[e].a]++;
+        if (r->ev[e].b < own) r->off[r->ev[e].b]++;
     }
-    for (int64_t q = 0; q < own; q++) r->off[q + 1] += r->off[q];
+    for (int64_t q = 1; q < own; q++) r->off[q] += r->off[q - 1];
+    r->off[own] = own ? r->off[own - 1] : 0;
     r->adj = omp_grow(r->adj, &r->adj_cap, (size_t)r->off[own], sizeof *r->adj);
-    int64_t *fill = sim_calloc((size_t)own + 1, sizeof *fill);
     for (size_t e = 0; e < r->n_ev; e++) {
-        int32_t ends[2] = {r->ev[e].a, r->ev[e].b};
-        for (int u = 0; u < 2; u++)
-            if (ends[u] < own) r->adj[r->off[ends[u]] + fill[ends[u]]++] = (int32_t)e;
+        if (r->ev[e].a < own) r->adj[--r->off[r->ev[e].a]] = (int32_t)e;
+        if (r->ev[e].b < own) r->adj[--r->off[r->ev[e].b]] = (int32_t)e;
     }
-    free(fill);
 }
 
 /* 4: the rounds. pick[q] ends as the accepted event of own slot q: an index into ev, -1 for its wall
@@ -507,53 +550,20 @@ static void reorder_own(Run *r)
 
 /* ---- the balance ---------------------------------------------------------------------------------- */
 
-#define BALANCE_BINS 256   /* histogram bins a rank */
 #define BALANCE_SLACK 1.05 /* the cuts move when the busiest rank has this much more than the mean */
 
-/* Moves the cuts, alike on every rank (rank 0 places them), so that every strip holds an equal share
- * of the work, a disk weighing what the last steps cost its rank per disk (by_time; else every disk
- * 1): a rank on a slower core, or with a denser part of the box, gets a narrower strip. The disks
- * that the new cuts put in another strip go there in the next migrate; the events found do not
- * depend on the cuts, so neither do the bytes printed. */
-static void balance(Run *r, int by_time)
+/* --balance: the cuts moved so that every strip holds an equal share of the work, a disk weighing what
+ * the last steps cost its rank per disk (busy: MPI calls left out): a rank on a slower core, or with a
+ * denser part of the box, gets a narrower strip. The disks that the new cuts put in another strip go
+ * there in the next migrate; the events found do not depend on the cuts, so neither do the bytes. */
+static void balance(Run *r)
 {
-    int np = mpi_np;
-    int64_t bins = (int64_t)BALANCE_BINS * (np < 4096 ? np : 4096);
-    double L = r->par.L, load = by_time ? r->busy : (double)r->own, most = 0;
-    double wt = r->own ? load / (double)r->own : 0;
-    double *h = sim_calloc((size_t)bins, sizeof *h), *all = NULL, *cut = sim_calloc((size_t)np + 2, sizeof *cut);
-    const Slots *s = &r->b.s;
-    for (int64_t q = 0; q < r->own; q++) {
-        double c = (double)s->x[q] / L * (double)bins;
-        h[c > 0 ? (c < (double)bins ? (int64_t)c : bins - 1) : 0] += wt;
-    }
-    if (mpi_me == 0) all = sim_calloc((size_t)bins, sizeof *all);
-    MPI_Reduce(h, all, (int)bins, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(&load, &most, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
-    if (mpi_me == 0) {
-        double total = 0, acc = 0;
-        for (int64_t k = 0; k < bins; k++) total += all[k];
-        if (total > 0 && most > BALANCE_SLACK * total / np) {
-            cut[np + 1] = 1; /* moved */
-            int q = 1;
-            for (int64_t k = 0; k < bins && q < np; k++) {
-                while (q < np && acc + all[k] >= total * q / np) { /* within bin k, linearly */
-                    double f = all[k] > 0 ? (total * q / np - acc) / all[k] : 0;
-                    cut[q++] = ((double)k + f) * L / (double)bins;
-                }
-                acc += all[k];
-            }
-            while (q < np) cut[q++] = L;
-            cut[np] = L;
-        }
-    }
-    MPI_Bcast(cut, np + 2, MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    if (cut[np + 1] != 0) {
-        memcpy(mpi_cut, cut, (size_t)(np + 1) * sizeof *cut);
-        r->moves++;
-    }
+    double *h = sim_calloc((size_t)mpi_cut_bins(), sizeof *h);
+    double wt = r->own ? r->busy / (double)r->own : 0;
+    for (int64_t q = 0; q < r->own; q++) mpi_cut_add(h, (double)r->b.s.x[q], r->par.L, wt);
+    r->moves += mpi_place_cuts(h, r->busy, r->par.L, BALANCE_SLACK);
     r->busy = 0;
-    free(h), free(all), free(cut);
+    free(h);
 }
 
 static Local view(const Run *r)
@@ -571,10 +581,6 @@ static double run_steps(Run *r, RunStats *st)
     double vm = own_vmax(r), all; /* the first step's fastest component; migrate finds the others' */
     MPI_Allreduce(&vm, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
     r->vmax = (real)all;
-    if (mpi_np > 1) { /* an equal count of disks a rank to begin with */
-        balance(r, 0);
-        migrate(r);
-    }
     for (int64_t sub = 1; sub <= last; sub++) {
         double ts = MPI_Wtime(), w0 = waited;
         halo_exchange(r);
@@ -582,7 +588,7 @@ static double run_steps(Run *r, RunStats *st)
         choose(r);
         move(r);
         r->busy += MPI_Wtime() - ts - (waited - w0);
-        if (every && mpi_np > 1 && sub % every == 0) balance(r, 1);
+        if (every && mpi_np > 1 && sub % every == 0) balance(r);
         migrate(r);
         if (sub % REORDER_EVERY == 1) reorder_own(r);
         if (sub % k) continue;

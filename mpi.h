@@ -1,8 +1,8 @@
 /* mpi.h: what the MPI backend's steps (mpi.c) and its distributed input and output (mpi_io.c) share.
  *
  * The box is cut into np vertical strips, one per rank: rank q owns the disks whose centres lie in
- * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The strips start equal; the steps move the cuts so that
- * every rank has about as much work (mpi.c's balance). No rank ever holds the whole state: input,
+ * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The cuts are placed at equal counts of disks as the input
+ * is shared out; with --balance the steps move them so that every rank has about as much work. No rank ever holds the whole state: input,
  * output and the pressure's sum all go through the ranks' own disks.
  */
 #ifndef MPI_H_SIM
@@ -25,11 +25,17 @@ typedef struct {
     int with_wi;
 } Local;
 
-/* mpi.c: grows l to hold n disks (contents kept); np strips of equal width in a box of side L; the
- * strip (rank) of a centre x */
+/* mpi.c: grows l to hold n disks (contents kept); the strip (rank) of a centre x */
 void local_reserve(Local *l, int64_t n);
-void mpi_strips_equal(double L);
 int mpi_owner(double x);
+
+/* mpi.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
+ * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
+ * rank) at equal shares of the total weight: always the first time or with slack 0, else only where
+ * the largest of the ranks' loads exceeds slack times their mean. Returns whether the cuts moved. */
+int64_t mpi_cut_bins(void);
+void mpi_cut_add(double *h, double x, double L, double w);
+int mpi_place_cuts(const double *h, double load, double L, double slack);
 
 /* ---- mpi_io.c: collective calls (every rank calls them, in the same order) ---------------------- */
 

@@ -304,6 +304,11 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     MPI_Allreduce(&dup, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     if (any) input_failed(opt);
 
+    /* the cuts at equal counts of disks, then every disk to its strip */
+    double *hist = sim_calloc((size_t)mpi_cut_bins(), sizeof *hist);
+    for (int64_t k = 0; k < records; k++) mpi_cut_add(hist, d[k].x, par->L, 1);
+    mpi_place_cuts(hist, (double)records, par->L, 0);
+    free(hist);
     for (int64_t k = 0; k < records; k++) dest[k] = mpi_owner(d[k].x);
     Disk *mine_now = exchange(d, sizeof *d, dest, records, &got);
     free(d), free(dest);
@@ -317,6 +322,11 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
 static void scatter(const Params *par, const Sim *all, Local *l)
 {
     int np = mpi_np;
+    double *h = sim_calloc((size_t)mpi_cut_bins(), sizeof *h); /* the cuts at equal counts of disks */
+    if (mpi_me == 0)
+        for (int64_t i = 0; i < par->n; i++) mpi_cut_add(h, all->x[i], par->L, 1);
+    mpi_place_cuts(h, (double)(mpi_me == 0 ? par->n : 0), par->L, 0);
+    free(h);
     int *count = sim_calloc((size_t)np, sizeof *count), *displ = sim_calloc((size_t)np, sizeof *displ);
     int *dest = NULL;
     Disk *d = NULL;
@@ -376,7 +386,6 @@ void mpi_read_input(const Options *opt, Params *par, Local *l)
     par->substeps = opt->substeps;
     par->first_step = 0;
     backend_prepare(par);
-    mpi_strips_equal(par->L);
     l->own = l->halo = 0;
     if (h.mode == HEAD_FILE && read_particles(opt, &h, par, l)) {
         /* no particle lines: rank 0 places the disks as io.c does (and says so) */
