@@ -21,6 +21,7 @@
 #define _XOPEN_SOURCE 700 /* getrusage */
 #include "mpi.h"
 
+#include <limits.h>
 #include <omp.h>
 #include <sys/resource.h>
 #include <stdio.h>
@@ -134,28 +135,34 @@ static void unpack(Slots *s, int64_t q, const double *d)
     if (s->wi) s->wi[q] = d[D_WI];
 }
 
-/* Sends count[q] records of `width` doubles to each rank q (packed in rank order in out) and returns
- * what arrives, in rank order (*got records), where rank q sends rcount[q]: one collective. */
-static double *exchange_known(const double *out, const int *count, int width, int64_t *got, const int *rcount)
+void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
 {
     int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
-    int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
     int64_t total = 0, off = 0;
     for (int q = 0; q < np; q++) {
-        sc[q] = count[q] * width;
-        if (q != mpi_me) bytes_sent += (uint64_t)sc[q] * sizeof(double);
-        sd[q] = (int)off;
-        off += sc[q];
-        rc[q] = rcount[q] * width;
-        rd[q] = (int)(total * width);
-        total += rcount[q];
+        if (off > INT_MAX || total > INT_MAX) sim_fail("internal error: more than 2^31 records for one rank");
+        sd[q] = (int)off, rd[q] = (int)total;
+        off += count[q], total += rcount[q];
     }
-    double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
-    double t0 = MPI_Wtime();
-    MPI_Alltoallv(out, sc, sd, MPI_DOUBLE, in, rc, rd, MPI_DOUBLE, MPI_COMM_WORLD);
-    waited += MPI_Wtime() - t0;
-    free(sd), free(rd), free(sc), free(rc);
+    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
+    MPI_Datatype t;
+    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
+    MPI_Type_commit(&t);
+    MPI_Alltoallv(out, count, sd, t, in, rcount, rd, t, MPI_COMM_WORLD);
+    MPI_Type_free(&t);
+    free(sd), free(rd);
     *got = total;
+    return in;
+}
+
+/* mpi_alltoallv of records of `width` doubles within a step, its bytes and seconds counted. */
+static double *exchange_known(const double *out, const int *count, int width, int64_t *got, const int *rcount)
+{
+    for (int q = 0; q < mpi_np; q++)
+        if (q != mpi_me) bytes_sent += (uint64_t)count[q] * (uint64_t)width * sizeof(double);
+    double t0 = MPI_Wtime();
+    double *in = mpi_alltoallv(out, count, rcount, (size_t)width * sizeof(double), got);
+    waited += MPI_Wtime() - t0;
     return in;
 }
 

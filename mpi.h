@@ -33,6 +33,11 @@ int mpi_owner(double x);
  * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
  * rank) at equal shares of the total weight: always the first time or with slack 0, else only where
  * the largest of the ranks' loads exceeds slack times their mean. Returns whether the cuts moved. */
+/* mpi.c: sends count[q] records of `size` bytes to each rank q (packed in rank order in out) and
+ * returns what arrives, in rank order (*got records), rank q sending rcount[q] (one MPI_Alltoallv;
+ * a rank's displacements must stay below 2^31 records). */
+void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got);
+
 int64_t mpi_cut_bins(void);
 void mpi_cut_add(double *h, double x, double L, double w);
 int mpi_place_cuts(const double *h, double load, double L, double slack);

@@ -15,7 +15,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -51,33 +50,20 @@ static int block_of(int64_t n, int64_t i)
 }
 
 /* Sends item k of m (each `size` bytes) to rank dest[k]; returns what arrives, rank by rank, and its
- * count in *got. Every count is below 2^31: no rank sends or receives more than the N disks. */
+ * count in *got. */
 static void *exchange(const void *items, size_t size, const int *dest, int64_t m, int64_t *got)
 {
     int np = mpi_np;
-    int *sc = sim_calloc((size_t)np, sizeof *sc), *sd = sim_calloc((size_t)np, sizeof *sd);
-    int *rc = sim_calloc((size_t)np, sizeof *rc), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
     int64_t *at = sim_calloc((size_t)np, sizeof *at);
     for (int64_t k = 0; k < m; k++) sc[dest[k]]++;
-    for (int q = 1; q < np; q++) at[q] = sd[q] = sd[q - 1] + sc[q - 1];
-    char *out = sim_realloc(NULL, (size_t)m, size);
+    for (int q = 1; q < np; q++) at[q] = at[q - 1] + sc[q - 1];
+    char *out = sim_realloc(NULL, (size_t)(m ? m : 1), size);
     for (int64_t k = 0; k < m; k++)
         memcpy(out + (size_t)(at[dest[k]]++) * size, (const char *)items + (size_t)k * size, size);
     MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
-    int64_t total = 0;
-    for (int q = 0; q < np; q++) {
-        if (total + rc[q] > INT_MAX) sim_fail("internal error: more than 2^31 disks for one rank");
-        rd[q] = (int)total;
-        total += rc[q];
-    }
-    char *in = sim_realloc(NULL, (size_t)total, size);
-    MPI_Datatype t;
-    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
-    MPI_Type_commit(&t);
-    MPI_Alltoallv(out, sc, sd, t, in, rc, rd, t, MPI_COMM_WORLD);
-    MPI_Type_free(&t);
-    free(out), free(sc), free(sd), free(rc), free(rd), free(at);
-    *got = total;
+    void *in = mpi_alltoallv(out, sc, rc, size, got);
+    free(out), free(sc), free(rc), free(at);
     return in;
 }
 
