@@ -19,6 +19,10 @@
  *            each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
+ *   windows  with K > 1 and disks enough, bin, place, detect and choose run once per time window (a
+ *            run of slices, window_start), in time order: disks the choice of a window takes are left
+ *            out of the later ones, so a dense fast scene, where most disks collide early in the step,
+ *            bins and tests few disks after its first slices
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
  *            partners with the lower original index as i, so both see the same arithmetic
  * Event keys compare by value only (t, kind, i, j), so nothing depends on thread order.
@@ -64,6 +68,10 @@ extern "C" const char backend_options[] = "";
 #define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 40, 64, 100: 40 best) */
 #endif
 #define PHASES 7                  /* phases timed under --stats */
+#define WMAX 10                   /* time windows of a step at most (see window_start) */
+#ifndef WINDOW_ENTRIES
+#define WINDOW_ENTRIES 1048576.0  /* entries a window should have to fill the device (first_window) */
+#endif
 #define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
                                      clearing and scanning cells than it saves in pair tests */
 
@@ -97,7 +105,8 @@ typedef struct {
 /* One step's counters, cleared by its gate. */
 typedef struct {
     unsigned long long vmax;   /* bits of the largest |vx| or |vy| after the step (>= 0, so ordered) */
-    unsigned long long found;  /* pair events detected (may exceed the buffer: then the step is refused) */
+    unsigned long long found[WMAX];  /* pair events detected per window (beyond the list's length the step is refused) */
+    unsigned long long active[WMAX]; /* disks still free at each window's start (the first: all) */
     unsigned long long events; /* accepted events */
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
@@ -113,6 +122,7 @@ typedef struct {
     unsigned long long faster;   /* steps whose disks were faster than their plan's speed */
     unsigned long long tests, events;             /* sums over committed steps */
     unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */
+    unsigned long long wfound[WMAX], wactive[WMAX]; /* per window: pair events found, disks still free */
 } Control;
 
 /* Binning of one step. */
@@ -122,8 +132,26 @@ typedef struct {
     double cs;      /* cell side, length */
     uint32_t ncell; /* g * g */
     int64_t m;      /* entries: n * K */
-    int64_t cells;  /* K * ncell; also the key of an entry left out */
+    int64_t cells;  /* K * ncell */
+    int W;          /* time windows (see window_start) */
+    int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 */
 } Grid;
+
+#define KEY_OUT UINT32_MAX /* the cell key of an entry left out */
+
+/* The first slice of window w of a step of K slices cut into W windows, the first F slices long and
+ * each later one twice as long as the one before, the last ending at K. The choice between two windows
+ * waits for all of the first one's events, and disks it takes leave the later windows: the events of
+ * window w all come before those of window w + 1 (slices hold event times in order, slice_of), so the
+ * greedy walk of SPEC.md 3.3 over window w's events among the disks still free is the walk itself. In a
+ * dense fast scene most disks are taken in the first slices, and later windows bin and test few. */
+static __host__ __device__ int window_start(int w, int F, int W, int K)
+{
+    if (w <= 0) return 0;
+    if (w >= W) return K;
+    int64_t b = (int64_t)F << (w - 1);
+    return b < K ? (int)b : K;
+}
 
 /* What bounds a grid: the scene and the memory for entries and cells. */
 typedef struct {
@@ -183,6 +211,9 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
     return g.shfl(base, 0) + g.thread_rank();
 }
 
+#define GRID_LOOP(i, len) \
+    for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
+
 /* After a refusal, the kernels that write what outlives a step (the state, the collision counts, the
  * control record, the print copy) do nothing; the others write only scratch buffers, which the step
  * run again rewrites. The gather of K = 1 writes a state buffer: it checks too. */
@@ -237,13 +268,41 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
 
+/* A disk's wall event as the choice of a window that ends before slice `end` sees it: there only if its
+ * slice is in the window (a later window may still find an earlier pair event of the disk). */
+static __device__ __forceinline__ uint64_t window_wall(uint64_t wall, int K, int end)
+{
+    return wall != NO_EVENT && slice_of(key_time(wall), K) < end ? wall : NO_EVENT;
+}
+
+/* The disks window w bins: slots 0 to n - 1 in the first window, the list act of those still free in a
+ * later one; kw slices from k0, entry e = (slice - k0) * na + (place in the list). */
+typedef struct {
+    const int32_t *act; /* NULL: slot = place */
+    int64_t na;
+    int k0, kw;
+} WindowDisks;
+
+/* (Kernels copy the Grid's scalars and read its window bounds through the pointer: a copy indexed by w
+ * would be put in local memory.) */
+static __device__ __forceinline__ WindowDisks window_disks(const Grid *grid, int w, int64_t n, const int32_t *act,
+                                                           const StepInfo *info)
+{
+    WindowDisks d;
+    d.act = w > 0 ? act : NULL;
+    d.na = w > 0 ? (int64_t)info->active[w] : n;
+    d.k0 = grid->wb[w];
+    d.kw = grid->wb[w + 1] - d.k0;
+    return d;
+}
+
 /* ==== bin ================================================================================================ */
 
 /* The first kernel of a step (one thread): fits the step's grid to the largest speed of its disks,
  * within the plan's slices and cells per side (the host's plan comes from a speed a batch or two old),
  * and clears the step's counters. */
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
-                            unsigned long long plan_vmax, int K, int64_t gcap, Grid *grid)
+                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, Grid *grid)
 {
     /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
      * search nothing (their state buffers may hold anything, even memory never written, whose disks
@@ -251,16 +310,20 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     double vmax = __longlong_as_double((long long)ctl->vmax);
     int k = grid_slices(&lim, vmax);
     Grid gr = grid_fit(&lim, vmax, k < K ? k : K, gcap);
+    gr.W = gr.K > 1 ? W : 1;
+    for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= gr.W ? window_start(w, F, gr.W, gr.K) : gr.K;
     if (ctl->refused) {
         gr.m = 0;
         gr.cells = 0;
+        for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
     }
     *grid = gr;
     info->vmax = 0;
-    info->found = 0;
+    for (int w = 0; w < WMAX; w++) info->found[w] = info->active[w] = 0;
+    info->active[0] = ctl->refused ? 0 : lim.n;
     info->events = 0;
     info->tests = 0;
-    for (int r = 0; r <= MAX_ROUNDS; r++) counts[r] = 0;
+    for (int r = 0; r < WMAX * (MAX_ROUNDS + 1); r++) counts[r] = 0;
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
 
@@ -273,11 +336,16 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
     ctl->tests += info->tests;
     ctl->events += info->events;
     ctl->faster += info->faster;
-    ctl->left[0] += info->found;
-    for (int r = 1; r < MAX_ROUNDS; r++) ctl->left[r] += counts[r];
+    for (int w = 0; w < WMAX; w++) {
+        ctl->left[0] += info->found[w];
+        ctl->wfound[w] += info->found[w];
+        ctl->wactive[w] += info->active[w];
+        for (int r = 1; r < MAX_ROUNDS; r++) ctl->left[r] += counts[w * (MAX_ROUNDS + 1) + r];
+    }
 }
 
-/* Entry e = k * n + s: slot s in slice k, keyed by the cell of its position at the slice's middle.
+/* Entry e of window w (window_disks): a disk in slice k, keyed by the cell of its position at the slice's
+ * middle.
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
  * disk's wall time get no entry (key gr.cells): disks flying through a wall would otherwise pile up in
@@ -285,28 +353,30 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
-__global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, Params par, uint32_t *keys, uint32_t *rank,
-                           uint32_t *count)
+__global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
+                           const StepInfo *info, Params par, uint32_t *keys, uint32_t *rank, uint32_t *count)
 {
     const Grid gr = *grid;
-    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (e >= gr.m) return;
-    int64_t k = e / n, s = e - k * n;
-    real2 pos = st.pos[s], vel = st.vel[s];
-    real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-    if (k > 0) {
-        real tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
-        if (tw <= 1 && k > slice_of(tw, gr.K)) {
-            keys[e] = (uint32_t)gr.cells;
-            return;
+    const WindowDisks d = window_disks(grid, w, n, act, info);
+    GRID_LOOP(e, d.na * d.kw) {
+        int64_t kl = e / d.na, i = e - kl * d.na, k = d.k0 + kl;
+        int64_t s = d.act ? d.act[i] : i;
+        real2 pos = st.pos[s], vel = st.vel[s];
+        real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
+        if (k > 0) {
+            real tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
+            if (tw <= 1 && k > slice_of(tw, gr.K)) {
+                keys[e] = KEY_OUT;
+                continue;
+            }
         }
+        double f = (double)(2 * k + 1) / (double)(2 * gr.K);
+        double mx = (double)x + (double)vx * f, my = (double)y + (double)vy * f;
+        int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
+        uint32_t key = (uint32_t)(kl * gr.ncell + cy * gr.g + cx);
+        keys[e] = key;
+        rank[e] = atomicAdd(&count[key], 1u);
     }
-    double f = (double)(2 * k + 1) / (double)(2 * gr.K);
-    double mx = (double)x + (double)vx * f, my = (double)y + (double)vy * f;
-    int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
-    uint32_t key = (uint32_t)(k * gr.ncell + cy * gr.g + cx);
-    keys[e] = key;
-    rank[e] = atomicAdd(&count[key], 1u);
 }
 
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. */
@@ -344,16 +414,17 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
  * entry index is scattered; the disks, or their copies, are then gathered with coalesced writes. */
-__global__ void place_kernel(const Grid *grid, const uint32_t *keys, const uint32_t *rank,
-                             const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
+__global__ void place_kernel(const Grid *grid, int w, int64_t n, const StepInfo *info, const uint32_t *keys,
+                             const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
 {
-    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (e >= grid->m) return;
-    uint32_t key = keys[e];
-    if (key >= grid->cells) return;
-    int64_t p = (int64_t)start[key] + rank[e];
-    keys_sorted[p] = key;
-    order[p] = (uint32_t)e;
+    const WindowDisks d = window_disks(grid, w, n, NULL, info);
+    GRID_LOOP(e, d.na * d.kw) {
+        uint32_t key = keys[e];
+        if (key == KEY_OUT) continue;
+        int64_t p = (int64_t)start[key] + rank[e];
+        keys_sorted[p] = key;
+        order[p] = (uint32_t)e;
+    }
 }
 
 /* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
@@ -363,27 +434,66 @@ typedef struct {
     uint64_t *wall;
 } Entries;
 
-/* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
-__global__ void gather_entries_kernel(DevState st, int64_t n, const uint32_t *order, const uint32_t *start,
-                                      const Grid *grid, const uint64_t *wall_hi, Entries en)
+/* The entries of window w's cells (kw slices of ncell cells), once placed. */
+static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, const uint32_t *start)
 {
-    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (p >= (int64_t)start[grid->cells]) return;
-    int64_t s = (int64_t)(order[p] % (uint64_t)n);
-    en.pos[p] = st.pos[s];
-    en.vel[p] = st.vel[s];
-    en.id[p] = st.id[s];
-    en.slot[p] = (int32_t)s;
-    en.wall[p] = wall_hi[s];
+    return start[(int64_t)(grid->wb[w + 1] - grid->wb[w]) * grid->ncell];
 }
 
-__global__ void init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_hi, uint64_t *best_hi,
-                            uint64_t *best_lo, int32_t *partner)
+/* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
+__global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const StepInfo *info,
+                                      const uint32_t *order, const uint32_t *start, const Grid *grid,
+                                      const uint64_t *wall_hi, Entries en)
+{
+    const WindowDisks d = window_disks(grid, w, n, act, info);
+    GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
+        int64_t i = (int64_t)(order[p] % (uint64_t)d.na);
+        int64_t s = d.act ? d.act[i] : i;
+        en.pos[p] = st.pos[s];
+        en.vel[p] = st.vel[s];
+        en.id[p] = st.id[s];
+        en.slot[p] = (int32_t)s;
+        en.wall[p] = wall_hi[s];
+    }
+}
+
+/* K > 1, the first window: every disk free, its wall event computed, and seen by this window's choice
+ * if it falls in it. */
+__global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par, uint64_t *wall_hi,
+                            uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
     real2 pos = st.pos[s], vel = st.vel[s];
-    slot_init(s, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
+    uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi);
+    slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
+    uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);
+    wall_win[s] = seen;
+    best_hi[s] = seen;
+}
+
+/* A later window w: the disks that no earlier window took (by a pair event, or by a wall event in an
+ * earlier window's slices, which no remaining event can precede) are listed in act; the choice state of
+ * each restarts with the wall event as this window sees it. The list's order changes from run to run,
+ * and with it where entries sit in memory, nothing else. */
+__global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_t *prev, int32_t *act,
+                                StepInfo *info, const int32_t *partner, const uint64_t *wall_hi,
+                                uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo)
+{
+    const int K = grid->K, k0 = grid->wb[w], end = grid->wb[w + 1];
+    if (k0 >= end) return; /* an empty window: so are the later ones */
+    int64_t np = w == 1 ? n : (int64_t)info->active[w - 1];
+    GRID_LOOP(i, np) {
+        int64_t s = w == 1 ? i : prev[i];
+        if (partner[s] >= 0) continue;
+        uint64_t wall = wall_hi[s];
+        if (wall != NO_EVENT && slice_of(key_time(wall), K) < k0) continue;
+        act[list_append(&info->active[w])] = (int32_t)s;
+        uint64_t seen = window_wall(wall, K, end);
+        wall_win[s] = seen;
+        best_hi[s] = seen;
+        best_lo[s] = NO_EVENT;
+    }
 }
 
 /* ==== detect ============================================================================================= */
@@ -427,7 +537,7 @@ typedef struct {
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one. */
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
-                                                 int64_t cap, StepInfo *info, uint64_t *best_hi)
+                                                 int64_t cap, unsigned long long *found, uint64_t *best_hi)
 {
     real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
     int32_t id2 = __ldg(&en.id[q]);
@@ -449,16 +559,21 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     if (at < BLOCK_EVENTS) {
         be->e[at] = e;
     } else {
-        unsigned long long g = list_append(&info->found);
+        unsigned long long g = list_append(found);
         if ((int64_t)g < cap) ev[g] = e;
     }
     atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
     atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
 }
 
+/* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
+ * window's launch is sized for all of its disks, of which few are left), else one tile each (the loop's
+ * state spilled registers: 6% slower at N = 32000). */
+template <bool TILES>
 __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
-                  const Grid *grid, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info, uint64_t *best_hi)
+                  const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
+                  uint64_t *best_hi)
 {
     typedef cub::BlockScan<uint32_t, THREADS> Scan;
     __shared__ typename Scan::TempStorage scan_tmp;
@@ -469,66 +584,73 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     __shared__ BlockEvents be;
     __shared__ unsigned long long tests;
     const Grid gr = *grid;
-    uint32_t p0 = blockIdx.x * blockDim.x, p = p0 + threadIdx.x, end = __ldg(&start[gr.cells]);
-    if (p0 >= end) return; /* the whole block: entries left out take no place */
-    Probe pr = {};
-    uint32_t nb = 0;
-    if (p < end) {
-        uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
-        pr.k = key / gr.ncell;
-        uint32_t c = key - pr.k * gr.ncell, cy = c / g, cx = c - cy * g;
-        uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
-        uint32_t row = pr.k * gr.ncell + cy * g;
-        pr.a0 = p + 1;
-        pr.na = __ldg(&start[row + x1 + 1]) - pr.a0;
-        if (cy + 1 < g) {
-            pr.b0 = __ldg(&start[row + g + x0]);
-            nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
+    const uint32_t end = window_end(grid, w, start), k0 = (uint32_t)grid->wb[w];
+    unsigned long long *found = &info->found[w];
+    for (uint32_t p0 = blockIdx.x * blockDim.x; p0 < end; p0 += gridDim.x * blockDim.x) { /* block-uniform */
+        if (!TILES && p0 != blockIdx.x * blockDim.x) break;
+        uint32_t p = p0 + threadIdx.x;
+        Probe pr = {};
+        uint32_t nb = 0;
+        if (p < end) {
+            uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
+            uint32_t kl = key / gr.ncell;
+            uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
+            uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+            uint32_t row = kl * gr.ncell + cy * g;
+            pr.k = kl + k0;
+            pr.a0 = p + 1;
+            pr.na = __ldg(&start[row + x1 + 1]) - pr.a0;
+            if (cy + 1 < g) {
+                pr.b0 = __ldg(&start[row + g + x0]);
+                nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
+            }
+            pr.pos = __ldg(&en.pos[p]);
+            pr.vel = __ldg(&en.vel[p]);
+            pr.id = __ldg(&en.id[p]);
+            pr.wall = __ldg(&en.wall[p]);
         }
-        pr.pos = __ldg(&en.pos[p]);
-        pr.vel = __ldg(&en.vel[p]);
-        pr.id = __ldg(&en.id[p]);
-        pr.wall = __ldg(&en.wall[p]);
-    }
-    /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits, and is
-     * exact wherever it is within the limit */
-    const uint32_t deal = DEAL_MAX * THREADS;
-    uint32_t count = pr.na + nb, offset, total;
-    probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the scan */
-    if (threadIdx.x == 0) {
-        be.n = 0;
-        tests = 0;
-    }
-    Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
-    if (total > deal) { /* block-uniform */
-        __syncthreads();
-        unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
-        for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
-        if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
-        const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
-        for (uint32_t i = 0; i < count; i++)
-            test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap, info,
-                      best_hi);
-    } else {
-        if (threadIdx.x == 0) tests = total;
-        first[threadIdx.x] = offset;
-        for (uint32_t i = 0; i < count; i++) owner[offset + i] = (uint8_t)threadIdx.x;
-        __syncthreads();
-        for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
-            uint32_t o = owner[j], i = j - first[o];
-            const Probe po = probes[o];
-            uint32_t q = i < po.na ? po.a0 + i : po.b0 + (i - po.na);
-            test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, info, best_hi);
+        /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits, and
+         * is exact wherever it is within the limit */
+        const uint32_t deal = DEAL_MAX * THREADS;
+        uint32_t count = pr.na + nb, offset, total;
+        probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the scan */
+        if (threadIdx.x == 0) {
+            be.n = 0;
+            tests = 0;
         }
+        Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
+        if (total > deal) { /* block-uniform */
+            __syncthreads();
+            unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
+            for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
+            if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
+            const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
+            for (uint32_t i = 0; i < count; i++)
+                test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
+                          found, best_hi);
+        } else {
+            if (threadIdx.x == 0) tests = total;
+            first[threadIdx.x] = offset;
+            for (uint32_t i = 0; i < count; i++) owner[offset + i] = (uint8_t)threadIdx.x;
+            __syncthreads();
+            for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
+                uint32_t o = owner[j], i = j - first[o];
+                const Probe po = probes[o];
+                uint32_t q = i < po.na ? po.a0 + i : po.b0 + (i - po.na);
+                test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, found, best_hi);
+            }
+        }
+        __syncthreads();
+        if (threadIdx.x == 0 && tests) atomicAdd(&info->tests, tests);
+        unsigned kept = be.n < BLOCK_EVENTS ? (unsigned)be.n : BLOCK_EVENTS;
+        if (kept > 0) { /* block-uniform */
+            if (threadIdx.x == 0) be.base = atomicAdd(found, (unsigned long long)kept);
+            __syncthreads();
+            for (unsigned i = threadIdx.x; i < kept; i += THREADS)
+                if ((int64_t)(be.base + i) < cap) ev[be.base + i] = be.e[i];
+        }
+        __syncthreads(); /* the shared records are rewritten by the next tile */
     }
-    __syncthreads();
-    if (threadIdx.x == 0 && tests) atomicAdd(&info->tests, tests);
-    unsigned kept = be.n < BLOCK_EVENTS ? (unsigned)be.n : BLOCK_EVENTS;
-    if (kept == 0) return; /* block-uniform */
-    if (threadIdx.x == 0) be.base = atomicAdd(&info->found, (unsigned long long)kept);
-    __syncthreads();
-    for (unsigned i = threadIdx.x; i < kept; i += THREADS)
-        if ((int64_t)(be.base + i) < cap) ev[be.base + i] = be.e[i];
 }
 
 /* ==== choose ============================================================================================= */
@@ -588,9 +710,6 @@ static __device__ __forceinline__ int64_t list_len(const unsigned long long *cou
     int64_t c = (int64_t)*count;
     return c < cap ? c : cap;
 }
-
-#define GRID_LOOP(i, len) \
-    for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
 
 __global__ void min_lo_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
                               const uint64_t *best_hi, uint64_t *best_lo)
@@ -669,9 +788,11 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         wall = wall_hi[s];
     }
     if (refused(ctl)) return;
-    if (info->found > (unsigned long long)cap) {
+    unsigned long long most = 0;
+    for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
+    if (most > (unsigned long long)cap) {
         if (blockIdx.x == 0 && threadIdx.x == 0) {
-            ctl->overflow = info->found;
+            ctl->overflow = most;
             ctl->refused = 1;
         }
         return;
@@ -787,10 +908,12 @@ typedef struct {
     int64_t entry_cap;   /* entries the key arrays hold */
     Grid *grid;          /* the current step's grid, fitted on the device */
     uint64_t *wall_hi, *best_hi, *best_lo;
+    uint64_t *wall_win;  /* the wall event as the current window's choice sees it (K > 1) */
     int32_t *partner;
+    int32_t *act[2];     /* the disks still free at a window's start (K > 1), windows alternating */
     PairEvent *ev[2];
     int64_t ev_cap;
-    unsigned long long *counts; /* list lengths of the parallel rounds */
+    unsigned long long *counts; /* list lengths of the parallel rounds, MAX_ROUNDS + 1 per window */
     StepInfo *info;
     Control *ctl;               /* device record */
     Control *ctl_host;          /* its pinned copies, one per batch in flight */
@@ -801,16 +924,17 @@ typedef struct {
     cudaStream_t stream;
     int sms;
     int timed;                        /* --stats: time each phase with device events */
-    cudaEvent_t mark[RING][PHASES + 1];
+    cudaEvent_t mark[RING][WMAX][PHASES + 1]; /* per window: bin .. finish; the last window's: move */
+    int step_windows[RING];
     double phase_ms[PHASES];
     int64_t refusals;                 /* steps refused: their pair events overflowed the list */
 } Cuda;
 
 static const char *const phase_names[PHASES] = {"bin", "scan", "place", "detect", "rounds", "finish", "move"};
 
-static void phase_mark(Cuda *c, int ring, int phase)
+static void phase_mark(Cuda *c, int ring, int w, int phase)
 {
-    if (c->timed) CUDA_CHECK(cudaEventRecord(c->mark[ring][phase], c->stream));
+    if (c->timed) CUDA_CHECK(cudaEventRecord(c->mark[ring][w][phase], c->stream));
 }
 
 static int64_t blocks_for(int64_t n)
@@ -914,7 +1038,8 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
-            for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[s][k]));
+            for (int w = 0; w < WMAX; w++)
+                for (int k = 0; k <= PHASES; k++) CUDA_CHECK(cudaEventCreate(&c->mark[s][w][k]));
     for (int b = 0; b < 2; b++) CUDA_CHECK(cudaEventCreateWithFlags(&c->batch_done[b], cudaEventDisableTiming));
 
     state_alloc(&c->st[0], n);
@@ -925,8 +1050,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+    c->wall_win = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
+    c->act[0] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+    c->act[1] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
     events_alloc(c, ev_cap);
-    c->counts = (unsigned long long *)dev_alloc((MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
+    c->counts = (unsigned long long *)dev_alloc(WMAX * (MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
@@ -1016,6 +1144,9 @@ static void cuda_close(Cuda *c)
     cudaFree(c->best_hi);
     cudaFree(c->best_lo);
     cudaFree(c->partner);
+    cudaFree(c->wall_win);
+    cudaFree(c->act[0]);
+    cudaFree(c->act[1]);
     cudaFree(c->ev[0]);
     cudaFree(c->ev[1]);
     cudaFree(c->counts);
@@ -1030,19 +1161,24 @@ static void cuda_close(Cuda *c)
     }
     if (c->timed)
         for (int s = 0; s < RING; s++)
-            for (int k = 0; k <= PHASES; k++) cudaEventDestroy(c->mark[s][k]);
+            for (int w = 0; w < WMAX; w++)
+                for (int k = 0; k <= PHASES; k++) cudaEventDestroy(c->mark[s][w][k]);
     cudaStreamDestroy(c->stream);
 }
 
 /* Adds the phase times of committed steps first..last (their marks are complete). */
 static void phase_collect(Cuda *c, int64_t first, int64_t last)
 {
-    for (int64_t s = first; s <= last; s++)
-        for (int k = 0; k < PHASES; k++) {
-            float ms = 0;
-            CUDA_CHECK(cudaEventElapsedTime(&ms, c->mark[s % RING][k], c->mark[s % RING][k + 1]));
-            c->phase_ms[k] += ms;
-        }
+    for (int64_t s = first; s <= last; s++) {
+        int W = c->step_windows[s % RING];
+        for (int w = 0; w < W; w++)
+            for (int k = 0; k < PHASES; k++) {
+                if (k == PHASES - 1 && w < W - 1) continue; /* the move follows the last window */
+                float ms = 0;
+                CUDA_CHECK(cudaEventElapsedTime(&ms, c->mark[s % RING][w][k], c->mark[s % RING][w][k + 1]));
+                c->phase_ms[k] += ms;
+            }
+    }
 }
 
 static void phase_report(const Cuda *c, const Control *h)
@@ -1051,21 +1187,38 @@ static void phase_report(const Cuda *c, const Control *h)
     for (int k = 0; k < PHASES; k++) fprintf(stderr, " %s %.3f", phase_names[k], c->phase_ms[k]);
     fprintf(stderr, "\ncuda: pair events undecided before each grid-wide round:");
     for (int r = 0; r < MAX_ROUNDS && (r == 0 || h->left[r]); r++) fprintf(stderr, " %llu", h->left[r]);
+    if (h->wactive[1]) {
+        fprintf(stderr, "\ncuda: per window, disks free at its start and pair events found:");
+        for (int w = 0; w < WMAX && h->wactive[w]; w++) fprintf(stderr, " %llu/%llu", h->wactive[w], h->wfound[w]);
+    }
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
             "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
 }
 
 /* What the host decides for a batch of steps, from the largest speed it last read back: the most slices
- * and the finest grid the steps may use (the launch sizes and the cells cleared and scanned). Each step's
- * gate fits the grid to its own disks within that. */
+ * and the finest grid the steps may use (the launch sizes and the cells cleared and scanned), and the
+ * windows. Each step's gate fits the grid to its own disks within that. */
 typedef struct {
     unsigned long long vmax; /* bits of the speed planned for */
     int K;        /* slices at most */
     int64_t gcap; /* cells per side at most */
-    int64_t m;    /* entries: n K */
-    int64_t cells; /* K gcap^2: the cells each step clears and scans */
-    int rounds;    /* grid-wide rounds of the choice before the one-block finish */
+    int64_t cells; /* K gcap^2 */
+    int F, W;      /* windows (window_start): the first F slices long (0: one window) */
+    int64_t wcells[WMAX]; /* per window: the cells it clears and scans, its slices at most x gcap^2 */
+    int64_t went[WMAX];   /* and its entries at most: n x its slices */
+    int rounds[WMAX];     /* grid-wide rounds of each window's choice before the one-block finish */
+    int64_t choose_blocks[WMAX]; /* blocks of its grid-wide rounds: for the pair events last found */
 } Plan;
+
+/* The first window's slices: the fewest (a power of two) whose entries fill the device, n F >=
+ * WINDOW_ENTRIES. A window of fewer disks leaves most of the device idle while its kernels run one
+ * after another: at N = 32000 windows of one slice halved the step rate, at 1e6 they multiplied it by 10. */
+static int first_window(int64_t n)
+{
+    int F = 1;
+    while ((double)n * F < WINDOW_ENTRIES && F < MAX_SLICES) F *= 2;
+    return F;
+}
 
 /* Grid-wide rounds for steps that find `found` pair events, of which a fraction `decay` is left after
  * each round (both as the last batch had them): enough that about FINISH_EVENTS are left to the one
@@ -1079,82 +1232,70 @@ static int rounds_for(double found, double decay)
     return r;
 }
 
-static Plan plan_for(const Cuda *c, double vmax, int rounds)
+static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double *found, int F)
 {
     Plan pl;
-    pl.rounds = rounds;
     pl.vmax = speed_bits(vmax);
     /* room for the disks to speed up by SLICE_SLACK, or slow down by SPEED_SLACK, before the grid is
      * coarser than it could be (extra slices cost only threads that return at once) */
     pl.K = grid_slices(&c->lim, vmax * SLICE_SLACK);
     pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, pl.K, INT64_MAX).g;
-    pl.m = c->n * pl.K;
     pl.cells = (int64_t)pl.K * pl.gcap * pl.gcap;
+    pl.F = pl.K > 1 ? F : 0;
+    pl.W = 1;
+    if (pl.F > 0)
+        while (pl.W < WMAX && ((int64_t)pl.F << (pl.W - 1)) < pl.K) pl.W++;
+    for (int w = 0; w < pl.W; w++) {
+        int kw = window_start(w + 1, pl.F, pl.W, pl.K) - window_start(w, pl.F, pl.W, pl.K);
+        pl.wcells[w] = (int64_t)kw * pl.gcap * pl.gcap;
+        pl.went[w] = c->n * kw;
+        pl.rounds[w] = rounds[w];
+        /* the rounds loop over the list's length on the device: fewer blocks only take more turns */
+        double b = (2 * found[w] + 4096) / THREADS, most = 8.0 * c->sms;
+        pl.choose_blocks[w] = b < most ? (int64_t)b : (int64_t)most;
+    }
     return pl;
 }
 
-/* Launches one step from the current state; if the step commits, the current state is then in c->cur.
- * ring: the step's phase marks under --stats. */
-static void step_launch(Cuda *c, const Plan *pl, int ring)
+#ifndef LOOP_BLOCKS
+#define LOOP_BLOCKS 16 /* blocks per multiprocessor, at most, of the kernels that loop over a window's entries */
+#endif
+
+/* Blocks for a kernel that loops over up to `upper` items: enough to fill the device a few times over. */
+static int64_t loop_blocks(const Cuda *c, int64_t upper, int per_sm)
+{
+    int64_t b = blocks_for(upper), most = (int64_t)per_sm * c->sms;
+    b = b < most ? b : most;
+    return b > 0 ? b : 1;
+}
+
+/* Blocks for window w's loops over its entries: one entry a thread in a step of one window (the launch
+ * then has no more threads than entries), else loop_blocks. */
+static int64_t window_blocks(const Cuda *c, const Plan *pl, int w)
+{
+    return pl->W == 1 ? blocks_for(pl->went[w]) : loop_blocks(c, pl->went[w], LOOP_BLOCKS);
+}
+
+/* The choice among window w's pair events (wall: the wall events as it sees them). */
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
 {
     cudaStream_t s = c->stream;
-    int64_t n = c->n, m = pl->m;
-    int in = c->cur;
-    const Grid *grid = c->grid;
-    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, c->grid);
-    CUDA_LAUNCHED();
-
-    phase_mark(c, ring, 0);
-    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->cells + 1) * sizeof(uint32_t), s));
-    bin_kernel<<<blocks_for(m), THREADS, 0, s>>>(c->st[in], n, grid, c->par, c->keys, c->rank, c->count);
-    CUDA_LAUNCHED();
-    phase_mark(c, ring, 1);
-    size_t tmp = c->scan_tmp_bytes;
-    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
-    phase_mark(c, ring, 2);
-    place_kernel<<<blocks_for(m), THREADS, 0, s>>>(grid, c->keys, c->rank, c->start, c->keys_sorted, c->order);
-    CUDA_LAUNCHED();
-    Entries en;
-    if (pl->K == 1) {
-        gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
-                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner,
-                                                              c->ctl);
-        CUDA_LAUNCHED();
-        in = 1 - in;
-        DevState *d = &c->st[in];
-        en.pos = d->pos, en.vel = d->vel, en.id = d->id;
-        en.slot = NULL;
-        en.wall = c->wall_hi;
-    } else {
-        init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, c->par, c->wall_hi, c->best_hi,
-                                                      c->best_lo, c->partner);
-        CUDA_LAUNCHED();
-        gather_entries_kernel<<<blocks_for(m), THREADS, 0, s>>>(c->st[in], n, c->order, c->start, grid,
-                                                                c->wall_hi, c->en);
-        CUDA_LAUNCHED();
-        en = c->en;
-    }
-    phase_mark(c, ring, 3);
-    detect_kernel<<<blocks_for(m), THREADS, 0, s>>>(en, c->keys_sorted, c->start, grid, c->par.sigma2,
-                                                    c->ev[0], c->ev_cap, c->info, c->best_hi);
-    CUDA_LAUNCHED();
-
-    phase_mark(c, ring, 4);
-    int64_t blocks = blocks_for(c->ev_cap);
-    if (blocks > 8LL * c->sms) blocks = 8LL * c->sms;
-    const unsigned long long *found = &c->info->found;
+    phase_mark(c, ring, w, 4);
+    int64_t blocks = pl->choose_blocks[w];
+    const unsigned long long *found = &c->info->found[w];
+    unsigned long long *counts = c->counts + w * (MAX_ROUNDS + 1);
     min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
     CUDA_LAUNCHED();
     accept_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
     CUDA_LAUNCHED();
     int list = 0;
     const unsigned long long *len = found;
-    for (int r = 1; r < pl->rounds; r++) {
-        compact_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &c->counts[r],
-                                                c->partner, c->wall_hi, c->best_hi, c->best_lo);
+    for (int r = 1; r < pl->rounds[w]; r++) {
+        compact_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &counts[r],
+                                                c->partner, wall, c->best_hi, c->best_lo);
         CUDA_LAUNCHED();
         list = 1 - list;
-        len = &c->counts[r];
+        len = &counts[r];
         min_hi_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi);
         CUDA_LAUNCHED();
         min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
@@ -1163,16 +1304,96 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                                                  c->partner);
         CUDA_LAUNCHED();
     }
-    phase_mark(c, ring, 5);
-    finish_kernel<<<1, 1024, 0, s>>>(c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner,
-                                     c->wall_hi, c->best_hi, c->best_lo);
+    phase_mark(c, ring, w, 5);
+    finish_kernel<<<1, 1024, 0, s>>>(c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner, wall, c->best_hi,
+                                     c->best_lo);
     CUDA_LAUNCHED();
+    phase_mark(c, ring, w, 6);
+}
 
-    phase_mark(c, ring, 6);
+/* Launches one step from the current state; if the step commits, the current state is then in c->cur.
+ * ring: the step's phase marks under --stats. */
+static void step_launch(Cuda *c, const Plan *pl, int ring)
+{
+    cudaStream_t s = c->stream;
+    int64_t n = c->n;
+    int in = c->cur;
+    const Grid *grid = c->grid;
+    size_t tmp = c->scan_tmp_bytes;
+    c->step_windows[ring] = pl->W;
+    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
+                                c->grid);
+    CUDA_LAUNCHED();
+    if (pl->K == 1) {
+        phase_mark(c, ring, 0, 0);
+        CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->cells + 1) * sizeof(uint32_t), s));
+        bin_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, 0, NULL, c->info, c->par, c->keys,
+                                                     c->rank, c->count);
+        CUDA_LAUNCHED();
+        phase_mark(c, ring, 0, 1);
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
+        phase_mark(c, ring, 0, 2);
+        place_kernel<<<blocks_for(n), THREADS, 0, s>>>(grid, 0, n, c->info, c->keys, c->rank, c->start,
+                                                       c->keys_sorted, c->order);
+        CUDA_LAUNCHED();
+        gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
+                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner,
+                                                              c->ctl);
+        CUDA_LAUNCHED();
+        in = 1 - in;
+        DevState *d = &c->st[in];
+        Entries en;
+        en.pos = d->pos, en.vel = d->vel, en.id = d->id;
+        en.slot = NULL;
+        en.wall = c->wall_hi;
+        phase_mark(c, ring, 0, 3);
+        detect_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(en, c->keys_sorted, c->start, grid, 0, c->par.sigma2,
+                                                        c->ev[0], c->ev_cap, c->info, c->best_hi);
+        CUDA_LAUNCHED();
+        choose_launch(c, pl, 0, c->wall_hi, ring);
+    } else {
+        for (int w = 0; w < pl->W; w++) {
+            phase_mark(c, ring, w, 0);
+            int32_t *act = c->act[w & 1];
+            if (w == 0)
+                init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, c->par, c->wall_hi, c->wall_win,
+                                                              c->best_hi, c->best_lo, c->partner);
+            else
+                activate_kernel<<<loop_blocks(c, n, 16), THREADS, 0, s>>>(n, grid, w, c->act[(w - 1) & 1], act,
+                                                                        c->info, c->partner, c->wall_hi,
+                                                                        c->wall_win, c->best_hi, c->best_lo);
+            CUDA_LAUNCHED();
+            CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
+            bin_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
+                                                                          c->par, c->keys, c->rank, c->count);
+            CUDA_LAUNCHED();
+            phase_mark(c, ring, w, 1);
+            CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->wcells[w] + 1, s));
+            phase_mark(c, ring, w, 2);
+            place_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys,
+                                                                            c->rank, c->start, c->keys_sorted,
+                                                                            c->order);
+            CUDA_LAUNCHED();
+            gather_entries_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(
+                c->st[in], n, w, act, c->info, c->order, c->start, grid, c->wall_hi, c->en);
+            CUDA_LAUNCHED();
+            phase_mark(c, ring, w, 3);
+            if (pl->W == 1)
+                detect_kernel<false><<<blocks_for(pl->went[w]), THREADS, 0, s>>>(
+                    c->en, c->keys_sorted, c->start, grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info,
+                    c->best_hi);
+            else
+                detect_kernel<true><<<loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS), THREADS, 0, s>>>(
+                    c->en, c->keys_sorted, c->start, grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info,
+                    c->best_hi);
+            CUDA_LAUNCHED();
+            choose_launch(c, pl, w, c->wall_win, ring);
+        }
+    }
     move_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
                                                   c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
     CUDA_LAUNCHED();
-    phase_mark(c, ring, 7);
+    phase_mark(c, ring, pl->W - 1, 7);
     commit_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts);
     CUDA_LAUNCHED();
     c->cur = 1 - in;
@@ -1406,9 +1627,19 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     Control last_read, prev_read;           /* the newest control record read back, and the one before */
     memset(&last_read, 0, sizeof last_read);
     prev_read = last_read;
-    int rounds = MAX_ROUNDS; /* grid-wide choice rounds: all of them for the first step, then adapted */
+    int rounds[WMAX]; /* grid-wide choice rounds per window: all of them for the first step, then adapted */
     const char *rounds_hook = getenv("SIM_CUDA_ROUNDS"); /* or as many as it says (1 to MAX_ROUNDS) */
-    if (rounds_hook && atoi(rounds_hook) >= 1 && atoi(rounds_hook) <= MAX_ROUNDS) rounds = atoi(rounds_hook);
+    int r0 = MAX_ROUNDS;
+    if (rounds_hook && atoi(rounds_hook) >= 1 && atoi(rounds_hook) <= MAX_ROUNDS) r0 = atoi(rounds_hook);
+    double found[WMAX]; /* pair events per step and window, as the last batch found them */
+    for (int w = 0; w < WMAX; w++) {
+        rounds[w] = r0;
+        found[w] = (double)c.ev_cap;
+    }
+    /* the first window's slices (window_start); 0: one window. SIM_CUDA_WINDOW sets it for tests. */
+    int window = first_window(par->n);
+    const char *window_hook = getenv("SIM_CUDA_WINDOW");
+    if (window_hook && atoi(window_hook) >= 0) window = atoi(window_hook);
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = sim_clock();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
@@ -1424,7 +1655,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (flying < (prev_read.steps ? 2 : 1) && next <= last) {
             int b = (head + flying) % 2;
             Batch *bt = &batch[b];
-            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2], rounds);
+            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2], rounds, found, window);
             bt->first = next;
             bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
             if (!prev_read.steps) bt->last = next;
@@ -1486,7 +1717,11 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
             for (int r = 0; r < MAX_ROUNDS; r++) left[r] = (double)(last_read.left[r] - prev_read.left[r]);
             for (int r = 1; r < MAX_ROUNDS; r++)
                 if (left[r - 1] > 0 && left[r] / left[r - 1] > decay) decay = left[r] / left[r - 1];
-            rounds = rounds_for(left[0] / (double)(last_read.steps - prev_read.steps), decay);
+            double steps = (double)(last_read.steps - prev_read.steps);
+            for (int w = 0; w < WMAX; w++) {
+                found[w] = (double)(last_read.wfound[w] - prev_read.wfound[w]) / steps;
+                rounds[w] = rounds_for(found[w], decay);
+            }
         }
         prev_read = last_read;
         if (bt->print) print_state(&c, out, head, bt->print);

@@ -78,6 +78,34 @@ for name in slow fast overlap walls random; do
     done
 done
 
+# Time windows (cuda.cu, window_start): a step's slices are cut into windows whose choice is made one
+# after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
+# to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's
+# slices: 1 gives the most windows, 3 windows of 3, 6, 12... slices. --stats must list the windows,
+# or the case tested nothing. With SIM_CUDA_EVENTS=2 a later window's events overflow the list too.
+# (the scenes whose steps have more than 3 slices; random_r5 and fast_walls have 2 or 3)
+for name in fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast; do
+    for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused"; do
+        read -r F mode what <<< "$run"
+        if [ "$F" = 3 ] && { [ "$name" = random_r5 ] || [ "$name" = fast_walls ]; }; then continue; fi
+        suf="" envs="SIM_CUDA_WINDOW=$F"
+        [ "$what" = f32 ] && suf=_f32
+        [ "$what" = refused ] && envs="$envs SIM_CUDA_EVENTS=2"
+        label="cuda$suf/$name $mode, windows from $F slice(s)${what:+ ($what)}"
+        if ! have_gpu || [ ! -x "./cuda$suf" ]; then
+            skip "$label" "no GPU"
+            continue
+        fi
+        same_bytes "$label" "$TMP/cuda${suf}_${name}_$mode.expected" env $envs ./cuda$suf \
+            "$TMP/cuda_${name}_$mode.in" --quiet --stats
+        if grep -q 'per window, disks free' "$TMP/err"; then
+            pass "$label: windows used"
+        else
+            fail "$label: windows used" "no window line in --stats"
+        fi
+    done
+done
+
 # SIM_CUDA_ROUNDS sets the grid-wide rounds of the choice (adapted to the events found otherwise): one
 # leaves the one-block finish nearly all the events, eight run to the last
 for name in dense overlap random dense_fast; do
