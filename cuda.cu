@@ -214,6 +214,12 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
 #define GRID_LOOP(i, len) \
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
 
+/* GRID_LOOP where LOOP, else one item per thread (a launch with a thread per item): the compiler then
+ * drops the loop, which in the gas's one-slice steps cost 5% of the binning. */
+#define ENTRY_LOOP(LOOP, i, len)                                                                 \
+    for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len);                 \
+         i = (LOOP) ? i + (int64_t)gridDim.x * blockDim.x : (len))
+
 /* After a refusal, the kernels that write what outlives a step (the state, the collision counts, the
  * control record, the print copy) do nothing; the others write only scratch buffers, which the step
  * run again rewrites. The gather of K = 1 writes a state buffer: it checks too. */
@@ -284,11 +290,19 @@ typedef struct {
 } WindowDisks;
 
 /* (Kernels copy the Grid's scalars and read its window bounds through the pointer: a copy indexed by w
- * would be put in local memory.) */
+ * would be put in local memory.) WINDOWS false: a step of one window, all disks and slices. */
+template <bool WINDOWS>
 static __device__ __forceinline__ WindowDisks window_disks(const Grid *grid, int w, int64_t n, const int32_t *act,
                                                            const StepInfo *info)
 {
     WindowDisks d;
+    if (!WINDOWS) {
+        d.act = NULL;
+        d.na = n;
+        d.k0 = 0;
+        d.kw = grid->wb[1]; /* K, or 0 after a refusal (gate_kernel) */
+        return d;
+    }
     d.act = w > 0 ? act : NULL;
     d.na = w > 0 ? (int64_t)info->active[w] : n;
     d.k0 = grid->wb[w];
@@ -353,13 +367,15 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
+template <bool WINDOWS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
                            const StepInfo *info, Params par, uint32_t *keys, uint32_t *rank, uint32_t *count)
 {
     const Grid gr = *grid;
-    const WindowDisks d = window_disks(grid, w, n, act, info);
-    GRID_LOOP(e, d.na * d.kw) {
-        int64_t kl = e / d.na, i = e - kl * d.na, k = d.k0 + kl;
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, info);
+    ENTRY_LOOP(WINDOWS, e, d.na * d.kw) {
+        /* entries fit in 32 bits (entry_cap): a 32-bit division, and none for one slice */
+        int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na, k = d.k0 + kl;
         int64_t s = d.act ? d.act[i] : i;
         real2 pos = st.pos[s], vel = st.vel[s];
         real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
@@ -414,11 +430,12 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
  * entry index is scattered; the disks, or their copies, are then gathered with coalesced writes. */
+template <bool WINDOWS>
 __global__ void place_kernel(const Grid *grid, int w, int64_t n, const StepInfo *info, const uint32_t *keys,
                              const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
 {
-    const WindowDisks d = window_disks(grid, w, n, NULL, info);
-    GRID_LOOP(e, d.na * d.kw) {
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, info);
+    ENTRY_LOOP(WINDOWS, e, d.na * d.kw) {
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
@@ -445,9 +462,9 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
                                       const uint32_t *order, const uint32_t *start, const Grid *grid,
                                       const uint64_t *wall_hi, Entries en)
 {
-    const WindowDisks d = window_disks(grid, w, n, act, info);
+    const WindowDisks d = window_disks<true>(grid, w, n, act, info);
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
-        int64_t i = (int64_t)(order[p] % (uint64_t)d.na);
+        int64_t i = (int64_t)(order[p] % (uint32_t)d.na); /* 32 bits: entry_cap */
         int64_t s = d.act ? d.act[i] : i;
         en.pos[p] = st.pos[s];
         en.vel[p] = st.vel[s];
@@ -584,8 +601,10 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     __shared__ BlockEvents be;
     __shared__ unsigned long long tests;
     const Grid gr = *grid;
-    const uint32_t end = window_end(grid, w, start), k0 = (uint32_t)grid->wb[w];
-    unsigned long long *found = &info->found[w];
+    /* !TILES: a step of one window (w = 0, all K slices); the constants keep the loop's registers */
+    const uint32_t end = TILES ? window_end(grid, w, start) : __ldg(&start[gr.cells]);
+    const uint32_t k0 = TILES ? (uint32_t)grid->wb[w] : 0;
+    unsigned long long *found = &info->found[TILES ? w : 0];
     for (uint32_t p0 = blockIdx.x * blockDim.x; p0 < end; p0 += gridDim.x * blockDim.x) { /* block-uniform */
         if (!TILES && p0 != blockIdx.x * blockDim.x) break;
         uint32_t p = p0 + threadIdx.x;
@@ -649,7 +668,8 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
             for (unsigned i = threadIdx.x; i < kept; i += THREADS)
                 if ((int64_t)(be.base + i) < cap) ev[be.base + i] = be.e[i];
         }
-        __syncthreads(); /* the shared records are rewritten by the next tile */
+        /* the shared records are rewritten by the next tile; with one tile, warps done leave at once */
+        if (TILES) __syncthreads();
     }
 }
 
@@ -1327,13 +1347,13 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->cells + 1) * sizeof(uint32_t), s));
-        bin_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, 0, NULL, c->info, c->par, c->keys,
+        bin_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, 0, NULL, c->info, c->par, c->keys,
                                                      c->rank, c->count);
         CUDA_LAUNCHED();
         phase_mark(c, ring, 0, 1);
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
         phase_mark(c, ring, 0, 2);
-        place_kernel<<<blocks_for(n), THREADS, 0, s>>>(grid, 0, n, c->info, c->keys, c->rank, c->start,
+        place_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(grid, 0, n, c->info, c->keys, c->rank, c->start,
                                                        c->keys_sorted, c->order);
         CUDA_LAUNCHED();
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
@@ -1364,15 +1384,22 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                                                                         c->wall_win, c->best_hi, c->best_lo);
             CUDA_LAUNCHED();
             CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
-            bin_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
-                                                                          c->par, c->keys, c->rank, c->count);
+            if (pl->W == 1)
+                bin_kernel<false><<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
+                                                                              c->par, c->keys, c->rank, c->count);
+            else
+                bin_kernel<true><<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
+                                                                             c->par, c->keys, c->rank, c->count);
             CUDA_LAUNCHED();
             phase_mark(c, ring, w, 1);
             CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->wcells[w] + 1, s));
             phase_mark(c, ring, w, 2);
-            place_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys,
-                                                                            c->rank, c->start, c->keys_sorted,
-                                                                            c->order);
+            if (pl->W == 1)
+                place_kernel<false><<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys, c->rank,
+                                                                                c->start, c->keys_sorted, c->order);
+            else
+                place_kernel<true><<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys, c->rank,
+                                                                               c->start, c->keys_sorted, c->order);
             CUDA_LAUNCHED();
             gather_entries_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(
                 c->st[in], n, w, act, c->info, c->order, c->start, grid, c->wall_hi, c->en);

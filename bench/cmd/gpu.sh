@@ -12,10 +12,10 @@
 #                            about 110 s, nearly all of it parsing the input)
 #   ./bench.sh gpu-profile device time per phase (cuda --stats)
 #   ./bench.sh gpu-targets the GPU machine's targets of the fast scenes: cuda on the assignment's random
-#                            scene at N = 32000 (200 steps) and 1e6 (10 steps) and the gas at 1e7 (50
-#                            steps), two runs each and one with the choice's grid-wide rounds fixed at
-#                            two (SIM_CUDA_ROUNDS=2); omp on the random scene at N = 1e5 on 1 and 16
-#                            threads (./bench.sh targets)
+#                            scene at N = 32000 (200 steps), 1e5 and 3e5 (20 steps), 1e6 (10 steps) and
+#                            the gas at 1e7 (50 steps), two runs each and one with one time window a step
+#                            (SIM_CUDA_WINDOW=0); omp on the random scene at N = 1e5 on 1 and 16 threads
+#                            (./bench.sh targets)
 #   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -41,7 +41,7 @@ time_one() {
         return
     fi
     local line secs ps
-    line=$(grep -E "step loop" "$err" | tail -1)
+    line=$(grep -E " s step loop, .* particle-steps/s" "$err" | tail -1)
     secs=$(echo "$line" | sed -E 's/.* ([0-9.]+) s step loop.*/\1/')
     ps=$(echo "$line" | sed -E 's/.* ([0-9.e+]+) particle-steps\/s.*/\1/')
     echo "$label,$name,$n,$secs,$ps,$(grep -E 'pair tests' "$err" | sed -E 's/.*: //' || true)" \
@@ -81,6 +81,13 @@ do_memcheck() {
             ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
             cmp -s "$DATA/$f.seq" "$DATA/$f.out" && echo "memcheck $f output == seq" || echo "memcheck $f output DIFFERS"
         done
+        # the time windows, forced from one slice (a scene this small gets one window otherwise)
+        SIM_CUDA_WINDOW=1 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
+            --log-file "$OUT/memcheck_windows.log" ./cuda "$DATA/san_random.in" --quiet > "$DATA/win.out" \
+            && echo "memcheck san_random, windows: clean" \
+            || { echo "memcheck san_random, windows: ERRORS"; tail -20 "$OUT/memcheck_windows.log"; }
+        cmp -s "$DATA/san_random.seq" "$DATA/win.out" && echo "memcheck san_random, windows: output == seq" \
+            || echo "memcheck san_random, windows: output DIFFERS"
     else
         echo "compute-sanitizer not found"
     fi
@@ -185,16 +192,18 @@ do_targets() {
     machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random_32000.in"
+    printf '100000\n20000\n1\n20\nperf\n' > "$DATA/random_100000.in"
+    printf '300000\n20000\n1\n20\nperf\n' > "$DATA/random_300000.in"
     printf '1000000\n20000\n1\n10\nperf\n' > "$DATA/random_1000000.in"
     [ -s "$DATA/gas_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas_10000000.in"
-    for f in random_32000 random_1000000 gas_10000000; do
+    for f in random_32000 random_100000 random_300000 random_1000000 gas_10000000; do
         n=${f#*_}
         ./cuda "$DATA/$f.in" > /dev/null 2>&1 # warm-up, discarded
         time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
         time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
-        ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | grep -E 'phase|round|refused' | sed "s/^/# $f: /" >> "$CSV"
-        # the same with the two grid-wide choice rounds of every step that the choice had before they adapted
-        SIM_CUDA_ROUNDS=2 NAME=cuda_rounds2 time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+        ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | grep -E 'phase|round|window|refused' | sed "s/^/# $f: /" >> "$CSV"
+        # the same in one time window a step (the choice waits for no window: cuda.cu, window_start)
+        SIM_CUDA_WINDOW=0 NAME=cuda_one_window time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
     done
     THREADS="1 16" CASES=random1e5 REPEATS=2 ./bench.sh targets > "$OUT/omp_random1e5.log" 2>&1
     grep -E '^# target' "$OUT/omp_random1e5.log" >> "$CSV"
