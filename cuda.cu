@@ -65,7 +65,7 @@ extern "C" const char backend_options[] = "";
 #define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
 #define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
 #ifndef SLICE_COST
-#define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 40, 64, 100: 40 best) */
+#define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 20, 28, 40, 64, 100: 40 best) */
 #endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
