@@ -1290,7 +1290,9 @@ static int64_t loop_blocks(const Cuda *c, int64_t upper, int per_sm)
 }
 
 /* Blocks for window w's loops over its entries: one entry a thread in a step of one window (the launch
- * then has no more threads than entries), else loop_blocks. */
+ * then has no more threads than entries), else loop_blocks. The one-entry-a-thread kernels (<false>)
+ * drop what lies beyond their launch: it covers the plan's entries, which bound the device's only
+ * because gate_kernel never takes more slices than planned nor grid_fit more cells per side than gcap. */
 static int64_t window_blocks(const Cuda *c, const Plan *pl, int w)
 {
     return pl->W == 1 ? blocks_for(pl->went[w]) : loop_blocks(c, pl->went[w], LOOP_BLOCKS);

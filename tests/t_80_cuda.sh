@@ -82,16 +82,23 @@ done
 # after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
 # to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's
 # slices: 1 gives the most windows, 3 windows of 3, 6, 12... slices. --stats must list the windows,
-# or the case tested nothing. With SIM_CUDA_EVENTS=2 a later window's events overflow the list too.
-# (the scenes whose steps have more than 3 slices; random_r5 and fast_walls have 2 or 3)
+# or the case tested nothing. With SIM_CUDA_EVENTS=2 a later window's events overflow the list too;
+# with SIM_CUDA_PLAN_SPEED as well, the device's slices and windows differ from the plan's, or plans of
+# one slice alternate with windowed ones, while refused steps run again.
+# (F = 3 and the plans: the scenes whose steps have more than 3 slices; random_r5 and fast_walls have 2
+# or 3)
 for name in fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast; do
-    for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused"; do
+    for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused" "1 print plan0.5" "1 perf plan0,1"; do
         read -r F mode what <<< "$run"
-        if [ "$F" = 3 ] && { [ "$name" = random_r5 ] || [ "$name" = fast_walls ]; }; then continue; fi
+        if { [ "$F" = 3 ] || [ "${what#plan}" != "$what" ]; } &&
+            { [ "$name" = random_r5 ] || [ "$name" = fast_walls ]; }; then continue; fi
         suf="" envs="SIM_CUDA_WINDOW=$F"
         [ "$what" = f32 ] && suf=_f32
         [ "$what" = refused ] && envs="$envs SIM_CUDA_EVENTS=2"
-        label="cuda$suf/$name $mode, windows from $F slice(s)${what:+ ($what)}"
+        [ "${what#plan}" != "$what" ] && envs="$envs SIM_CUDA_EVENTS=2 SIM_CUDA_PLAN_SPEED=${what#plan}"
+        note=$what
+        [ "${what#plan}" != "$what" ] && note="plans at ${what#plan} of the speed, refused steps"
+        label="cuda$suf/$name $mode, windows from $F slice(s)${note:+ ($note)}"
         if ! have_gpu || [ ! -x "./cuda$suf" ]; then
             skip "$label" "no GPU"
             continue
