@@ -362,7 +362,7 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
  * middle.
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
- * disk's wall time get no entry (key gr.cells): disks flying through a wall would otherwise pile up in
+ * disk's wall time get no entry (key KEY_OUT): disks flying through a wall would otherwise pile up in
  * the border cells. slice_of(t) <= slice_of(tw) for t < tw, so the slice test is exact. Midpoints are
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which

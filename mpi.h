@@ -2,8 +2,9 @@
  *
  * The box is cut into np vertical strips, one per rank: rank q owns the disks whose centres lie in
  * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The cuts are placed at equal counts of disks as the input
- * is shared out; with --balance the steps move them so that every rank has about as much work. No rank ever holds the whole state: input,
- * output and the pressure's sum all go through the ranks' own disks.
+ * is shared out; with --balance the steps move them so that every rank has about as much work. No
+ * rank ever holds the whole state: input, output and the pressure's sum all go through the ranks' own
+ * disks.
  */
 #ifndef MPI_H_SIM
 #define MPI_H_SIM
@@ -29,15 +30,15 @@ typedef struct {
 void local_reserve(Local *l, int64_t n);
 int mpi_owner(double x);
 
-/* mpi.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
- * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
- * rank) at equal shares of the total weight: always the first time or with slack 0, else only where
- * the largest of the ranks' loads exceeds slack times their mean. Returns whether the cuts moved. */
 /* mpi.c: sends count[q] records of `size` bytes to each rank q (packed in rank order in out) and
  * returns what arrives, in rank order (*got records), rank q sending rcount[q] (one MPI_Alltoallv;
  * a rank's displacements must stay below 2^31 records). */
 void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got);
 
+/* mpi.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
+ * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
+ * rank) at equal shares of the total weight: always the first time or with slack 0, else only where
+ * the largest of the ranks' loads exceeds slack times their mean. Returns whether the cuts moved. */
 int64_t mpi_cut_bins(void);
 void mpi_cut_add(double *h, double x, double L, double w);
 int mpi_place_cuts(const double *h, double load, double L, double slack);

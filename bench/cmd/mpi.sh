@@ -20,7 +20,7 @@
 # Variables: PARTS ("strong weak memory"), RANKS (default: powers of two up to the cores), THREADS
 # (threads per rank, default "1"), STEPS (20), STRONG_N, PER_RANK, MEM_N, REPEATS, WORK (bench/tmp).
 # MPIRUN_FLAGS adds options to mpirun (default "--bind-to core" where ranks x threads fit the cores);
-# MPI_ARGS adds options to mpi (e.g. "--balance 0": strips of equal width throughout).
+# MPI_ARGS adds options to mpi (e.g. "--balance 4": the cuts moved by measured time every 4 steps).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 die() { echo "bench.sh mpi: $*" >&2; exit 1; }
@@ -73,7 +73,6 @@ run() {
                 flags="--oversubscribe --bind-to none"
             fi
         fi
-        # shellcheck disable=SC2206
         # shellcheck disable=SC2206
         cmd=(mpirun -np "$ranks" $flags ./mpi "$input" --stats --threads "$threads" --output "$sink" ${MPI_ARGS:-})
         sink=/dev/null
