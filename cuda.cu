@@ -130,9 +130,10 @@ typedef struct {
     int K;          /* time slices */
     int64_t g;      /* cells per side */
     double cs;      /* cell side, length */
+    double inv_cs;  /* 1 / cs */
     uint32_t ncell; /* g * g */
-    int64_t m;      /* entries: n * K */
     int64_t cells;  /* K * ncell */
+    float pad;      /* K > 1: what near_mid allows beyond the disks' travel */
     int W;          /* time windows (see window_start) */
     int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 */
 } Grid;
@@ -196,9 +197,11 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     if (!(gf >= 1)) gf = 1;
     gr.g = (int64_t)gf;
     gr.cs = L / (double)gr.g;
+    gr.inv_cs = (double)gr.g / L;
     gr.ncell = (uint32_t)(gr.g * gr.g);
-    gr.m = lim->n * K;
     gr.cells = (int64_t)K * gr.ncell;
+    /* float midpoints and sums round by a few units of 6e-8 of the scale: 1e-5 of it covers them */
+    gr.pad = (float)(2 * r + 2 * margin + 1e-5 * scale);
     return gr;
 }
 
@@ -259,10 +262,12 @@ static __device__ __forceinline__ int64_t slice_of(real t, int K)
     return k < K - 1 ? k : K - 1;
 }
 
-/* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours. */
-static __device__ __forceinline__ int64_t cell_of(double c, double cs, int64_t g)
+/* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours.
+ * c g / L is within a few units of 1e-16 of c / cs, far inside the slack that SIM_REL_MARGIN leaves
+ * in grid_fit's cells, and a division fewer: the binning was bound by its divisions. */
+static __device__ __forceinline__ int64_t cell_of(double c, double inv_cs, int64_t g)
 {
-    double q = floor(c / cs);
+    double q = floor(c * inv_cs);
     if (!(q >= 0)) q = 0;
     if (q > (double)(g - 1)) q = (double)(g - 1);
     return (int64_t)q;
@@ -327,7 +332,6 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     gr.W = gr.K > 1 ? W : 1;
     for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= gr.W ? window_start(w, F, gr.W, gr.K) : gr.K;
     if (ctl->refused) {
-        gr.m = 0;
         gr.cells = 0;
         for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
     }
@@ -341,20 +345,28 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
 
-/* The last kernel of a step (one thread): the step's state is now the current one. */
+/* The last kernel of a step (one warp): the step's state is now the current one. A thread per round
+ * and window: one thread's read-add-write chain took 15 us, a twentieth of a step at N = 32000. */
 __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
 {
+    static_assert(MAX_ROUNDS <= 32 && WMAX <= 32, "a thread each");
     if (ctl->refused) return;
-    ctl->vmax = info->vmax;
-    ctl->steps++;
-    ctl->tests += info->tests;
-    ctl->events += info->events;
-    ctl->faster += info->faster;
-    for (int w = 0; w < WMAX; w++) {
-        ctl->left[0] += info->found[w];
-        ctl->wfound[w] += info->found[w];
-        ctl->wactive[w] += info->active[w];
-        for (int r = 1; r < MAX_ROUNDS; r++) ctl->left[r] += counts[w * (MAX_ROUNDS + 1) + r];
+    int t = threadIdx.x;
+    if (t < MAX_ROUNDS) {
+        unsigned long long sum = 0;
+        for (int w = 0; w < WMAX; w++) sum += t == 0 ? info->found[w] : counts[w * (MAX_ROUNDS + 1) + t];
+        ctl->left[t] += sum;
+    }
+    if (t < WMAX) {
+        ctl->wfound[t] += info->found[t];
+        ctl->wactive[t] += info->active[t];
+    }
+    if (t == 0) {
+        ctl->vmax = info->vmax;
+        ctl->steps++;
+        ctl->tests += info->tests;
+        ctl->events += info->events;
+        ctl->faster += info->faster;
     }
 }
 
@@ -369,7 +381,8 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
  * changes where disks sit in memory and nothing else (every decision compares values). */
 template <bool WINDOWS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
-                           const StepInfo *info, Params par, uint32_t *keys, uint32_t *rank, uint32_t *count)
+                           const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys, uint32_t *rank,
+                           uint32_t *count)
 {
     const Grid gr = *grid;
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, info);
@@ -377,18 +390,17 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         /* entries fit in 32 bits (entry_cap): a 32-bit division, and none for one slice */
         int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na, k = d.k0 + kl;
         int64_t s = d.act ? d.act[i] : i;
-        real2 pos = st.pos[s], vel = st.vel[s];
-        real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-        if (k > 0) {
-            real tw = min_time(wall_time(x, vx, par.lo, par.hi), wall_time(y, vy, par.lo, par.hi));
-            if (tw <= 1 && k > slice_of(tw, gr.K)) {
+        if (k > 0) { /* the wall event as init_kernel keyed it: the time wall_time gives, or none by t = 1 */
+            uint64_t wall = wall_hi[s];
+            if (wall != NO_EVENT && k > slice_of(key_time(wall), gr.K)) {
                 keys[e] = KEY_OUT;
                 continue;
             }
         }
+        real2 pos = st.pos[s], vel = st.vel[s];
         double f = (double)(2 * k + 1) / (double)(2 * gr.K);
-        double mx = (double)x + (double)vx * f, my = (double)y + (double)vy * f;
-        int64_t cx = cell_of(mx, gr.cs, gr.g), cy = cell_of(my, gr.cs, gr.g);
+        double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
+        int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
         uint32_t key = (uint32_t)(kl * gr.ncell + cy * gr.g + cx);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
@@ -449,6 +461,7 @@ typedef struct {
     real2 *pos, *vel;
     int32_t *id, *slot;
     uint64_t *wall;
+    float4 *mid; /* K > 1: the disk at its slice's middle and its reach (near_mid); else NULL */
 } Entries;
 
 /* The entries of window w's cells (kw slices of ncell cells), once placed. */
@@ -463,14 +476,21 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
                                       const uint64_t *wall_hi, Entries en)
 {
     const WindowDisks d = window_disks<true>(grid, w, n, act, info);
+    const int K = grid->K;
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
-        int64_t i = (int64_t)(order[p] % (uint32_t)d.na); /* 32 bits: entry_cap */
+        uint32_t e = order[p], kl = e / (uint32_t)d.na; /* 32 bits: entry_cap */
+        int64_t i = e - (int64_t)kl * d.na;
         int64_t s = d.act ? d.act[i] : i;
-        en.pos[p] = st.pos[s];
-        en.vel[p] = st.vel[s];
+        real2 pos = st.pos[s], vel = st.vel[s];
+        en.pos[p] = pos;
+        en.vel[p] = vel;
         en.id[p] = st.id[s];
         en.slot[p] = (int32_t)s;
         en.wall[p] = wall_hi[s];
+        /* the midpoint as bin_kernel computes it, and half the slice's travel per axis */
+        double f = (double)(2 * (d.k0 + (int64_t)kl) + 1) / (double)(2 * K), h = 0.5 / K;
+        en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
+                                (float)(fabs((double)vel.x) * h), (float)(fabs((double)vel.y) * h));
     }
 }
 
@@ -521,25 +541,38 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
  * runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
  * (entry_cap, cell_cap).
  *
- * A dense scene gives each entry many candidates, and each thread walks its own. A sparse one (the gas)
+ * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
+ * near_mid where K > 1 (the warp then tests those passed together). A sparse one (the gas)
  * gives a few each, 0 to 6 or so: walked per thread, most lanes of a warp would idle while the one with
  * the most finished. There the block deals its candidate pairs out evenly instead, one per thread per
  * round. */
 #ifndef DETECT_MIN_BLOCKS
-#define DETECT_MIN_BLOCKS 5 /* 48 registers: at 6 (40) the loop spills, random scene 10% slower */
+#define DETECT_MIN_BLOCKS 5 /* 48 registers: at 6 (40) the loops spill, random scene at N = 32000 23% slower */
 #endif
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
 
 /* An entry of the pair search: its disk, and its candidates: na entries from a0 (the rest of its own
- * row), then those from b0 (the row below). */
+ * row), then those from b0 (the row below). (80 bytes with mid: a warp reads 32 of them from shared
+ * memory without bank conflicts.) */
 typedef struct {
     real2 pos, vel;
     uint64_t wall;
     int32_t id;
     uint32_t k, a0, na, b0;
+    float4 mid;
 } Probe;
+
+/* Whether two entries of one slice can have their event in it (K > 1): at the event the disks are 2r
+ * apart per axis at most (plus the broad phase's margin), and each is within |v| / (2K) per axis of
+ * its midpoint. A few float operations against the pair test's dozen in double; the cells are as
+ * wide as the fastest disk's travel in a slice, this asks only for the pair's own, so in a scene of
+ * mixed speeds it turns most candidates away. */
+static __device__ __forceinline__ bool near_mid(float4 a, float4 b, float pad)
+{
+    return fabsf(a.x - b.x) <= a.z + b.z + pad && fabsf(a.y - b.y) <= a.w + b.w + pad;
+}
 
 /* The pair events a block found, appended to the step's list together: one atomic on the list's count
  * per block. One per warp that found an event, all on that one address, took most of the gas's search
@@ -583,10 +616,47 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
 }
 
+/* A warp's queue of candidates that near_mid passed: each turn its lanes push up to two each onto
+ * fewer than 32 held, and 32 at a time are tested. */
+#define QUEUE 96
+
+/* Lane `lane`'s candidate q joins the queue of `held` if keep (every lane of the warp calls this);
+ * returns the new count. */
+static __device__ __forceinline__ uint32_t queue_push(uint32_t *queue, uint8_t *owner, uint32_t held, bool keep,
+                                                      uint32_t q, uint32_t lane)
+{
+    unsigned ball = __ballot_sync(0xffffffffu, keep);
+    if (keep) {
+        uint32_t at = held + __popc(ball & ((1u << lane) - 1));
+        queue[at] = q;
+        owner[at] = (uint8_t)lane;
+    }
+    return held + __popc(ball);
+}
+
+/* The first 32 tested: the `left` after them (fewer than QUEUE - 32) move to the front. */
+static __device__ __forceinline__ void queue_shift(uint32_t *queue, uint8_t *owner, uint32_t left, uint32_t lane)
+{
+    static_assert(QUEUE <= 96, "two moves a lane");
+    __syncwarp();
+    uint32_t q1 = queue[lane + 32], q2 = lane + 64 < QUEUE ? queue[lane + 64] : 0;
+    uint8_t o1 = owner[lane + 32], o2 = lane + 64 < QUEUE ? owner[lane + 64] : 0;
+    __syncwarp();
+    if (lane < left) {
+        queue[lane] = q1;
+        owner[lane] = o1;
+    }
+    if (lane + 32 < left) {
+        queue[lane + 32] = q2;
+        owner[lane + 32] = o2;
+    }
+    __syncwarp();
+}
+
 /* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
  * window's launch is sized for all of its disks, of which few are left), else one tile each (the loop's
  * state spilled registers: 6% slower at N = 32000). */
-template <bool TILES>
+template <bool TILES, bool MID>
 __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
@@ -600,6 +670,8 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     __shared__ uint8_t owner[DEAL_MAX > 0 ? DEAL_MAX * THREADS : 1]; /* the thread whose entry each dealt pair is */
     __shared__ BlockEvents be;
     __shared__ unsigned long long tests;
+    __shared__ uint32_t queue[THREADS / 32][QUEUE]; /* per warp: candidates near_mid passed, and whose */
+    __shared__ uint8_t queue_owner[THREADS / 32][QUEUE];
     const Grid gr = *grid;
     /* !TILES: a step of one window (w = 0, all K slices); the constants keep the loop's registers */
     const uint32_t end = TILES ? window_end(grid, w, start) : __ldg(&start[gr.cells]);
@@ -627,6 +699,7 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
             pr.vel = __ldg(&en.vel[p]);
             pr.id = __ldg(&en.id[p]);
             pr.wall = __ldg(&en.wall[p]);
+            if (MID) pr.mid = __ldg(&en.mid[p]);
         }
         /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits, and
          * is exact wherever it is within the limit */
@@ -643,10 +716,40 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
             unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
             for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
             if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
-            const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
-            for (uint32_t i = 0; i < count; i++)
-                test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
-                          found, best_hi);
+            if (MID) {
+                /* each lane screens its own candidates with near_mid, two a turn (their loads overlap);
+                 * those passed queue up in the warp, and each 32 of them take one pair test a lane
+                 * (tested where found, few lanes of a warp would do the work of all) */
+                const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+                const float4 m = probes[threadIdx.x].mid;
+                const uint32_t na = probes[threadIdx.x].na, a0 = probes[threadIdx.x].a0, b0 = probes[threadIdx.x].b0;
+                const uint32_t most = __reduce_max_sync(0xffffffffu, count);
+                uint32_t *wq = queue[warp];
+                uint8_t *wo = queue_owner[warp];
+                uint32_t held = 0;
+                for (uint32_t i = 0; i < most; i += 2) {
+                    uint32_t q0 = i < na ? a0 + i : b0 + (i - na), q1 = i + 1 < na ? a0 + i + 1 : b0 + (i + 1 - na);
+                    float4 m0 = i < count ? __ldg(&en.mid[q0]) : m, m1 = i + 1 < count ? __ldg(&en.mid[q1]) : m;
+                    held = queue_push(wq, wo, held, i < count && near_mid(m, m0, gr.pad), q0, lane);
+                    held = queue_push(wq, wo, held, i + 1 < count && near_mid(m, m1, gr.pad), q1, lane);
+                    for (; held >= 32; held -= 32) {
+                        __syncwarp();
+                        uint32_t o = warp * 32 + wo[lane];
+                        test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                        queue_shift(wq, wo, held - 32, lane);
+                    }
+                }
+                __syncwarp();
+                if (lane < held) {
+                    uint32_t o = warp * 32 + wo[lane];
+                    test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                }
+            } else {
+                const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
+                for (uint32_t i = 0; i < count; i++)
+                    test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
+                              found, best_hi);
+            }
         } else {
             if (threadIdx.x == 0) tests = total;
             first[threadIdx.x] = offset;
@@ -1085,7 +1188,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
      * stay below 2^31. */
     size_t free_b = 0, total_b = 0;
     CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
-    double entry_bytes = 16 + 3 * 8 + 2 * sizeof(real2) + 16;
+    double entry_bytes = 16 + 3 * 8 + 2 * sizeof(real2) + 16 + sizeof(float4);
     double afford = ENTRY_MEMORY * (double)free_b / entry_bytes;
     int64_t cap = n * MAX_SLICES;
     if ((double)cap > afford) cap = (int64_t)afford;
@@ -1114,6 +1217,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
         c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
         c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
+        c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
     }
     if ((par->print && par->steps > 1) || checkpoints) {
         size_t bytes = (size_t)n * (4 * sizeof(real) + (checkpoints ? 2 * sizeof(int32_t) : 0));
@@ -1160,6 +1264,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->en.id);
     cudaFree(c->en.slot);
     cudaFree(c->en.wall);
+    cudaFree(c->en.mid);
     cudaFree(c->wall_hi);
     cudaFree(c->best_hi);
     cudaFree(c->best_lo);
@@ -1333,6 +1438,43 @@ static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, 
     phase_mark(c, ring, w, 6);
 }
 
+/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). */
+template <bool WINDOWS>
+static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, int ring)
+{
+    cudaStream_t s = c->stream;
+    int64_t blocks = window_blocks(c, pl, w);
+    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
+    bin_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->st[in], c->n, c->grid, w, act, c->info, c->wall_hi, c->keys,
+                                                   c->rank, c->count);
+    CUDA_LAUNCHED();
+    phase_mark(c, ring, w, 1);
+    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start,
+                                             pl->wcells[w] + 1, s));
+    phase_mark(c, ring, w, 2);
+    place_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->grid, w, c->n, c->info, c->keys, c->rank, c->start,
+                                                     c->keys_sorted, c->order);
+    CUDA_LAUNCHED();
+}
+
+/* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1). */
+static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
+{
+    cudaStream_t s = c->stream;
+    int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
+    const uint32_t *keys = c->keys_sorted, *start = c->start;
+    if (pl->K == 1)
+        detect_kernel<false, false><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
+                                                            c->ev_cap, c->info, c->best_hi);
+    else if (pl->W == 1)
+        detect_kernel<false, true><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
+                                                           c->ev_cap, c->info, c->best_hi);
+    else
+        detect_kernel<true, true><<<tiles, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
+                                                            c->ev_cap, c->info, c->best_hi);
+    CUDA_LAUNCHED();
+}
+
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
  * ring: the step's phase marks under --stats. */
 static void step_launch(Cuda *c, const Plan *pl, int ring)
@@ -1341,23 +1483,13 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     int64_t n = c->n;
     int in = c->cur;
     const Grid *grid = c->grid;
-    size_t tmp = c->scan_tmp_bytes;
     c->step_windows[ring] = pl->W;
     gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
                                 c->grid);
     CUDA_LAUNCHED();
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
-        CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->cells + 1) * sizeof(uint32_t), s));
-        bin_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, 0, NULL, c->info, c->par, c->keys,
-                                                     c->rank, c->count);
-        CUDA_LAUNCHED();
-        phase_mark(c, ring, 0, 1);
-        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->cells + 1, s));
-        phase_mark(c, ring, 0, 2);
-        place_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(grid, 0, n, c->info, c->keys, c->rank, c->start,
-                                                       c->keys_sorted, c->order);
-        CUDA_LAUNCHED();
+        bin_place_launch<false>(c, pl, 0, in, NULL, ring);
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
                                                               c->wall_hi, c->best_hi, c->best_lo, c->partner,
                                                               c->ctl);
@@ -1368,10 +1500,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
         en.pos = d->pos, en.vel = d->vel, en.id = d->id;
         en.slot = NULL;
         en.wall = c->wall_hi;
+        en.mid = NULL;
         phase_mark(c, ring, 0, 3);
-        detect_kernel<false><<<blocks_for(n), THREADS, 0, s>>>(en, c->keys_sorted, c->start, grid, 0, c->par.sigma2,
-                                                        c->ev[0], c->ev_cap, c->info, c->best_hi);
-        CUDA_LAUNCHED();
+        detect_launch(c, pl, 0, en);
         choose_launch(c, pl, 0, c->wall_hi, ring);
     } else {
         for (int w = 0; w < pl->W; w++) {
@@ -1385,37 +1516,15 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                                                                         c->info, c->partner, c->wall_hi,
                                                                         c->wall_win, c->best_hi, c->best_lo);
             CUDA_LAUNCHED();
-            CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
             if (pl->W == 1)
-                bin_kernel<false><<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
-                                                                              c->par, c->keys, c->rank, c->count);
+                bin_place_launch<false>(c, pl, w, in, act, ring);
             else
-                bin_kernel<true><<<window_blocks(c, pl, w), THREADS, 0, s>>>(c->st[in], n, grid, w, act, c->info,
-                                                                             c->par, c->keys, c->rank, c->count);
-            CUDA_LAUNCHED();
-            phase_mark(c, ring, w, 1);
-            CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, tmp, c->count, c->start, pl->wcells[w] + 1, s));
-            phase_mark(c, ring, w, 2);
-            if (pl->W == 1)
-                place_kernel<false><<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys, c->rank,
-                                                                                c->start, c->keys_sorted, c->order);
-            else
-                place_kernel<true><<<window_blocks(c, pl, w), THREADS, 0, s>>>(grid, w, n, c->info, c->keys, c->rank,
-                                                                               c->start, c->keys_sorted, c->order);
-            CUDA_LAUNCHED();
+                bin_place_launch<true>(c, pl, w, in, act, ring);
             gather_entries_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(
                 c->st[in], n, w, act, c->info, c->order, c->start, grid, c->wall_hi, c->en);
             CUDA_LAUNCHED();
             phase_mark(c, ring, w, 3);
-            if (pl->W == 1)
-                detect_kernel<false><<<blocks_for(pl->went[w]), THREADS, 0, s>>>(
-                    c->en, c->keys_sorted, c->start, grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info,
-                    c->best_hi);
-            else
-                detect_kernel<true><<<loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS), THREADS, 0, s>>>(
-                    c->en, c->keys_sorted, c->start, grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info,
-                    c->best_hi);
-            CUDA_LAUNCHED();
+            detect_launch(c, pl, w, c->en);
             choose_launch(c, pl, w, c->wall_win, ring);
         }
     }
@@ -1423,7 +1532,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                                                   c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
     CUDA_LAUNCHED();
     phase_mark(c, ring, pl->W - 1, 7);
-    commit_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts);
+    commit_kernel<<<1, 32, 0, s>>>(c->ctl, c->info, c->counts);
     CUDA_LAUNCHED();
     c->cur = 1 - in;
 }
