@@ -15,7 +15,8 @@
 #                            scene at N = 32000 (200 steps), 1e5 and 3e5 (20 steps), 1e6 (10 steps) and
 #                            the gas at 1e7 (50 steps), two runs each and one with one time window a step
 #                            (SIM_CUDA_WINDOW=0); omp on the random scene at N = 1e5 on 1 and 16 threads
-#                            (./bench.sh targets)
+#                            (./bench.sh targets); BASE_SRC=FILE also times an earlier tree's cuda.cu (say
+#                            from `git show REV:cuda.cu`), built against this tree's objects, beside each run
 #   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -188,8 +189,21 @@ do_profile() {
     done
 }
 
+# BASE_SRC=FILE: an earlier cuda.cu built as $DATA/base/cuda (a copy of the tree without git history
+# cannot build a revision, BASE_REV).
+build_base_source() {
+    BASE=$DATA/base
+    mkdir -p "$BASE"
+    make io.o state.o > /dev/null
+    # shellcheck disable=SC2046
+    $(make_var NVCC) $(make_var NVCCFLAGS) -Xcompiler -ffp-contract=off -I. "$BASE_SRC" io.o state.o \
+        -o "$BASE/cuda" -lm > "$OUT/base_build.log" 2>&1 || { tail -5 "$OUT/base_build.log"; exit 1; }
+}
+
 do_targets() {
+    [ -n "${BASE_SRC:-}" ] && build_base_source
     machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
+    [ -n "${BASE_SRC:-}" ] && echo "# cuda_base: $BASE_SRC, sha256 $(sha256sum < "$BASE_SRC" | cut -c1-16)" >> "$CSV"
     echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
     printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random_32000.in"
     printf '100000\n20000\n1\n20\nperf\n' > "$DATA/random_100000.in"
@@ -199,8 +213,11 @@ do_targets() {
     for f in random_32000 random_100000 random_300000 random_1000000 gas_10000000; do
         n=${f#*_}
         ./cuda "$DATA/$f.in" > /dev/null 2>&1 # warm-up, discarded
-        time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
-        time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+        for round in 1 2; do # alternately with the earlier build, where given
+            time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
+            [ -n "${BASE:-}" ] && NAME=cuda_base time_one "$f" "$n" "$BASE/cuda" "$DATA/$f.in" --stats
+        done
+        [ -n "${BASE:-}" ] && same "$f" cuda_base | sed 's/^/# /' >> "$CSV"
         ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | grep -E 'phase|round|window|refused' | sed "s/^/# $f: /" >> "$CSV"
         # the same in one time window a step (the choice waits for no window: cuda.cu, window_start)
         SIM_CUDA_WINDOW=0 NAME=cuda_one_window time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
