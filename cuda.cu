@@ -554,8 +554,8 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
 #endif
 
 /* An entry of the pair search: its disk, and its candidates: na entries from a0 (the rest of its own
- * row), then those from b0 (the row below). (80 bytes with mid: a warp reads 32 of them from shared
- * memory without bank conflicts.) */
+ * row), then those from b0 (the row below). (In double, 80 bytes with mid: a warp reads 32 of them from
+ * shared memory without bank conflicts.) */
 typedef struct {
     real2 pos, vel;
     uint64_t wall;
