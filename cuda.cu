@@ -134,8 +134,7 @@ typedef struct {
     uint32_t ncell; /* g * g */
     int64_t cells;  /* K * ncell */
     float pad;      /* K > 1: what near_mid allows beyond the disks' travel */
-    int W;          /* time windows (see window_start) */
-    int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 */
+    int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 (window_start) */
 } Grid;
 
 #define KEY_OUT UINT32_MAX /* the cell key of an entry left out */
@@ -329,8 +328,8 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     double vmax = __longlong_as_double((long long)ctl->vmax);
     int k = grid_slices(&lim, vmax);
     Grid gr = grid_fit(&lim, vmax, k < K ? k : K, gcap);
-    gr.W = gr.K > 1 ? W : 1;
-    for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= gr.W ? window_start(w, F, gr.W, gr.K) : gr.K;
+    int windows = gr.K > 1 ? W : 1;
+    for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= windows ? window_start(w, F, windows, gr.K) : gr.K;
     if (ctl->refused) {
         gr.cells = 0;
         for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
@@ -1327,7 +1326,6 @@ typedef struct {
     unsigned long long vmax; /* bits of the speed planned for */
     int K;        /* slices at most */
     int64_t gcap; /* cells per side at most */
-    int64_t cells; /* K gcap^2 */
     int F, W;      /* windows (window_start): the first F slices long (0: one window) */
     int64_t wcells[WMAX]; /* per window: the cells it clears and scans, its slices at most x gcap^2 */
     int64_t went[WMAX];   /* and its entries at most: n x its slices */
@@ -1365,7 +1363,6 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
      * coarser than it could be (extra slices cost only threads that return at once) */
     pl.K = grid_slices(&c->lim, vmax * SLICE_SLACK);
     pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, pl.K, INT64_MAX).g;
-    pl.cells = (int64_t)pl.K * pl.gcap * pl.gcap;
     pl.F = pl.K > 1 ? F : 0;
     pl.W = 1;
     if (pl.F > 0)
