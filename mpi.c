@@ -210,6 +210,7 @@ typedef struct {
     int64_t cap;      /* per-slot buffers allocated */
     uint64_t events, rounds, bytes_steps;
     double busy;      /* seconds of the steps since the last balance, MPI calls left out */
+    double waited_steps; /* seconds of the steps inside MPI calls (--stats) */
     int64_t moves;    /* times the balance moved the cuts */
 } Run;
 
@@ -584,6 +585,7 @@ static double run_steps(Run *r, RunStats *st)
     int64_t k = r->par.substeps, last = r->par.steps * k;
     double t0 = MPI_Wtime();
     uint64_t bytes0 = bytes_sent;
+    double waited0 = waited;
     int64_t every = r->opt->balance;
     double vm = own_vmax(r), all; /* the first step's fastest component; migrate finds the others' */
     MPI_Allreduce(&vm, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
@@ -607,6 +609,7 @@ static double run_steps(Run *r, RunStats *st)
     }
     double secs = MPI_Wtime() - t0;
     r->bytes_steps = bytes_sent - bytes0; /* output's traffic aside */
+    r->waited_steps = waited - waited0;
     uint64_t mine[2] = {r->events, 0}, sum[2];
     for (int t = 0; t < r->b.nt_max; t++) mine[1] += r->b.th[t].found.tests;
     MPI_Reduce(mine, sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
@@ -714,6 +717,12 @@ int main(int argc, char **argv)
     MPI_Reduce(mine, sum, 3, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     MPI_Reduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
     MPI_Reduce(mine, least, 3, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
+    /* the step loop split into work and waiting, per rank: the work growing with the ranks is the
+     * machine shared (memory, caches); the waiting, the slowest rank of each step and the exchanges */
+    double split[2] = {st.seconds - r.waited_steps, r.waited_steps}, split_sum[2], split_most[2], split_least[2];
+    MPI_Reduce(split, split_sum, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(split, split_most, 2, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    MPI_Reduce(split, split_least, 2, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD);
     if (mpi_me == 0) {
         int64_t subs = r.par.steps * r.par.substeps;
         if (opt.stats)
@@ -728,6 +737,10 @@ int main(int argc, char **argv)
             fprintf(stderr, "%s: the cuts between strips moved %lld times (--balance %lld); disks a rank at "
                     "the end %llu to %llu\n", backend_name, (long long)r.moves, (long long)opt.balance,
                     (unsigned long long)least[2], (unsigned long long)most[2]);
+        if (opt.stats)
+            fprintf(stderr, "%s: a rank's step loop outside MPI calls %.4f to %.4f s (mean %.4f), inside them "
+                    "%.4f to %.4f s (mean %.4f)\n", backend_name, split_least[0], split_most[0],
+                    split_sum[0] / mpi_np, split_least[1], split_most[1], split_sum[1] / mpi_np);
         if (opt.stats)
             fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
                     "state %.4f s\n", backend_name, t_read, t_step0, t_final);

@@ -47,7 +47,7 @@ make -s omp mpi tools/gen > /dev/null
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$CORES"
 echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS STEPS=$STEPS MPI_ARGS=${MPI_ARGS:-}"
-echo "part,program,ranks,threads,n,steps,best_loop_s,median_loop_s,best_wall_s,loop_particle_steps_per_s,bytes_per_step,rounds_per_step,largest_rank_mb,all_ranks_mb"
+echo "part,program,ranks,threads,n,steps,best_loop_s,median_loop_s,best_wall_s,loop_particle_steps_per_s,bytes_per_step,rounds_per_step,largest_rank_mb,all_ranks_mb,work_mean_s,work_max_s,wait_mean_s"
 
 gas() { # N: the input of a gas of N disks (made once)
     local f=$WORK/mpi_gas_$1.in
@@ -90,11 +90,14 @@ run() {
     bl=$(best_of "${loops[@]}") ml=$(median_of "${loops[@]}") bw=$(best_of "${walls[@]}")
     local err=$WORK/mpi_last.err
     LOOP_RATE=$(awk -v n="$n" -v s="$STEPS" -v l="$bl" 'BEGIN { printf "%.4g", n * s / l }')
-    printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$part" "$prog" "$ranks" "$threads" "$n" "$STEPS" \
+    printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$part" "$prog" "$ranks" "$threads" "$n" "$STEPS" \
         "$bl" "$ml" "$bw" "$LOOP_RATE" \
         "$(stat_of "$err" '; \([0-9.e+]*\) bytes sent between ranks a step')" \
         "$(stat_of "$err" '(\([0-9.e+]*\) a step)')" \
-        "$(stat_of "$err" 'largest rank \([0-9.]*\) MB')" "$(stat_of "$err" 'all ranks \([0-9.]*\) MB')"
+        "$(stat_of "$err" 'largest rank \([0-9.]*\) MB')" "$(stat_of "$err" 'all ranks \([0-9.]*\) MB')" \
+        "$(stat_of "$err" 'outside MPI calls [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')" \
+        "$(stat_of "$err" 'outside MPI calls [0-9.]* to \([0-9.]*\) s')" \
+        "$(stat_of "$err" 'inside them [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')"
 }
 
 summary=()
