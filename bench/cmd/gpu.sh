@@ -11,12 +11,17 @@
 #   ./bench.sh gpu-big     the gas at N = 1e8 (input generated on one core, minutes; the run takes
 #                            about 110 s, nearly all of it parsing the input)
 #   ./bench.sh gpu-profile device time per phase (cuda --stats)
+#   ./bench.sh gpu-kernels device time per kernel under Nsight Compute (ncu) on the random scene at N =
+#                            KERNELS_N (default 32000), per step, beside the step loop's own time per step
+#                            (the difference is the cost of launching); then ncu's full report of the
+#                            binning, placement and search kernels (kernels_full.txt)
 #   ./bench.sh gpu-targets the GPU machine's targets of the fast scenes: cuda on the assignment's random
 #                            scene at N = 32000 (200 steps), 1e5 and 3e5 (20 steps), 1e6 (10 steps) and
 #                            the gas at 1e7 (50 steps), two runs each and one with one time window a step
 #                            (SIM_CUDA_WINDOW=0); omp on the random scene at N = 1e5 on 1 and 16 threads
 #                            (./bench.sh targets); BASE_SRC=FILE also times an earlier tree's cuda.cu (say
-#                            from `git show REV:cuda.cu`), built against this tree's objects, beside each run
+#                            from `git show REV:cuda.cu`), built against this tree's objects, beside each run;
+#                            OMP_TOO=0 leaves omp out
 #   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -189,6 +194,28 @@ do_profile() {
     done
 }
 
+do_kernels() {
+    local n=${KERNELS_N:-32000} ncu
+    ncu=$(command -v ncu || echo /usr/local/cuda/bin/ncu)
+    [ -x "$ncu" ] || { echo "ncu not found"; return 1; }
+    printf '%s\n20000\n1\n200\nperf\n' "$n" > "$DATA/random_k$n.in"
+    printf '%s\n20000\n1\n30\nperf\n' "$n" > "$DATA/random_k30_$n.in"
+    ./cuda "$DATA/random_k$n.in" > /dev/null 2>&1 # warm-up, discarded
+    time_one "random_$n" "$n" ./cuda "$DATA/random_k$n.in" --stats
+    time_one "random_$n" "$n" ./cuda "$DATA/random_k$n.in" --stats
+    ./cuda "$DATA/random_k$n.in" --stats 2>&1 > /dev/null | grep -E 'phase' | sed "s/^/# random_$n: /" >> "$CSV"
+    "$ncu" --csv --page raw --cache-control none --clock-control none \
+        --metrics gpu__time_duration.sum,sm__throughput.avg.pct_of_peak_sustained_elapsed,gpu__compute_memory_throughput.avg.pct_of_peak_sustained_elapsed,l1tex__t_sector_hit_rate.pct,lts__t_sector_hit_rate.pct,sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size \
+        --log-file "$DATA/kernels.raw" ./cuda "$DATA/random_k30_$n.in" --quiet > /dev/null 2> "$OUT/kernels_ncu.err" \
+        || { tail -5 "$OUT/kernels_ncu.err" "$DATA/kernels.raw"; return 1; }
+    sed -n '/"ID"/,$p' "$DATA/kernels.raw" > "$OUT/kernels_raw.csv"
+    python3 tools/ncu_kernels.py "$OUT/kernels_raw.csv" | tee "$OUT/kernels.csv"
+    "$ncu" --set full --cache-control none --clock-control none \
+        --kernel-name regex:'detect_kernel|gather_entries|place_kernel|bin_kernel' --launch-skip 20 --launch-count 4 \
+        --log-file "$OUT/kernels_full.txt" ./cuda "$DATA/random_k30_$n.in" --quiet > /dev/null 2>&1 \
+        || tail -5 "$OUT/kernels_full.txt"
+}
+
 # BASE_SRC=FILE: an earlier cuda.cu built as $DATA/base/cuda (a copy of the tree without git history
 # cannot build a revision, BASE_REV).
 build_base_source() {
@@ -222,8 +249,10 @@ do_targets() {
         # the same in one time window a step (the choice waits for no window: cuda.cu, window_start)
         SIM_CUDA_WINDOW=0 NAME=cuda_one_window time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
     done
-    THREADS="1 16" CASES=random1e5 REPEATS=2 ./bench.sh targets > "$OUT/omp_random1e5.log" 2>&1
-    grep -E '^# target' "$OUT/omp_random1e5.log" >> "$CSV"
+    if [ "${OMP_TOO:-1}" = 1 ]; then
+        THREADS="1 16" CASES=random1e5 REPEATS=2 ./bench.sh targets > "$OUT/omp_random1e5.log" 2>&1
+        grep -E '^# target' "$OUT/omp_random1e5.log" >> "$CSV"
+    fi
 }
 
 case ${1:-all} in
@@ -231,10 +260,11 @@ check) do_check ;;
 memcheck) do_memcheck ;;
 perf) do_perf ;;
 profile) do_profile ;;
+kernels) do_kernels ;;
 targets) do_targets ;;
 host) do_host ;;
 big) do_big ;;
 all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
-*) echo "usage: $0 check|memcheck|perf|host|big|profile|targets|all" >&2; exit 2 ;;
+*) echo "usage: $0 check|memcheck|perf|host|big|profile|kernels|targets|all" >&2; exit 2 ;;
 esac
 [ -f "$CSV" ] && tail -30 "$CSV" || true

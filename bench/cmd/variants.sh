@@ -17,7 +17,7 @@ progs=(./cuda)
 for v in ${VARIANTS:-}; do
     name=${v%%=*} flags=${v#*=}
     nvcc -O2 --fmad=false -std=c++17 -gencode arch=compute_90,code=sm_90 -Xcompiler -ffp-contract=off \
-        ${flags//,/ } cuda.cu io.o -o "$DATA/bin/$name" -lm > "$OUT/build_$name.log" 2>&1 &
+        ${flags//,/ } cuda.cu io.o state.o -o "$DATA/bin/$name" -lm > "$OUT/build_$name.log" 2>&1 &
     progs+=("$DATA/bin/$name")
 done
 if [ -n "${BASE_REV:-}" ]; then
