@@ -11,11 +11,14 @@
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
- *            entries: count, exclusive scan, place
+ *            entries: count, exclusive scan, place. A disk 2^l times slower than the fastest takes
+ *            slices 2^l times longer (speed levels, disk_level): it moves no farther in one of them
+ *            than the fastest disk in a slice, so the same cells hold it, with fewer entries
  *   place    with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
  *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
- *            place); a pair is kept only in the slice that holds its event time, so it is found once;
+ *            place), and each entry against the slower levels' slices that contain its own; a pair is
+ *            kept only in the slice of its faster disk that holds its event time, so it is found once;
  *            each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
@@ -74,6 +77,10 @@ extern "C" const char backend_options[] = "";
 #endif
 #define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
                                      clearing and scanning cells than it saves in pair tests */
+#ifndef LEVELS
+#define LEVELS 3                  /* speed levels at most (disk_level); 1: every disk in every slice (of 1
+                                     to 4 at N = 32000, 3 the fastest) */
+#endif
 
 
 /* ==== device state ======================================================================================= */
@@ -132,10 +139,59 @@ typedef struct {
     double cs;      /* cell side, length */
     double inv_cs;  /* 1 / cs */
     uint32_t ncell; /* g * g */
-    int64_t cells;  /* K * ncell */
+    int64_t cells;  /* the first window's cells: window_rows x ncell */
     float pad;      /* K > 1: what near_mid allows beyond the disks' travel */
+    int levels;     /* speed levels (disk_level): 1 where K = 1 */
+    double vlev;    /* the largest velocity component the grid is fitted to, which sets the levels */
     int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 (window_start) */
 } Grid;
+
+/* Speed levels. A disk whose velocity components are at most vmax / 2^l (vmax: the largest component
+ * of any disk) is of level l: its slices are 2^l of the K slices long, level slice j covering slices
+ * j 2^l to (j + 1) 2^l - 1 (the last one ends at K). Over one of them it moves no farther per axis than
+ * the fastest disk over one of the K, so grid_fit's cells hold its pairs as they hold theirs: a pair
+ * with its event in slice k is found by the faster disk's entry of the slice of its level containing
+ * k, against the slower disk's entry of the slice of its own level containing k. In the assignment's
+ * random scene, once collisions have spread the speeds, the fastest disk is 2.5 times the initial
+ * fastest, 19 disks in 20 are at least twice as slow as it and half at least four times: 3 levels take
+ * 38% of the entries and 47% of the pair tests of one (the scene at N = 32000 after 200 steps). Every window
+ * boundary is a multiple of 2^(levels - 1) (plan_for), so no level slice straddles two windows. */
+static __host__ __device__ __forceinline__ int disk_level(double vx, double vy, double vlev, int levels)
+{
+    double m = fmax(fabs(vx), fabs(vy));
+    int l = 0;
+    while (l + 1 < levels && m * (double)(2 << l) <= vlev) l++; /* exact: a power of two */
+    return l;
+}
+
+/* The level slice of level l that starts at slice k (a multiple of 2^l), of K: the fraction of the step
+ * at its middle, and into *half its half length. bin_kernel keys an entry by the disk there, and
+ * gather_entries_kernel copies it with its travel from there. */
+static __device__ __forceinline__ double slice_mid(int64_t k, int l, int K, double *half)
+{
+    int64_t ke = k + (1 << l) < K ? k + (1 << l) : K; /* it ends before slice ke */
+    *half = (double)(ke - k) * (0.5 / K);
+    return (double)(k + ke) / (double)(2 * K);
+}
+
+/* The slices of level l in a window of slices k0 to k1 - 1 (k0 a multiple of 2^l). */
+static __host__ __device__ __forceinline__ int level_rows(int k0, int k1, int l)
+{
+    return ((k1 + (1 << l) - 1) >> l) - (k0 >> l);
+}
+
+/* Cells come in rows of ncell, one per slice of each level, level by level: the first row of level l. */
+static __host__ __device__ __forceinline__ int level_base(int k0, int k1, int l)
+{
+    int rows = 0;
+    for (int m = 0; m < l; m++) rows += level_rows(k0, k1, m);
+    return rows;
+}
+
+static __host__ __device__ __forceinline__ int window_rows(int k0, int k1, int levels)
+{
+    return level_base(k0, k1, levels);
+}
 
 #define KEY_OUT UINT32_MAX /* the cell key of an entry left out */
 
@@ -320,7 +376,7 @@ static __device__ __forceinline__ WindowDisks window_disks(const Grid *grid, int
  * within the plan's slices and cells per side (the host's plan comes from a speed a batch or two old),
  * and clears the step's counters. */
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
-                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, Grid *grid)
+                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid)
 {
     /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
      * search nothing (their state buffers may hold anything, even memory never written, whose disks
@@ -330,6 +386,10 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     Grid gr = grid_fit(&lim, vmax, k < K ? k : K, gcap);
     int windows = gr.K > 1 ? W : 1;
     for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= windows ? window_start(w, F, windows, gr.K) : gr.K;
+    /* the plan's levels: its windows keep their slices, and its cells hold their rows */
+    gr.levels = gr.K > 1 ? levels : 1;
+    gr.vlev = vmax;
+    gr.cells = (int64_t)window_rows(0, gr.wb[1], gr.levels) * gr.ncell;
     if (ctl->refused) {
         gr.cells = 0;
         for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
@@ -345,7 +405,9 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
 }
 
 /* The last kernel of a step (one warp): the step's state is now the current one. A thread per round
- * and window: one thread's read-add-write chain took 15 us, a twentieth of a step at N = 32000. */
+ * and window: one thread's read-add-write chain took 15 us, a twentieth of a step at N = 32000. (Done
+ * by the move's last block instead, it cost the gas of 1e7 6%: its 39000 blocks each counted themselves
+ * on one address.) */
 __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
 {
     static_assert(MAX_ROUNDS <= 32 && WMAX <= 32, "a thread each");
@@ -370,7 +432,8 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
 }
 
 /* Entry e of window w (window_disks): a disk in slice k, keyed by the cell of its position at the slice's
- * middle.
+ * middle; a disk of level l (disk_level) has entries only where k is a multiple of 2^l, each for the
+ * slice of its level that starts there (the others are left out, key KEY_OUT).
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
  * disk's wall time get no entry (key KEY_OUT): disks flying through a wall would otherwise pile up in
@@ -389,18 +452,25 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         /* entries fit in 32 bits (entry_cap): a 32-bit division, and none for one slice */
         int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na, k = d.k0 + kl;
         int64_t s = d.act ? d.act[i] : i;
+        real2 vel = st.vel[s];
+        int l = gr.levels > 1 ? disk_level((double)vel.x, (double)vel.y, gr.vlev, gr.levels) : 0;
+        if (k & ((1 << l) - 1)) { /* within a slice of the disk's level */
+            keys[e] = KEY_OUT;
+            continue;
+        }
         if (k > 0) { /* the wall event as init_kernel keyed it: the time wall_time gives, or none by t = 1 */
             uint64_t wall = wall_hi[s];
-            if (wall != NO_EVENT && k > slice_of(key_time(wall), gr.K)) {
+            if (wall != NO_EVENT && (k >> l) > (slice_of(key_time(wall), gr.K) >> l)) {
                 keys[e] = KEY_OUT;
                 continue;
             }
         }
-        real2 pos = st.pos[s], vel = st.vel[s];
-        double f = (double)(2 * k + 1) / (double)(2 * gr.K);
+        real2 pos = st.pos[s];
+        double half, f = slice_mid(k, l, gr.K, &half);
         double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
         int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
-        uint32_t key = (uint32_t)(kl * gr.ncell + cy * gr.g + cx);
+        int64_t row = l == 0 ? kl : level_base(d.k0, d.k0 + d.kw, l) + (k >> l) - (d.k0 >> l);
+        uint32_t key = (uint32_t)(row * gr.ncell + cy * gr.g + cx);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
     }
@@ -463,10 +533,10 @@ typedef struct {
     float4 *mid; /* K > 1: the disk at its slice's middle and its reach (near_mid); else NULL */
 } Entries;
 
-/* The entries of window w's cells (kw slices of ncell cells), once placed. */
+/* The entries of window w's cells (window_rows rows of ncell cells), once placed. */
 static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, const uint32_t *start)
 {
-    return start[(int64_t)(grid->wb[w + 1] - grid->wb[w]) * grid->ncell];
+    return start[(int64_t)window_rows(grid->wb[w], grid->wb[w + 1], grid->levels) * grid->ncell];
 }
 
 /* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
@@ -486,8 +556,10 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
         en.id[p] = st.id[s];
         en.slot[p] = (int32_t)s;
         en.wall[p] = wall_hi[s];
-        /* the midpoint as bin_kernel computes it, and half the slice's travel per axis */
-        double f = (double)(2 * (d.k0 + (int64_t)kl) + 1) / (double)(2 * K), h = 0.5 / K;
+        /* the midpoint as bin_kernel computes it, and half the level slice's travel per axis */
+        int64_t k = d.k0 + (int64_t)kl;
+        int l = grid->levels > 1 ? disk_level((double)vel.x, (double)vel.y, grid->vlev, grid->levels) : 0;
+        double h, f = slice_mid(k, l, K, &h);
         en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
                                 (float)(fabs((double)vel.x) * h), (float)(fabs((double)vel.y) * h));
     }
@@ -548,20 +620,29 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
 #ifndef DETECT_MIN_BLOCKS
 #define DETECT_MIN_BLOCKS 5 /* 48 registers: at 6 (40) the loops spill, random scene at N = 32000 23% slower */
 #endif
+#ifndef DETECT_MIN_BLOCKS_MID
+#define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
+#endif
+#define COARSE_RUNS (3 * (LEVELS - 1)) /* a probe's runs in the slower levels' cells, at most */
+#define COARSE_BYTES ((size_t)COARSE_RUNS * THREADS * sizeof(uint2)) /* their bounds, dynamic shared memory */
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
 
-/* An entry of the pair search: its disk, and its candidates: na entries from a0 (the rest of its own
- * row), then those from b0 (the row below). (In double, 80 bytes with mid: a warp reads 32 of them from
- * shared memory without bank conflicts.) */
+/* An entry p of the pair search: its disk, its slice k (K > 1: the slice of its level, with the level
+ * in bits 16 and up), its cell c, and its candidates of its own level: na entries from p + 1 (the rest
+ * of its own row), then nb from b0 (the row below); K > 1 adds the slower levels' cells (Cursor). (In
+ * double, 80 bytes with mid: a warp reads 32 of them from shared memory without bank conflicts.) */
 typedef struct {
     real2 pos, vel;
     uint64_t wall;
     int32_t id;
-    uint32_t k, a0, na, b0;
+    uint32_t k, c, na, b0, nb;
     float4 mid;
 } Probe;
+
+#define PROBE_LEVEL(k) ((k) >> 16)
+#define PROBE_SLICE(k) ((k) & 0xffffu)
 
 /* Whether two entries of one slice can have their event in it (K > 1): at the event the disks are 2r
  * apart per axis at most (plus the broad phase's margin), and each is within |v| / (2K) per axis of
@@ -595,7 +676,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
      * is lower, and only the event's fields below depend on the order. */
     real t = pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
-    if (gr.K > 1 && slice_of(t, gr.K) != (int64_t)pr.k) return;
+    if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
     e.hi = time_key(t) | 1;
     if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[q]))) return; /* a wall event comes first */
@@ -652,11 +733,66 @@ static __device__ __forceinline__ void queue_shift(uint32_t *queue, uint8_t *own
     __syncwarp();
 }
 
+/* Where a lane stands in its probe's candidates (K > 1): entries q to qe - 1 of run r. Runs 0 and 1 are
+ * the probe's own level (Probe: na, nb); then, for each slower level, the 3 rows of 3 cells around the
+ * probe's cell in the slice of that level containing the probe's slice: their bounds are loaded all at
+ * once before the search (coarse_runs) into shared memory, run r - 2 of thread t at (r - 2) THREADS + t.
+ * (Loaded as each run began, a lane's search waited on them in turn: at 4 levels the search took longer
+ * than at one with half the candidates.) */
+typedef struct {
+    uint32_t q, qe, r, runs;
+} Cursor;
+
+/* Probe pr's runs in the slower levels' cells into runs (thread t's column). k0, k1: the window's
+ * slices. */
+static __device__ __forceinline__ void coarse_runs(const Probe &pr, const Grid &gr, int k0, int k1,
+                                                   const uint32_t *__restrict__ start, uint2 *runs, uint32_t t)
+{
+    uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
+    uint32_t cy = pr.c / g, cx = pr.c - cy * g;
+    uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+    for (uint32_t b = a + 1; b < (uint32_t)gr.levels; b++) {
+        uint32_t row = (uint32_t)level_base(k0, k1, (int)b) + (j >> (b - a)) - ((uint32_t)k0 >> b);
+        for (uint32_t y = cy; y <= cy + 2; y++) { /* the row above, its own, the one below: y - 1 */
+            uint2 run = make_uint2(0, 0);
+            if (y >= 1 && y <= g) {
+                uint32_t base = row * gr.ncell + (y - 1) * g;
+                run = make_uint2(__ldg(&start[base + x0]), __ldg(&start[base + x1 + 1]));
+            }
+            runs[(3 * (b - a - 1) + (y - cy)) * THREADS + t] = run;
+        }
+    }
+}
+
+static __device__ __forceinline__ Cursor cursor_start(const Probe &pr, uint32_t p, int levels, bool live)
+{
+    Cursor cu;
+    cu.q = p + 1;
+    cu.qe = live ? p + 1 + pr.na : p + 1;
+    cu.r = 0;
+    cu.runs = live ? 2 + 3 * (uint32_t)(levels - 1 - (int)PROBE_LEVEL(pr.k)) : 0;
+    return cu;
+}
+
+/* The next candidate of the probe into q; false when none is left. */
+static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const Probe &pr, const uint2 *runs)
+{
+    while (cu.q >= cu.qe) {
+        if (cu.r + 1 >= cu.runs) return false;
+        cu.r++;
+        uint2 run = cu.r == 1 ? make_uint2(pr.b0, pr.b0 + pr.nb) : runs[(cu.r - 2) * THREADS + threadIdx.x];
+        cu.q = run.x;
+        cu.qe = run.y;
+    }
+    q = cu.q++;
+    return true;
+}
+
 /* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
  * window's launch is sized for all of its disks, of which few are left), else one tile each (the loop's
  * state spilled registers: 6% slower at N = 32000). */
 template <bool TILES, bool MID>
-__global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
+__global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
                   uint64_t *best_hi)
@@ -671,94 +807,114 @@ __global__ void __launch_bounds__(THREADS, DETECT_MIN_BLOCKS)
     __shared__ unsigned long long tests;
     __shared__ uint32_t queue[THREADS / 32][QUEUE]; /* per warp: candidates near_mid passed, and whose */
     __shared__ uint8_t queue_owner[THREADS / 32][QUEUE];
+    extern __shared__ uint2 runs[]; /* MID: COARSE_BYTES (Cursor) */
     const Grid gr = *grid;
     /* !TILES: a step of one window (w = 0, all K slices); the constants keep the loop's registers */
     const uint32_t end = TILES ? window_end(grid, w, start) : __ldg(&start[gr.cells]);
     const uint32_t k0 = TILES ? (uint32_t)grid->wb[w] : 0;
+    const uint32_t k1 = TILES ? (uint32_t)grid->wb[w + 1] : (uint32_t)grid->wb[1];
     unsigned long long *found = &info->found[TILES ? w : 0];
     for (uint32_t p0 = blockIdx.x * blockDim.x; p0 < end; p0 += gridDim.x * blockDim.x) { /* block-uniform */
         if (!TILES && p0 != blockIdx.x * blockDim.x) break;
         uint32_t p = p0 + threadIdx.x;
         Probe pr = {};
-        uint32_t nb = 0;
         if (p < end) {
             uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
-            uint32_t kl = key / gr.ncell;
+            uint32_t kl = key / gr.ncell; /* the cell row: a slice of one level */
             uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
             uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
             uint32_t row = kl * gr.ncell + cy * g;
-            pr.k = kl + k0;
-            pr.a0 = p + 1;
-            pr.na = __ldg(&start[row + x1 + 1]) - pr.a0;
+            if (MID) {
+                uint32_t lv = 0, base = 0;
+                for (; lv + 1 < (uint32_t)gr.levels; lv++) {
+                    uint32_t rows = (uint32_t)level_rows((int)k0, (int)k1, (int)lv);
+                    if (kl < base + rows) break;
+                    base += rows;
+                }
+                pr.k = ((k0 >> lv) + (kl - base)) | (lv << 16);
+            } else {
+                pr.k = kl + k0;
+            }
+            pr.c = c;
+            pr.na = __ldg(&start[row + x1 + 1]) - (p + 1);
             if (cy + 1 < g) {
                 pr.b0 = __ldg(&start[row + g + x0]);
-                nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
+                pr.nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
             }
             pr.pos = __ldg(&en.pos[p]);
             pr.vel = __ldg(&en.vel[p]);
             pr.id = __ldg(&en.id[p]);
             pr.wall = __ldg(&en.wall[p]);
             if (MID) pr.mid = __ldg(&en.mid[p]);
+            if (MID) coarse_runs(pr, gr, (int)k0, (int)k1, start, runs, threadIdx.x);
         }
-        /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits, and
-         * is exact wherever it is within the limit */
-        const uint32_t deal = DEAL_MAX * THREADS;
-        uint32_t count = pr.na + nb, offset, total;
-        probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the scan */
+        probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
         if (threadIdx.x == 0) {
             be.n = 0;
             tests = 0;
         }
-        Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
-        if (total > deal) { /* block-uniform */
+        if (MID) {
+            /* each lane walks its own candidates (Cursor) and screens them with near_mid, two a turn
+             * (their loads overlap); those passed queue up in the warp, and each 32 of them take one
+             * pair test a lane (tested where found, few lanes of a warp would do the work of all) */
             __syncthreads();
-            unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
-            for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
-            if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
-            if (MID) {
-                /* each lane screens its own candidates with near_mid, two a turn (their loads overlap);
-                 * those passed queue up in the warp, and each 32 of them take one pair test a lane
-                 * (tested where found, few lanes of a warp would do the work of all) */
-                const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-                const float4 m = probes[threadIdx.x].mid;
-                const uint32_t na = probes[threadIdx.x].na, a0 = probes[threadIdx.x].a0, b0 = probes[threadIdx.x].b0;
-                const uint32_t most = __reduce_max_sync(0xffffffffu, count);
-                uint32_t *wq = queue[warp];
-                uint8_t *wo = queue_owner[warp];
-                uint32_t held = 0;
-                for (uint32_t i = 0; i < most; i += 2) {
-                    uint32_t q0 = i < na ? a0 + i : b0 + (i - na), q1 = i + 1 < na ? a0 + i + 1 : b0 + (i + 1 - na);
-                    float4 m0 = i < count ? __ldg(&en.mid[q0]) : m, m1 = i + 1 < count ? __ldg(&en.mid[q1]) : m;
-                    held = queue_push(wq, wo, held, i < count && near_mid(m, m0, gr.pad), q0, lane);
-                    held = queue_push(wq, wo, held, i + 1 < count && near_mid(m, m1, gr.pad), q1, lane);
-                    for (; held >= 32; held -= 32) {
-                        __syncwarp();
-                        uint32_t o = warp * 32 + wo[lane];
-                        test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
-                        queue_shift(wq, wo, held - 32, lane);
-                    }
-                }
-                __syncwarp();
-                if (lane < held) {
+            const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+            const Probe &mine = probes[threadIdx.x];
+            const float4 m = mine.mid;
+            Cursor cu = cursor_start(mine, p, gr.levels, p < end);
+            uint32_t *wq = queue[warp];
+            uint8_t *wo = queue_owner[warp];
+            uint32_t held = 0, seen = 0;
+            for (;;) {
+                uint32_t q0 = 0, q1 = 0;
+                bool h0 = cursor_next(cu, q0, mine, runs);
+                bool h1 = h0 && cursor_next(cu, q1, mine, runs);
+                if (!__any_sync(0xffffffffu, h0)) break;
+                float4 m0 = h0 ? __ldg(&en.mid[q0]) : m, m1 = h1 ? __ldg(&en.mid[q1]) : m;
+                seen += (uint32_t)h0 + (uint32_t)h1;
+                held = queue_push(wq, wo, held, h0 && near_mid(m, m0, gr.pad), q0, lane);
+                held = queue_push(wq, wo, held, h1 && near_mid(m, m1, gr.pad), q1, lane);
+                for (; held >= 32; held -= 32) {
+                    __syncwarp();
                     uint32_t o = warp * 32 + wo[lane];
                     test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                    queue_shift(wq, wo, held - 32, lane);
                 }
-            } else {
+            }
+            __syncwarp();
+            if (lane < held) {
+                uint32_t o = warp * 32 + wo[lane];
+                test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+            }
+            unsigned long long sum = seen; /* 64 bits: a warp's counts can pass 2^32 */
+            for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
+            if (lane == 0 && sum) atomicAdd(&tests, sum);
+        } else {
+            /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits,
+             * and is exact wherever it is within the limit */
+            const uint32_t deal = DEAL_MAX * THREADS;
+            uint32_t count = pr.na + pr.nb, offset, total;
+            Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
+            if (total > deal) { /* block-uniform */
+                __syncthreads();
+                unsigned long long sum = count; /* 64 bits: a warp's counts can pass 2^32 */
+                for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
+                if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair(en, gr, po, p, i < po.na ? po.a0 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
+                    test_pair(en, gr, po, p, i < po.na ? p + 1 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
                               found, best_hi);
-            }
-        } else {
-            if (threadIdx.x == 0) tests = total;
-            first[threadIdx.x] = offset;
-            for (uint32_t i = 0; i < count; i++) owner[offset + i] = (uint8_t)threadIdx.x;
-            __syncthreads();
-            for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
-                uint32_t o = owner[j], i = j - first[o];
-                const Probe po = probes[o];
-                uint32_t q = i < po.na ? po.a0 + i : po.b0 + (i - po.na);
-                test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, found, best_hi);
+            } else {
+                if (threadIdx.x == 0) tests = total;
+                first[threadIdx.x] = offset;
+                for (uint32_t i = 0; i < count; i++) owner[offset + i] = (uint8_t)threadIdx.x;
+                __syncthreads();
+                for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
+                    uint32_t o = owner[j], i = j - first[o];
+                    const Probe po = probes[o];
+                    uint32_t q = i < po.na ? p0 + o + 1 + i : po.b0 + (i - po.na);
+                    test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, found, best_hi);
+                }
             }
         }
         __syncthreads();
@@ -1156,6 +1312,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->par = *par;
     CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, 0));
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
+    /* the pair search's runs in shared memory beyond its static arrays (past 48 KB in all) */
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                    (int)COARSE_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                    (int)COARSE_BYTES));
     c->timed = timed;
     c->checkpoints = checkpoints;
     if (timed)
@@ -1327,7 +1488,8 @@ typedef struct {
     int K;        /* slices at most */
     int64_t gcap; /* cells per side at most */
     int F, W;      /* windows (window_start): the first F slices long (0: one window) */
-    int64_t wcells[WMAX]; /* per window: the cells it clears and scans, its slices at most x gcap^2 */
+    int levels;    /* speed levels (disk_level) */
+    int64_t wcells[WMAX]; /* per window: the cells it clears and scans, its rows at most x gcap^2 */
     int64_t went[WMAX];   /* and its entries at most: n x its slices */
     int rounds[WMAX];     /* grid-wide rounds of each window's choice before the one-block finish */
     int64_t choose_blocks[WMAX]; /* blocks of its grid-wide rounds: for the pair events last found */
@@ -1367,9 +1529,25 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
     pl.W = 1;
     if (pl.F > 0)
         while (pl.W < WMAX && ((int64_t)pl.F << (pl.W - 1)) < pl.K) pl.W++;
+    /* speed levels, as many as the slices and windows allow: a window's first slice must be a multiple
+     * of every level's slice length (window_start: F, 2F, 4F, ...), and its rows of cells must fit the
+     * cell table (a step's gate takes these levels, with no more slices nor cells per side) */
+    pl.levels = 1;
+    if (pl.K > 1)
+        while (pl.levels < LEVELS && (1 << pl.levels) < pl.K && (pl.W == 1 || pl.F % (1 << pl.levels) == 0))
+            pl.levels++;
+    for (;;) {
+        int64_t most = 0;
+        for (int w = 0; w < pl.W; w++) {
+            int rows = window_rows(window_start(w, pl.F, pl.W, pl.K), window_start(w + 1, pl.F, pl.W, pl.K), pl.levels);
+            pl.wcells[w] = (int64_t)rows * pl.gcap * pl.gcap;
+            most = pl.wcells[w] > most ? pl.wcells[w] : most;
+        }
+        if (most <= c->lim.cell_cap || pl.levels == 1) break;
+        pl.levels--;
+    }
     for (int w = 0; w < pl.W; w++) {
         int kw = window_start(w + 1, pl.F, pl.W, pl.K) - window_start(w, pl.F, pl.W, pl.K);
-        pl.wcells[w] = (int64_t)kw * pl.gcap * pl.gcap;
         pl.went[w] = c->n * kw;
         pl.rounds[w] = rounds[w];
         /* the rounds loop over the list's length on the device: fewer blocks only take more turns */
@@ -1464,11 +1642,11 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
         detect_kernel<false, false><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
                                                             c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        detect_kernel<false, true><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
-                                                           c->ev_cap, c->info, c->best_hi);
+        detect_kernel<false, true><<<one, THREADS, COARSE_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
+                                                                      c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        detect_kernel<true, true><<<tiles, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
-                                                            c->ev_cap, c->info, c->best_hi);
+        detect_kernel<true, true><<<tiles, THREADS, COARSE_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
+                                                                       c->ev[0], c->ev_cap, c->info, c->best_hi);
     CUDA_LAUNCHED();
 }
 
@@ -1481,7 +1659,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
-    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
+    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W, pl->levels,
                                 c->grid);
     CUDA_LAUNCHED();
     if (pl->K == 1) {

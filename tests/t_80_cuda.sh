@@ -1,6 +1,7 @@
 # cuda against seq, byte for byte, on generated scenes that stress the broad phase: slow and fast disks
 # (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes,
-# mixed scenes (a few fast disks among slow ones), tiny radii, speeds far beyond the box, a few disks.
+# mixed scenes (a few fast disks among slow ones), tiny radii, speeds far beyond the box, a few disks,
+# speeds spread over all the speed levels (cuda.cu, disk_level) with many slices.
 # Each scene runs in print and perf mode, in double (cuda against seq) and in single precision
 # (cuda_f32 against seq_f32: its broad phase has its own rounding margins). Without a GPU every case
 # is a SKIP.
@@ -22,6 +23,7 @@ cuda_scenes() {
     echo "huge_speed tools/gen 200 --fraction 0.1 --speed 1e7 --steps 10"
     echo "three_fast tools/gen 3 --assignment --L 30 --steps 30"
     echo "dense_fast tools/gen 3000 --assignment --L 2000 --overlap --steps 6"
+    echo "spread     tools/gen 3000 --fraction 0.05 --speed 200 --steps 15 --seed 12"
 }
 while read -r name cmd; do
     if ! have_gpu; then
@@ -86,12 +88,15 @@ done
 # with SIM_CUDA_PLAN_SPEED as well, the device's slices and windows differ from the plan's, or plans of
 # one slice alternate with windowed ones, while refused steps run again.
 # (F = 3 and the plans: the scenes whose steps have more than 3 slices; random_r5 and fast_walls have 2
-# or 3)
-for name in fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast; do
-    for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused" "1 print plan0.5" "1 perf plan0,1"; do
+# or 3.) Speed levels take windows whose first slice is a multiple of their slices' length: F = 2 and 4
+# allow 2 and 3 levels, on the scene whose 8 to 11 slices hold every level (spread).
+for name in fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast spread; do
+    for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused" "1 print plan0.5" "1 perf plan0,1" \
+        "2 perf" "4 print" "2 perf f32" "4 perf refused"; do
         read -r F mode what <<< "$run"
         if { [ "$F" = 3 ] || [ "${what#plan}" != "$what" ]; } &&
             { [ "$name" = random_r5 ] || [ "$name" = fast_walls ]; }; then continue; fi
+        if { [ "$F" = 2 ] || [ "$F" = 4 ]; } && [ "$name" != spread ]; then continue; fi
         suf="" envs="SIM_CUDA_WINDOW=$F"
         [ "$what" = f32 ] && suf=_f32
         [ "$what" = refused ] && envs="$envs SIM_CUDA_EVENTS=2"
