@@ -1497,11 +1497,15 @@ typedef struct {
 
 /* The first window's slices: the fewest (a power of two) whose entries fill the device, n F >=
  * WINDOW_ENTRIES. A window of fewer disks leaves most of the device idle while its kernels run one
- * after another: at N = 32000 windows of one slice halved the step rate, at 1e6 they multiplied it by 10. */
+ * after another: at N = 32000 windows of one slice halved the step rate, at 1e6 they multiplied it by 10.
+ * Two at least where their entries stay within 4 WINDOW_ENTRIES, so that speed levels apply (plan_for):
+ * random scene on the H100, 2e6 disks: 2.12e8 particle-steps/s from one slice, 2.48e8 from 2; 4e6
+ * disks: 2.46e8 from one, 2.02e8 from 2 (a first window of 8e6 entries). */
 static int first_window(int64_t n)
 {
     int F = 1;
     while ((double)n * F < WINDOW_ENTRIES && F < MAX_SLICES) F *= 2;
+    if (LEVELS > 1 && F == 1 && (double)n * 2 <= 4 * WINDOW_ENTRIES) F = 2;
     return F;
 }
 
