@@ -139,7 +139,7 @@ typedef struct {
     double cs;      /* cell side, length */
     double inv_cs;  /* 1 / cs */
     uint32_t ncell; /* g * g */
-    int64_t cells;  /* the first window's cells: window_rows x ncell */
+    int64_t cells;  /* the first window's cells: window_rows x ncell (set by gate_kernel, with the levels) */
     float pad;      /* K > 1: what near_mid allows beyond the disks' travel */
     int levels;     /* speed levels (disk_level): 1 where K = 1 */
     double vlev;    /* the largest velocity component the grid is fitted to, which sets the levels */
@@ -254,7 +254,6 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     gr.cs = L / (double)gr.g;
     gr.inv_cs = (double)gr.g / L;
     gr.ncell = (uint32_t)(gr.g * gr.g);
-    gr.cells = (int64_t)K * gr.ncell;
     /* float midpoints and sums round by a few units of 6e-8 of the scale: 1e-5 of it covers them */
     gr.pad = (float)(2 * r + 2 * margin + 1e-5 * scale);
     return gr;
