@@ -17,8 +17,9 @@
  *   place    with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
  *            each disk per entry does
  *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
- *            place), and each entry against the slower levels' slices that contain its own; a pair is
- *            kept only in the slice of its faster disk that holds its event time, so it is found once;
+ *            place), and each entry against the slower levels' slices that contain its own, screened
+ *            by whether their paths come within 2r (and margins) during the slice; a pair is kept
+ *            only in the slice of its faster disk that holds its event time, so it is found once;
  *            each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
@@ -68,7 +69,9 @@ extern "C" const char backend_options[] = "";
 #define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
 #define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
 #ifndef SLICE_COST
-#define SLICE_COST 40.0           /* cost of one entry, in pair tests: sets K (of 20, 28, 40, 64, 100: 40 best) */
+#define SLICE_COST 80.0           /* cost of one entry, in pair tests (candidates): sets K. Of 28, 40, 56, 80 with
+                                     near_path, random scene: N = 32000 alike, 3e5 and 1e6 7% and 12% faster at
+                                     80 than 40, 1e5 2% slower */
 #endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
@@ -114,6 +117,7 @@ typedef struct {
     unsigned long long vmax;   /* bits of the largest |vx| or |vy| after the step (>= 0, so ordered) */
     unsigned long long found[WMAX];  /* pair events detected per window (beyond the list's length the step is refused) */
     unsigned long long active[WMAX]; /* disks still free at each window's start (the first: all) */
+    unsigned long long level[WMAX][LEVELS]; /* levels > 1: of those, the disks of each speed level */
     unsigned long long events; /* accepted events */
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
@@ -140,7 +144,7 @@ typedef struct {
     double inv_cs;  /* 1 / cs */
     uint32_t ncell; /* g * g */
     int64_t cells;  /* the first window's cells: window_rows x ncell (set by gate_kernel, with the levels) */
-    float pad;      /* K > 1: what near_mid allows beyond the disks' travel */
+    float pad;      /* K > 1: the distance within which near_path keeps two paths */
     int levels;     /* speed levels (disk_level): 1 where K = 1 */
     double vlev;    /* the largest velocity component the grid is fitted to, which sets the levels */
     int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 (window_start) */
@@ -341,18 +345,34 @@ static __device__ __forceinline__ uint64_t window_wall(uint64_t wall, int K, int
 }
 
 /* The disks window w bins: slots 0 to n - 1 in the first window, the list act of those still free in a
- * later one; kw slices from k0, entry e = (slice - k0) * na + (place in the list). */
+ * later one; kw slices from k0. With one speed level, entry e = (slice - k0) * na + (place in the
+ * list). With more, the window's disks are listed by level (lev, level_lists), and the entries of
+ * level l, one per slice of that level, follow those of the faster levels: from base[l], (level slice
+ * - k0 / 2^l) * nl[l] + (place in level l's list). Bin, place and gather then go over the entries
+ * there are, not over every disk in every slice. */
 typedef struct {
     const int32_t *act; /* NULL: slot = place */
     int64_t na;
     int k0, kw;
+    int levels;
+    const int32_t *lev;        /* levels > 1: level l's list at l n */
+    int64_t n;
+    uint32_t nl[LEVELS];       /* disks of each level */
+    uint32_t base[LEVELS + 1]; /* entries before each level's; base[levels]: all (32 bits: entry_cap) */
 } WindowDisks;
+
+/* Entry e of a window: its disk's slot, its level, its first slice (a multiple of 2^l), its row of
+ * cells (level_base). */
+typedef struct {
+    int64_t s, k, row;
+    int l;
+} WindowEntry;
 
 /* (Kernels copy the Grid's scalars and read its window bounds through the pointer: a copy indexed by w
  * would be put in local memory.) WINDOWS false: a step of one window, all disks and slices. */
 template <bool WINDOWS>
 static __device__ __forceinline__ WindowDisks window_disks(const Grid *grid, int w, int64_t n, const int32_t *act,
-                                                           const StepInfo *info)
+                                                           const int32_t *lev, const StepInfo *info)
 {
     WindowDisks d;
     if (!WINDOWS) {
@@ -360,13 +380,63 @@ static __device__ __forceinline__ WindowDisks window_disks(const Grid *grid, int
         d.na = n;
         d.k0 = 0;
         d.kw = grid->wb[1]; /* K, or 0 after a refusal (gate_kernel) */
-        return d;
+    } else {
+        d.act = w > 0 ? act : NULL;
+        d.na = w > 0 ? (int64_t)info->active[w] : n;
+        d.k0 = grid->wb[w];
+        d.kw = grid->wb[w + 1] - d.k0;
     }
-    d.act = w > 0 ? act : NULL;
-    d.na = w > 0 ? (int64_t)info->active[w] : n;
-    d.k0 = grid->wb[w];
-    d.kw = grid->wb[w + 1] - d.k0;
+    d.levels = lev ? grid->levels : 1;
+    d.lev = lev;
+    d.n = n;
+    if (d.levels == 1) return d; /* the tables below unset: the gas's one-slice steps bin 1e7 disks a thread each */
+    d.base[0] = 0;
+    for (int l = 0; l < LEVELS; l++) {
+        d.nl[l] = l < d.levels ? (uint32_t)info->level[w][l] : 0;
+        d.base[l + 1] = d.base[l] + d.nl[l] * (uint32_t)level_rows(d.k0, d.k0 + d.kw, l);
+    }
     return d;
+}
+
+/* The window's entries. */
+static __device__ __forceinline__ int64_t window_entries(const WindowDisks &d)
+{
+    if (d.levels == 1) return d.na * d.kw;
+    int64_t e = 0;
+    for (int l = 0; l < LEVELS; l++)
+        if (l < d.levels) e = d.base[l + 1];
+    return e;
+}
+
+static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d, int64_t e)
+{
+    WindowEntry x;
+    if (d.levels == 1) {
+        /* a 32-bit division (entry_cap), and none for one slice */
+        int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na;
+        x.s = d.act ? d.act[i] : i;
+        x.l = 0;
+        x.k = d.k0 + kl;
+        x.row = kl;
+        return x;
+    }
+    /* the last level whose entries begin at or before e (a level with none is passed over); constant
+     * indices only, or d would go to local memory */
+    int l = 0;
+    uint32_t b = d.base[0], nl = d.nl[0];
+#pragma unroll
+    for (int m = 1; m < LEVELS; m++)
+        if (m < d.levels && (uint32_t)e >= d.base[m]) {
+            l = m;
+            b = d.base[m];
+            nl = d.nl[m];
+        }
+    uint32_t j = (uint32_t)e - b, kl = j / nl, i = j - kl * nl;
+    x.s = d.lev[(int64_t)l * d.n + i];
+    x.l = l;
+    x.k = (int64_t)(((uint32_t)d.k0 >> l) + kl) << l;
+    x.row = level_base(d.k0, d.k0 + d.kw, l) + kl;
+    return x;
 }
 
 /* ==== bin ================================================================================================ */
@@ -395,7 +465,10 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     }
     *grid = gr;
     info->vmax = 0;
-    for (int w = 0; w < WMAX; w++) info->found[w] = info->active[w] = 0;
+    for (int w = 0; w < WMAX; w++) {
+        info->found[w] = info->active[w] = 0;
+        for (int l = 0; l < LEVELS; l++) info->level[w][l] = 0;
+    }
     info->active[0] = ctl->refused ? 0 : lim.n;
     info->events = 0;
     info->tests = 0;
@@ -430,9 +503,9 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
     }
 }
 
-/* Entry e of window w (window_disks): a disk in slice k, keyed by the cell of its position at the slice's
- * middle; a disk of level l (disk_level) has entries only where k is a multiple of 2^l, each for the
- * slice of its level that starts there (the others are left out, key KEY_OUT).
+/* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
+ * middle; a disk of level l (disk_level) has an entry for each slice of its level, which starts at a
+ * slice k that is a multiple of 2^l.
  * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
  * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
  * disk's wall time get no entry (key KEY_OUT): disks flying through a wall would otherwise pile up in
@@ -442,21 +515,16 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
  * changes where disks sit in memory and nothing else (every decision compares values). */
 template <bool WINDOWS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
-                           const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys, uint32_t *rank,
-                           uint32_t *count)
+                           const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
+                           uint32_t *rank, uint32_t *count)
 {
     const Grid gr = *grid;
-    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, info);
-    ENTRY_LOOP(WINDOWS, e, d.na * d.kw) {
-        /* entries fit in 32 bits (entry_cap): a 32-bit division, and none for one slice */
-        int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na, k = d.k0 + kl;
-        int64_t s = d.act ? d.act[i] : i;
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, lev, info);
+    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
+        const WindowEntry x = window_entry(d, e);
+        const int64_t s = x.s, k = x.k;
+        const int l = x.l;
         real2 vel = st.vel[s];
-        int l = gr.levels > 1 ? disk_level((double)vel.x, (double)vel.y, gr.vlev, gr.levels) : 0;
-        if (k & ((1 << l) - 1)) { /* within a slice of the disk's level */
-            keys[e] = KEY_OUT;
-            continue;
-        }
         if (k > 0) { /* the wall event as init_kernel keyed it: the time wall_time gives, or none by t = 1 */
             uint64_t wall = wall_hi[s];
             if (wall != NO_EVENT && (k >> l) > (slice_of(key_time(wall), gr.K) >> l)) {
@@ -468,8 +536,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         double half, f = slice_mid(k, l, gr.K, &half);
         double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
         int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
-        int64_t row = l == 0 ? kl : level_base(d.k0, d.k0 + d.kw, l) + (k >> l) - (d.k0 >> l);
-        uint32_t key = (uint32_t)(row * gr.ncell + cy * gr.g + cx);
+        uint32_t key = (uint32_t)(x.row * gr.ncell + cy * gr.g + cx);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
     }
@@ -511,11 +578,12 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
  * entry index is scattered; the disks, or their copies, are then gathered with coalesced writes. */
 template <bool WINDOWS>
-__global__ void place_kernel(const Grid *grid, int w, int64_t n, const StepInfo *info, const uint32_t *keys,
-                             const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted, uint32_t *order)
+__global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *lev, const StepInfo *info,
+                             const uint32_t *keys, const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
+                             uint32_t *order)
 {
-    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, info);
-    ENTRY_LOOP(WINDOWS, e, d.na * d.kw) {
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, lev, info);
+    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
@@ -529,7 +597,7 @@ typedef struct {
     real2 *pos, *vel;
     int32_t *id, *slot;
     uint64_t *wall;
-    float4 *mid; /* K > 1: the disk at its slice's middle and its reach (near_mid); else NULL */
+    float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */
@@ -539,44 +607,69 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
 }
 
 /* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
-__global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const StepInfo *info,
-                                      const uint32_t *order, const uint32_t *start, const Grid *grid,
-                                      const uint64_t *wall_hi, Entries en)
+__global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const int32_t *lev,
+                                      const StepInfo *info, const uint32_t *order, const uint32_t *start,
+                                      const Grid *grid, const uint64_t *wall_hi, Entries en)
 {
-    const WindowDisks d = window_disks<true>(grid, w, n, act, info);
+    const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
     const int K = grid->K;
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
-        uint32_t e = order[p], kl = e / (uint32_t)d.na; /* 32 bits: entry_cap */
-        int64_t i = e - (int64_t)kl * d.na;
-        int64_t s = d.act ? d.act[i] : i;
+        const WindowEntry x = window_entry(d, order[p]);
+        const int64_t s = x.s;
         real2 pos = st.pos[s], vel = st.vel[s];
         en.pos[p] = pos;
         en.vel[p] = vel;
         en.id[p] = st.id[s];
         en.slot[p] = (int32_t)s;
         en.wall[p] = wall_hi[s];
-        /* the midpoint as bin_kernel computes it, and half the level slice's travel per axis */
-        int64_t k = d.k0 + (int64_t)kl;
-        int l = grid->levels > 1 ? disk_level((double)vel.x, (double)vel.y, grid->vlev, grid->levels) : 0;
-        double h, f = slice_mid(k, l, K, &h);
+        /* the midpoint as bin_kernel computes it, and the velocity */
+        double h, f = slice_mid(x.k, x.l, K, &h);
         en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
-                                (float)(fabs((double)vel.x) * h), (float)(fabs((double)vel.y) * h));
+                                (float)vel.x, (float)vel.y);
     }
 }
 
+/* Window w's disks by speed level (levels > 1, WindowDisks): disk s, of level l, gets a place in level
+ * l's list where live. Every thread of the block calls this: the block counts its disks of each
+ * level in shared memory, then takes their places with one atomic per level. The lists' order changes
+ * from run to run, and with it where entries sit in memory, nothing else. */
+static __device__ __forceinline__ void level_lists(int32_t *lev, int64_t n, unsigned long long *count, int levels,
+                                                   bool live, int64_t s, int l)
+{
+    __shared__ unsigned int block_count[LEVELS];
+    __shared__ unsigned long long block_base[LEVELS];
+    if (threadIdx.x < LEVELS) block_count[threadIdx.x] = 0;
+    __syncthreads();
+    unsigned int r = live ? atomicAdd(&block_count[l], 1u) : 0;
+    __syncthreads();
+    if (threadIdx.x < (unsigned)levels && block_count[threadIdx.x] > 0)
+        block_base[threadIdx.x] = atomicAdd(&count[threadIdx.x], (unsigned long long)block_count[threadIdx.x]);
+    __syncthreads();
+    if (live) lev[(int64_t)l * n + (int64_t)(block_base[l] + r)] = (int32_t)s;
+}
+
 /* K > 1, the first window: every disk free, its wall event computed, and seen by this window's choice
- * if it falls in it. */
+ * if it falls in it; with speed levels, the disk's level (level_of) and its place in the lists. */
 __global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par, uint64_t *wall_hi,
-                            uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+                            uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
+                            uint8_t *level_of, int32_t *lev, StepInfo *info)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (s >= n) return;
-    real2 pos = st.pos[s], vel = st.vel[s];
-    uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi);
-    slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
-    uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);
-    wall_win[s] = seen;
-    best_hi[s] = seen;
+    const int levels = grid->levels;
+    int l = 0;
+    if (s < n) {
+        real2 pos = st.pos[s], vel = st.vel[s];
+        uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi);
+        slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
+        uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);
+        wall_win[s] = seen;
+        best_hi[s] = seen;
+        if (levels > 1) {
+            l = disk_level((double)vel.x, (double)vel.y, grid->vlev, levels);
+            level_of[s] = (uint8_t)l;
+        }
+    }
+    if (levels > 1) level_lists(lev, n, info->level[0], levels, s < n, s, l); /* block-uniform */
 }
 
 /* A later window w: the disks that no earlier window took (by a pair event, or by a wall event in an
@@ -585,21 +678,29 @@ __global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par
  * and with it where entries sit in memory, nothing else. */
 __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_t *prev, int32_t *act,
                                 StepInfo *info, const int32_t *partner, const uint64_t *wall_hi,
-                                uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo)
+                                uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo,
+                                const uint8_t *level_of, int32_t *lev)
 {
-    const int K = grid->K, k0 = grid->wb[w], end = grid->wb[w + 1];
+    const int K = grid->K, k0 = grid->wb[w], end = grid->wb[w + 1], levels = grid->levels;
     if (k0 >= end) return; /* an empty window: so are the later ones */
     int64_t np = w == 1 ? n : (int64_t)info->active[w - 1];
-    GRID_LOOP(i, np) {
-        int64_t s = w == 1 ? i : prev[i];
-        if (partner[s] >= 0) continue;
-        uint64_t wall = wall_hi[s];
-        if (wall != NO_EVENT && slice_of(key_time(wall), K) < k0) continue;
-        act[list_append(&info->active[w])] = (int32_t)s;
-        uint64_t seen = window_wall(wall, K, end);
-        wall_win[s] = seen;
-        best_hi[s] = seen;
-        best_lo[s] = NO_EVENT;
+    /* block-uniform turns (level_lists) */
+    for (int64_t i0 = (int64_t)blockIdx.x * blockDim.x; i0 < np; i0 += (int64_t)gridDim.x * blockDim.x) {
+        int64_t i = i0 + threadIdx.x, s = 0;
+        bool live = i < np;
+        if (live) {
+            s = w == 1 ? i : prev[i];
+            uint64_t wall = wall_hi[s];
+            live = partner[s] < 0 && !(wall != NO_EVENT && slice_of(key_time(wall), K) < k0);
+            if (live) {
+                act[list_append(&info->active[w])] = (int32_t)s;
+                uint64_t seen = window_wall(wall, K, end);
+                wall_win[s] = seen;
+                best_hi[s] = seen;
+                best_lo[s] = NO_EVENT;
+            }
+        }
+        if (levels > 1) level_lists(lev, n, info->level[w], levels, live, s, live ? level_of[s] : 0);
     }
 }
 
@@ -612,7 +713,7 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
  * (entry_cap, cell_cap).
  *
  * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
- * near_mid where K > 1 (the warp then tests those passed together). A sparse one (the gas)
+ * near_path where K > 1 (the warp then tests those passed together). A sparse one (the gas)
  * gives a few each, 0 to 6 or so: walked per thread, most lanes of a warp would idle while the one with
  * the most finished. There the block deals its candidate pairs out evenly instead, one per thread per
  * round. */
@@ -622,8 +723,8 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
 #ifndef DETECT_MIN_BLOCKS_MID
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
 #endif
-#define COARSE_RUNS (3 * (LEVELS - 1)) /* a probe's runs in the slower levels' cells, at most */
-#define COARSE_BYTES ((size_t)COARSE_RUNS * THREADS * sizeof(uint2)) /* their bounds, dynamic shared memory */
+#define PROBE_RUNS (1 + 3 * (LEVELS - 1)) /* a probe's runs of candidates after its first, at most (Cursor) */
+#define RUN_BYTES ((size_t)PROBE_RUNS * THREADS * sizeof(uint2)) /* their bounds, dynamic shared memory */
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
@@ -643,14 +744,24 @@ typedef struct {
 #define PROBE_LEVEL(k) ((k) >> 16)
 #define PROBE_SLICE(k) ((k) & 0xffffu)
 
-/* Whether two entries of one slice can have their event in it (K > 1): at the event the disks are 2r
- * apart per axis at most (plus the broad phase's margin), and each is within |v| / (2K) per axis of
- * its midpoint. A few float operations against the pair test's dozen in double; the cells are as
- * wide as the fastest disk's travel in a slice, this asks only for the pair's own, so in a scene of
- * mixed speeds it turns most candidates away. */
-static __device__ __forceinline__ bool near_mid(float4 a, float4 b, float pad)
+/* Whether the paths of probe entry m and candidate entry c (K > 1; midpoint and velocity, mid) come
+ * within pad of each other while the probe's level slice lasts: from its middle, times -h to h, c's
+ * middle being dt before it. A pair is kept only when its event is in that slice, and at the event
+ * the disks are 2r apart plus the broad phase's margin: pad covers both, and the float rounding of
+ * positions, velocities and times (a few units of 6e-8 of the scale, grid_fit). The closest approach
+ * is taken at the time the relative motion gives, clamped to the slice: a time a little off it (the
+ * fast division) adds only the square of that error to the squared distance. About 20 float
+ * operations against the pair test's dozens in double and its 40 bytes of loads: in the assignment's
+ * random scene the cells are as wide as the fastest disk's travel in a slice, and most pairs in
+ * neighbouring cells pass far from each other. Not finite (speeds near the float range): kept. */
+static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, float h, float pad2)
 {
-    return fabsf(a.x - b.x) <= a.z + b.z + pad && fabsf(a.y - b.y) <= a.w + b.w + pad;
+    float dx = (c.x - m.x) + c.z * dt, dy = (c.y - m.y) + c.w * dt; /* c - m at the probe's middle */
+    float ux = c.z - m.z, uy = c.w - m.w;                             /* and its rate */
+    float a = ux * ux + uy * uy, b = dx * ux + dy * uy;
+    float tau = fminf(fmaxf(__fdividef(-b, a), -h), h); /* a = 0: NaN, then -h (any time is closest) */
+    float ex = dx + ux * tau, ey = dy + uy * tau;
+    return !(ex * ex + ey * ey > pad2) || !(a < 1e30f);
 }
 
 /* The pair events a block found, appended to the step's list together: one atomic on the list's count
@@ -695,7 +806,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
 }
 
-/* A warp's queue of candidates that near_mid passed: each turn its lanes push up to two each onto
+/* A warp's queue of candidates that near_path passed: each turn its lanes push up to two each onto
  * fewer than 32 held, and 32 at a time are tested. */
 #define QUEUE 96
 
@@ -732,24 +843,28 @@ static __device__ __forceinline__ void queue_shift(uint32_t *queue, uint8_t *own
     __syncwarp();
 }
 
-/* Where a lane stands in its probe's candidates (K > 1): entries q to qe - 1 of run r. Runs 0 and 1 are
- * the probe's own level (Probe: na, nb); then, for each slower level, the 3 rows of 3 cells around the
- * probe's cell in the slice of that level containing the probe's slice: their bounds are loaded all at
- * once before the search (coarse_runs) into shared memory, run r - 2 of thread t at (r - 2) THREADS + t.
+/* Where a lane stands in its probe's candidates (K > 1): entries q to qe - 1 of run r, of `runs`. Runs
+ * 0 and 1 are the probe's own level (Probe: na, nb); then, for each slower level, the 3 rows of 3 cells
+ * around the probe's cell in the slice of that level containing the probe's slice. The bounds of all
+ * but the first are loaded before the search (probe_runs) into shared memory, run r of thread t at
+ * (r - 1) THREADS + t.
  * (Loaded as each run began, a lane's search waited on them in turn: at 4 levels the search took longer
  * than at one with half the candidates.) */
 typedef struct {
     uint32_t q, qe, r, runs;
+    float dt; /* the middle of run r's level slice, before the probe's (near_path) */
 } Cursor;
 
-/* Probe pr's runs in the slower levels' cells into runs (thread t's column). k0, k1: the window's
- * slices. */
-static __device__ __forceinline__ void coarse_runs(const Probe &pr, const Grid &gr, int k0, int k1,
-                                                   const uint32_t *__restrict__ start, uint2 *runs, uint32_t t)
+/* Probe pr's runs after its first into runs (thread t's column); returns its candidates. k0, k1: the
+ * window's slices. */
+static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Grid &gr, int k0, int k1,
+                                                      const uint32_t *__restrict__ start, uint2 *runs, uint32_t t)
 {
     uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
     uint32_t cy = pr.c / g, cx = pr.c - cy * g;
     uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+    runs[t] = make_uint2(pr.b0, pr.b0 + pr.nb);
+    uint32_t total = pr.na + pr.nb;
     for (uint32_t b = a + 1; b < (uint32_t)gr.levels; b++) {
         uint32_t row = (uint32_t)level_base(k0, k1, (int)b) + (j >> (b - a)) - ((uint32_t)k0 >> b);
         for (uint32_t y = cy; y <= cy + 2; y++) { /* the row above, its own, the one below: y - 1 */
@@ -758,9 +873,11 @@ static __device__ __forceinline__ void coarse_runs(const Probe &pr, const Grid &
                 uint32_t base = row * gr.ncell + (y - 1) * g;
                 run = make_uint2(__ldg(&start[base + x0]), __ldg(&start[base + x1 + 1]));
             }
-            runs[(3 * (b - a - 1) + (y - cy)) * THREADS + t] = run;
+            runs[(1 + 3 * (b - a - 1) + (y - cy)) * THREADS + t] = run;
+            total += run.y - run.x;
         }
     }
+    return total;
 }
 
 static __device__ __forceinline__ Cursor cursor_start(const Probe &pr, uint32_t p, int levels, bool live)
@@ -770,18 +887,39 @@ static __device__ __forceinline__ Cursor cursor_start(const Probe &pr, uint32_t 
     cu.qe = live ? p + 1 + pr.na : p + 1;
     cu.r = 0;
     cu.runs = live ? 2 + 3 * (uint32_t)(levels - 1 - (int)PROBE_LEVEL(pr.k)) : 0;
+    cu.dt = 0;
     return cu;
 }
 
-/* The next candidate of the probe into q; false when none is left. */
-static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const Probe &pr, const uint2 *runs)
+/* Level a's slice j of K (the probe's: PROBE_LEVEL, PROBE_SLICE), its first slice and the one after it. */
+static __device__ __forceinline__ int2 level_span(uint32_t a, uint32_t j, int K)
+{
+    int k = (int)(j << a), ke = k + (1 << a);
+    return make_int2(k, ke < K ? ke : K);
+}
+
+/* How long before the middle of the probe's level slice the middle of run r's level slice is (0 for
+ * runs 0 and 1, its own level; slice_mid: (k + ke) / 2K). */
+static __device__ __forceinline__ float run_offset(const Probe &pr, uint32_t r, int K)
+{
+    uint32_t a = PROBE_LEVEL(pr.k), b = a + 1 + (r - 2) / 3;
+    int2 p = level_span(a, PROBE_SLICE(pr.k), K), q = level_span(b, (uint32_t)p.x >> b, K);
+    return (float)(p.x + p.y - q.x - q.y) / (float)(2 * K);
+}
+
+/* The next candidate of the probe into q (left as it was when none is left: false). col: the thread's
+ * column of runs. */
+static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const Probe &pr, const uint2 *col, int K)
 {
     while (cu.q >= cu.qe) {
-        if (cu.r + 1 >= cu.runs) return false;
-        cu.r++;
-        uint2 run = cu.r == 1 ? make_uint2(pr.b0, pr.b0 + pr.nb) : runs[(cu.r - 2) * THREADS + threadIdx.x];
+        if (++cu.r >= cu.runs) {
+            cu.r = cu.runs; /* stays done */
+            return false;
+        }
+        uint2 run = col[(cu.r - 1) * THREADS];
         cu.q = run.x;
         cu.qe = run.y;
+        if (cu.r >= 2 && (cu.r - 2) % 3 == 0) cu.dt = run_offset(pr, cu.r, K); /* a slower level begins */
     }
     q = cu.q++;
     return true;
@@ -804,9 +942,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
     __shared__ uint8_t owner[DEAL_MAX > 0 ? DEAL_MAX * THREADS : 1]; /* the thread whose entry each dealt pair is */
     __shared__ BlockEvents be;
     __shared__ unsigned long long tests;
-    __shared__ uint32_t queue[THREADS / 32][QUEUE]; /* per warp: candidates near_mid passed, and whose */
+    __shared__ uint32_t queue[THREADS / 32][QUEUE]; /* per warp: candidates near_path passed, and whose */
     __shared__ uint8_t queue_owner[THREADS / 32][QUEUE];
-    extern __shared__ uint2 runs[]; /* MID: COARSE_BYTES (Cursor) */
+    extern __shared__ uint2 runs[]; /* MID: RUN_BYTES (Cursor) */
     const Grid gr = *grid;
     /* !TILES: a step of one window (w = 0, all K slices); the constants keep the loop's registers */
     const uint32_t end = TILES ? window_end(grid, w, start) : __ldg(&start[gr.cells]);
@@ -815,7 +953,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
     unsigned long long *found = &info->found[TILES ? w : 0];
     for (uint32_t p0 = blockIdx.x * blockDim.x; p0 < end; p0 += gridDim.x * blockDim.x) { /* block-uniform */
         if (!TILES && p0 != blockIdx.x * blockDim.x) break;
-        uint32_t p = p0 + threadIdx.x;
+        uint32_t p = p0 + threadIdx.x, seen = 0; /* seen: MID, the probe's candidates */
         Probe pr = {};
         if (p < end) {
             uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
@@ -845,7 +983,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             pr.id = __ldg(&en.id[p]);
             pr.wall = __ldg(&en.wall[p]);
             if (MID) pr.mid = __ldg(&en.mid[p]);
-            if (MID) coarse_runs(pr, gr, (int)k0, (int)k1, start, runs, threadIdx.x);
+            if (MID) seen = probe_runs(pr, gr, (int)k0, (int)k1, start, runs, threadIdx.x);
         }
         probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
         if (threadIdx.x == 0) {
@@ -853,26 +991,35 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             tests = 0;
         }
         if (MID) {
-            /* each lane walks its own candidates (Cursor) and screens them with near_mid, two a turn
-             * (their loads overlap); those passed queue up in the warp, and each 32 of them take one
-             * pair test a lane (tested where found, few lanes of a warp would do the work of all) */
+            /* each lane walks its own candidates (Cursor) and screens them, two a turn (their loads
+             * overlap); those passed queue up in the warp, and each 32 of them take one pair test a
+             * lane (tested where found, few lanes of a warp would do the work of all). The loop is
+             * what the search spends its instructions on: a lane with no candidate left loads its own
+             * entry rather than branch around the load, and the queue is touched only by turns in
+             * which some lane passed one. */
             __syncthreads();
             const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
             const Probe &mine = probes[threadIdx.x];
+            const uint2 *col = runs + threadIdx.x;
             const float4 m = mine.mid;
+            const int2 span = level_span(PROBE_LEVEL(mine.k), PROBE_SLICE(mine.k), gr.K);
+            const float h = (float)(span.y - span.x) / (float)(2 * gr.K), pad2 = gr.pad * gr.pad;
+            const uint32_t self = p < end ? p : p0; /* an entry there is */
             Cursor cu = cursor_start(mine, p, gr.levels, p < end);
             uint32_t *wq = queue[warp];
             uint8_t *wo = queue_owner[warp];
-            uint32_t held = 0, seen = 0;
+            uint32_t held = 0;
             for (;;) {
-                uint32_t q0 = 0, q1 = 0;
-                bool h0 = cursor_next(cu, q0, mine, runs);
-                bool h1 = h0 && cursor_next(cu, q1, mine, runs);
+                uint32_t q0 = self, q1 = self;
+                bool h0 = cursor_next(cu, q0, mine, col, gr.K);
+                float dt0 = cu.dt;
+                bool h1 = h0 && cursor_next(cu, q1, mine, col, gr.K);
                 if (!__any_sync(0xffffffffu, h0)) break;
-                float4 m0 = h0 ? __ldg(&en.mid[q0]) : m, m1 = h1 ? __ldg(&en.mid[q1]) : m;
-                seen += (uint32_t)h0 + (uint32_t)h1;
-                held = queue_push(wq, wo, held, h0 && near_mid(m, m0, gr.pad), q0, lane);
-                held = queue_push(wq, wo, held, h1 && near_mid(m, m1, gr.pad), q1, lane);
+                float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
+                bool k0 = h0 && near_path(m, m0, dt0, h, pad2), k1 = h1 && near_path(m, m1, cu.dt, h, pad2);
+                if (!__any_sync(0xffffffffu, k0 || k1)) continue;
+                held = queue_push(wq, wo, held, k0, q0, lane);
+                held = queue_push(wq, wo, held, k1, q1, lane);
                 for (; held >= 32; held -= 32) {
                     __syncwarp();
                     uint32_t o = warp * 32 + wo[lane];
@@ -1188,6 +1335,8 @@ typedef struct {
     uint64_t *wall_win;  /* the wall event as the current window's choice sees it (K > 1) */
     int32_t *partner;
     int32_t *act[2];     /* the disks still free at a window's start (K > 1), windows alternating */
+    int32_t *lev;        /* speed levels: the current window's disks by level, n apart (WindowDisks) */
+    uint8_t *level_of;   /* speed levels: each disk's level in the current step */
     PairEvent *ev[2];
     int64_t ev_cap;
     unsigned long long *counts; /* list lengths of the parallel rounds, MAX_ROUNDS + 1 per window */
@@ -1313,9 +1462,9 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
     /* the pair search's runs in shared memory beyond its static arrays (past 48 KB in all) */
     CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)COARSE_BYTES));
+                                    (int)RUN_BYTES));
     CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)COARSE_BYTES));
+                                    (int)RUN_BYTES));
     c->timed = timed;
     c->checkpoints = checkpoints;
     if (timed)
@@ -1335,6 +1484,8 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->wall_win = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->act[0] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
     c->act[1] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+    c->lev = (int32_t *)dev_alloc((size_t)n * LEVELS * 4, "the event keys");
+    c->level_of = (uint8_t *)dev_alloc((size_t)n, "the event keys");
     events_alloc(c, ev_cap);
     c->counts = (unsigned long long *)dev_alloc(WMAX * (MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
@@ -1431,6 +1582,8 @@ static void cuda_close(Cuda *c)
     cudaFree(c->wall_win);
     cudaFree(c->act[0]);
     cudaFree(c->act[1]);
+    cudaFree(c->lev);
+    cudaFree(c->level_of);
     cudaFree(c->ev[0]);
     cudaFree(c->ev[1]);
     cudaFree(c->counts);
@@ -1618,19 +1771,20 @@ static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, 
 
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). */
 template <bool WINDOWS>
-static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, int ring)
+static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
+                             int ring)
 {
     cudaStream_t s = c->stream;
     int64_t blocks = window_blocks(c, pl, w);
     CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
-    bin_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->st[in], c->n, c->grid, w, act, c->info, c->wall_hi, c->keys,
-                                                   c->rank, c->count);
+    bin_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->st[in], c->n, c->grid, w, act, lev, c->info, c->wall_hi,
+                                                   c->keys, c->rank, c->count);
     CUDA_LAUNCHED();
     phase_mark(c, ring, w, 1);
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start,
                                              pl->wcells[w] + 1, s));
     phase_mark(c, ring, w, 2);
-    place_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->grid, w, c->n, c->info, c->keys, c->rank, c->start,
+    place_kernel<WINDOWS><<<blocks, THREADS, 0, s>>>(c->grid, w, c->n, lev, c->info, c->keys, c->rank, c->start,
                                                      c->keys_sorted, c->order);
     CUDA_LAUNCHED();
 }
@@ -1645,10 +1799,10 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
         detect_kernel<false, false><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
                                                             c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        detect_kernel<false, true><<<one, THREADS, COARSE_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
+        detect_kernel<false, true><<<one, THREADS, RUN_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
                                                                       c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        detect_kernel<true, true><<<tiles, THREADS, COARSE_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
+        detect_kernel<true, true><<<tiles, THREADS, RUN_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
                                                                        c->ev[0], c->ev_cap, c->info, c->best_hi);
     CUDA_LAUNCHED();
 }
@@ -1667,7 +1821,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     CUDA_LAUNCHED();
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
-        bin_place_launch<false>(c, pl, 0, in, NULL, ring);
+        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring);
         gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
                                                               c->wall_hi, c->best_hi, c->best_lo, c->partner,
                                                               c->ctl);
@@ -1686,20 +1840,23 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
         for (int w = 0; w < pl->W; w++) {
             phase_mark(c, ring, w, 0);
             int32_t *act = c->act[w & 1];
+            int32_t *lev = pl->levels > 1 ? c->lev : NULL; /* the device's grid may take fewer */
             if (w == 0)
                 init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, c->par, c->wall_hi, c->wall_win,
-                                                              c->best_hi, c->best_lo, c->partner);
+                                                              c->best_hi, c->best_lo, c->partner, c->level_of,
+                                                              c->lev, c->info);
             else
                 activate_kernel<<<loop_blocks(c, n, 16), THREADS, 0, s>>>(n, grid, w, c->act[(w - 1) & 1], act,
                                                                         c->info, c->partner, c->wall_hi,
-                                                                        c->wall_win, c->best_hi, c->best_lo);
+                                                                        c->wall_win, c->best_hi, c->best_lo,
+                                                                        c->level_of, c->lev);
             CUDA_LAUNCHED();
             if (pl->W == 1)
-                bin_place_launch<false>(c, pl, w, in, act, ring);
+                bin_place_launch<false>(c, pl, w, in, act, lev, ring);
             else
-                bin_place_launch<true>(c, pl, w, in, act, ring);
+                bin_place_launch<true>(c, pl, w, in, act, lev, ring);
             gather_entries_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(
-                c->st[in], n, w, act, c->info, c->order, c->start, grid, c->wall_hi, c->en);
+                c->st[in], n, w, act, lev, c->info, c->order, c->start, grid, c->wall_hi, c->en);
             CUDA_LAUNCHED();
             phase_mark(c, ring, w, 3);
             detect_launch(c, pl, w, c->en);

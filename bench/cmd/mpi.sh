@@ -8,6 +8,10 @@
 #   copies  RANKS independent copies of omp on one thread each (a gas of PER_RANK disks, one core each),
 #           at once: what sharing the machine alone costs, the bound of weak scaling (not in the default;
 #           its rows give the slowest copy's step loop as best_loop_s, the mean as median_loop_s);
+#   contention RANKS copies at once, one a core, of a compute-bound and of a memory-bound loop
+#           (tools/contend): how much of a core each keeps when the others run, without any program of
+#           ours (not in the default; rows give the slowest copy's seconds as best_loop_s, the mean as
+#           median_loop_s);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
@@ -42,7 +46,7 @@ PER_RANK=$(integer "${PER_RANK:-2.5e5}")
 MEM_N=$(integer "${MEM_N:-2e6}")
 
 command -v mpirun > /dev/null || die "no mpirun (apt-get install openmpi-bin libopenmpi-dev)"
-make -s omp mpi tools/gen > /dev/null
+make -s omp mpi tools/gen tools/contend > /dev/null
 [ -x ./mpi ] || die "./mpi was not built (no mpicc?)"
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$CORES"
@@ -148,6 +152,22 @@ for part in $PARTS; do
                 summary+=("copies of omp at once, $PER_RANK disks each: $p copies, slowest step loop $worst s against $one s alone: $(awk -v a="$one" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
             done
             ;;
+        contention)
+            for kind in compute memory; do
+                one=""
+                for p in $RANKS; do
+                    for ((c = 0; c < p; c++)); do
+                        taskset -c "$c" tools/contend "$kind" > "$WORK/contend$c.out" &
+                    done
+                    wait
+                    worst=$(for ((c = 0; c < p; c++)); do cut -d' ' -f1 "$WORK/contend$c.out"; done | sort -g | tail -n 1)
+                    mean=$(for ((c = 0; c < p; c++)); do cut -d' ' -f1 "$WORK/contend$c.out"; done | awk '{ s += $1 } END { printf "%.4f", s / NR }')
+                    echo "contention,contend $kind,$p,1,,,$worst,$mean,,,,,,"
+                    [ -z "$one" ] && one=$worst
+                    summary+=("contention, $kind-bound loop: $p copies at once, slowest $worst s, mean $mean s against $one s alone: $(awk -v a="$one" -v b="$worst" -v m="$mean" 'BEGIN { printf "%.0f%% (slowest), %.0f%% (mean)", 100 * a / b, 100 * a / m }')")
+                done
+            done
+            ;;
         balance)
             p=${RANKS##* } n=$((PER_RANK * ${RANKS##* }))
             input=$(gas "$n")
@@ -162,7 +182,7 @@ for part in $PARTS; do
             kill "$hog"
             summary+=("balance, $p ranks, the last one's core shared with a busy loop: --balance 0 ${rates[0]}, --balance 4 ${rates[1]} particle-steps/s: $(awk -v a="${rates[1]}" -v b="${rates[0]}" 'BEGIN { printf "%.2f", a / b }')x")
             ;;
-        *) die "unknown part '$part' (strong, weak, memory, copies, balance)" ;;
+        *) die "unknown part '$part' (strong, weak, memory, copies, contention, balance)" ;;
     esac
 done
 for line in "${summary[@]}"; do echo "# $line"; done

@@ -2,8 +2,8 @@
 # ./bench.sh variants: on a machine with an NVIDIA GPU, builds cuda.cu once per variant (VARIANTS: a list
 # of NAME=FLAGS, the flags being -D macros of cuda.cu) and, with BASE_REV, that revision's cuda; times each
 # on the same inputs (gas at area fraction 0.2, N = 1e7, 50 steps; the assignment's random scene at
-# N = 32000, 200 steps), checks that all print the same bytes, and keeps each one's phase times
-# (--stats). Results go to $OUT (default bench/tmp/variants).
+# N = 32000, 200 steps, and at each N of RANDOM_N, 10 steps), checks that all print the same bytes, and
+# keeps each one's phase times (--stats). Results go to $OUT (default bench/tmp/variants).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 . bench/cmd/lib.sh
@@ -27,7 +27,12 @@ fi
 wait
 [ -s "$DATA/gas.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas.in"
 printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random.in"
-for scene in gas random; do
+scenes="gas random"
+for n in ${RANDOM_N:-}; do
+    printf '%s\n20000\n1\n10\nperf\n' "$n" > "$DATA/random_$n.in"
+    scenes="$scenes random_$n"
+done
+for scene in $scenes; do
     for p in "${progs[@]}"; do
         name=$(basename "$(dirname "$p")")/$(basename "$p")
         if [ ! -x "$p" ]; then
