@@ -1,9 +1,10 @@
 /* cuda.cu: the CUDA backend.
  *
  * Every phase of a step runs on the device, and the device never waits for the host. The host launches
- * steps in batches of up to BATCH, two batches ahead, and reads one control record per batch (the
- * largest speed, the counters) while the next batch runs. From that speed, a batch or two old, it plans
- * the launch sizes: the most time slices and the finest grid a step may use. Each step's first kernel
+ * steps in batches of up to BATCH (a whole batch as one CUDA graph), two batches ahead, and reads one
+ * control record per batch (the largest speed, the counters) while the next batch runs. From that
+ * speed, a batch or two old, it plans the launch sizes: the most time slices and the finest grid a
+ * step may use. Each step's first kernel
  * fits its grid to the largest speed of its own disks within that plan, so the grid is always valid.
  * A step whose pair events overflow the event list is refused before it writes the state; the steps
  * launched after it then get an empty grid, write only scratch buffers and commit nothing, and the
@@ -80,6 +81,9 @@ extern "C" const char backend_options[] = "";
 #endif
 #define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
                                      clearing and scanning cells than it saves in pair tests */
+#ifndef GRAPHS
+#define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
+#endif
 #ifndef LEVELS
 #define LEVELS 3                  /* speed levels at most (disk_level); 1: every disk in every slice (of 1
                                      to 4 at N = 32000, 3 the fastest) */
@@ -1350,6 +1354,9 @@ typedef struct {
     real *out_host[2];          /* pinned copies, one per batch in flight (checkpoints: then p, w) */
     int checkpoints;            /* --checkpoint: out_host also holds the counts */
     cudaStream_t stream;
+    int graphs;                 /* batches of BATCH steps launched as one CUDA graph (batch_launch) */
+    cudaGraphExec_t graph[2];   /* one per batch in flight */
+    uint64_t shape[2];          /* the shape of each slot's last batch (batch_shape) */
     int sms;
     int timed;                        /* --stats: time each phase with device events */
     cudaEvent_t mark[RING][WMAX][PHASES + 1]; /* per window: bin .. finish; the last window's: move */
@@ -1468,6 +1475,10 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
                                     (int)RUN_BYTES));
     c->timed = timed;
+    /* SIM_CUDA_GRAPH=0 (or a build with -DGRAPHS=0): every batch kernel by kernel (the tests run both
+     * ways; --stats always does) */
+    const char *graphs = getenv("SIM_CUDA_GRAPH");
+    c->graphs = GRAPHS && !timed && !(graphs && atoi(graphs) == 0);
     c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
@@ -1560,6 +1571,8 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
 
 static void cuda_close(Cuda *c)
 {
+    for (int b = 0; b < 2; b++)
+        if (c->graph[b]) cudaGraphExecDestroy(c->graph[b]);
     state_free(&c->st[0]);
     state_free(&c->st[1]);
     cudaFree(c->pc);
@@ -1882,6 +1895,51 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
     c->cur = 1 - in;
 }
 
+/* What sets the kernels a batch launches, and in what order (step_launch): its steps, one slice or
+ * several, the windows, the speed levels' lists, each window's choice rounds. */
+static uint64_t batch_shape(const Plan *pl, int64_t steps)
+{
+    uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
+    int64_t f[4 + WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1};
+    for (int w = 0; w < pl->W && w < WMAX; w++) f[4 + w] = pl->rounds[w];
+    for (int i = 0; i < 4 + WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
+    return h;
+}
+
+/* Steps first to last, from the current state (cur_at: the state each starts from). A batch of BATCH
+ * steps whose shape (batch_shape) is that of the last batch of its slot b is captured and launched as
+ * one graph, whose kernels the device starts with less delay between them than kernels launched one
+ * by one (random scene, N = 32000: 1.62e8-1.65e8 against 1.51e8-1.52e8 particle-steps/s). graph[b] is
+ * updated in place (only sizes and pointers differ), made the first time; slot b's last launch has
+ * finished by then (the host read its batch back). Other batches launch kernel by kernel: making a
+ * graph takes milliseconds, which a run of 10 steps at N = 1e6 does not win back (2.5e8 against 2.8e8
+ * when every full batch made one), and so do --stats runs. bench/gpu_h100_variants.log 9h. */
+static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at)
+{
+    uint64_t shape = batch_shape(pl, last - first + 1);
+    int graph = c->graphs && last - first + 1 == BATCH && shape == c->shape[b];
+    c->shape[b] = shape;
+    if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
+    for (int64_t s = first; s <= last; s++) {
+        cur_at[s % RING] = c->cur;
+        step_launch(c, pl, (int)(s % RING));
+    }
+    if (!graph) return;
+    cudaGraph_t g;
+    CUDA_CHECK(cudaStreamEndCapture(c->stream, &g));
+    if (c->graph[b]) {
+        cudaGraphExecUpdateResultInfo info;
+        if (cudaGraphExecUpdate(c->graph[b], g, &info) != cudaSuccess) {
+            cudaGetLastError(); /* a graph of another shape: made anew below */
+            CUDA_CHECK(cudaGraphExecDestroy(c->graph[b]));
+            c->graph[b] = NULL;
+        }
+    }
+    if (!c->graph[b]) CUDA_CHECK(cudaGraphInstantiate(&c->graph[b], g, 0));
+    CUDA_CHECK(cudaGraphDestroy(g));
+    CUDA_CHECK(cudaGraphLaunch(c->graph[b], c->stream));
+}
+
 /* The host threads of backend_parallel: started once, then woken for each call (the output is written
  * in rounds of a few MB, some 800 calls for a state of 1e8 disks), up to 16 with the calling thread. */
 struct HostPool {
@@ -2154,10 +2212,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                 bt->last = due * k; /* a print step in this batch can only be this one */
                 bt->ck = due;
             }
-            for (int64_t s = bt->first; s <= bt->last; s++) {
-                cur_at[s % RING] = c.cur;
-                step_launch(&c, &pl, (int)(s % RING));
-            }
+            batch_launch(&c, &pl, b, bt->first, bt->last, cur_at);
             if (bt->print || bt->ck) print_enqueue(&c, b);
             if (bt->ck) counts_enqueue(&c, b);
             CUDA_CHECK(cudaMemcpyAsync(&c.ctl_host[b], c.ctl, sizeof(Control), cudaMemcpyDeviceToHost,

@@ -80,6 +80,24 @@ for name in slow fast overlap walls random; do
     done
 done
 
+# Batches of BATCH steps run as one CUDA graph unless --stats (cuda.cu, batch_launch), as the perf
+# cases above do: here kernel by kernel (SIM_CUDA_GRAPH=0), and in graphs through refused steps and
+# plans that alternate between one slice and several, which change the graphs' shape (the event list
+# of 2 overflows on these scenes: the --stats cases above count the refusals; without --stats the
+# graphs stay on).
+for name in fast random dense spread; do
+    for what in "kernel by kernel" "graphs, refused steps"; do
+        label="cuda/$name perf, $what"
+        if ! have_gpu; then
+            skip "$label" "no GPU"
+            continue
+        fi
+        envs="SIM_CUDA_GRAPH=0"
+        [ "$what" != "kernel by kernel" ] && envs="SIM_CUDA_EVENTS=2 SIM_CUDA_PLAN_SPEED=0,1"
+        same_bytes "$label" "$TMP/cuda_${name}_perf.expected" env $envs ./cuda "$TMP/cuda_${name}_perf.in" --quiet
+    done
+done
+
 # Time windows (cuda.cu, window_start): a step's slices are cut into windows whose choice is made one
 # after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
 # to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's
