@@ -172,14 +172,20 @@ static __host__ __device__ __forceinline__ int disk_level(double vx, double vy, 
     return l;
 }
 
-/* The level slice of level l that starts at slice k (a multiple of 2^l), of K: the fraction of the step
- * at its middle, and into *half its half length. bin_kernel keys an entry by the disk there, and
- * gather_entries_kernel copies it with its travel from there. */
-static __device__ __forceinline__ double slice_mid(int64_t k, int l, int K, double *half)
+/* Level l's slice j of K: its first slice and the one after it (the last one ends at K). */
+static __host__ __device__ __forceinline__ int2 level_span(uint32_t l, uint32_t j, int K)
 {
-    int64_t ke = k + (1 << l) < K ? k + (1 << l) : K; /* it ends before slice ke */
-    *half = (double)(ke - k) * (0.5 / K);
-    return (double)(k + ke) / (double)(2 * K);
+    int k = (int)(j << l), ke = k + (1 << l);
+    return make_int2(k, ke < K ? ke : K);
+}
+
+/* The level slice of level l that starts at slice k (a multiple of 2^l), of K: the fraction of the step
+ * at its middle. bin_kernel keys an entry by the disk there, gather_entries_kernel copies it from
+ * there, and near_path times the search from there. */
+static __device__ __forceinline__ double slice_mid(int64_t k, int l, int K)
+{
+    int2 span = level_span((uint32_t)l, (uint32_t)(k >> l), K);
+    return (double)(span.x + span.y) / (double)(2 * K);
 }
 
 /* The slices of level l in a window of slices k0 to k1 - 1 (k0 a multiple of 2^l). */
@@ -194,6 +200,21 @@ static __host__ __device__ __forceinline__ int level_base(int k0, int k1, int l)
     int rows = 0;
     for (int m = 0; m < l; m++) rows += level_rows(k0, k1, m);
     return rows;
+}
+
+/* The inverse of level_base: the level of row kl of a window of slices k0 to k1 - 1, and into *base
+ * that level's first row. */
+static __device__ __forceinline__ uint32_t row_level(uint32_t kl, uint32_t k0, uint32_t k1, int levels,
+                                                     uint32_t *base)
+{
+    uint32_t lv = 0, b = 0;
+    for (; lv + 1 < (uint32_t)levels; lv++) {
+        uint32_t rows = (uint32_t)level_rows((int)k0, (int)k1, (int)lv);
+        if (kl < b + rows) break;
+        b += rows;
+    }
+    *base = b;
+    return lv;
 }
 
 static __host__ __device__ __forceinline__ int window_rows(int k0, int k1, int levels)
@@ -424,13 +445,14 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
         x.row = kl;
         return x;
     }
-    /* the last level whose entries begin at or before e (a level with none is passed over); constant
-     * indices only, or d would go to local memory */
+    /* the last level whose entries begin at or before e (a level with none, and those beyond d.levels,
+     * begin where the next ones do, and are passed over); constant indices only, or d would go to local
+     * memory */
     int l = 0;
     uint32_t b = d.base[0], nl = d.nl[0];
 #pragma unroll
     for (int m = 1; m < LEVELS; m++)
-        if (m < d.levels && (uint32_t)e >= d.base[m]) {
+        if ((uint32_t)e >= d.base[m] && d.nl[m] > 0) {
             l = m;
             b = d.base[m];
             nl = d.nl[m];
@@ -539,7 +561,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
             }
         }
         real2 pos = st.pos[s];
-        double half, f = slice_mid(k, l, gr.K, &half);
+        double f = slice_mid(k, l, gr.K);
         double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
         int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
         uint32_t key = (uint32_t)(x.row * gr.ncell + cy * gr.g + cx);
@@ -629,7 +651,7 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
         en.slot[p] = (int32_t)s;
         en.wall[p] = wall_hi[s];
         /* the midpoint as bin_kernel computes it, and the velocity */
-        double h, f = slice_mid(x.k, x.l, K, &h);
+        double f = slice_mid(x.k, x.l, K);
         en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
                                 (float)vel.x, (float)vel.y);
     }
@@ -897,13 +919,6 @@ static __device__ __forceinline__ Cursor cursor_start(const Probe &pr, uint32_t 
     return cu;
 }
 
-/* Level a's slice j of K (the probe's: PROBE_LEVEL, PROBE_SLICE), its first slice and the one after it. */
-static __device__ __forceinline__ int2 level_span(uint32_t a, uint32_t j, int K)
-{
-    int k = (int)(j << a), ke = k + (1 << a);
-    return make_int2(k, ke < K ? ke : K);
-}
-
 /* How long before the middle of the probe's level slice the middle of run r's level slice is (0 for
  * runs 0 and 1, its own level; slice_mid: (k + ke) / 2K). */
 static __device__ __forceinline__ float run_offset(const Probe &pr, uint32_t r, int K)
@@ -968,12 +983,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
             uint32_t row = kl * gr.ncell + cy * g;
             if (MID) {
-                uint32_t lv = 0, base = 0;
-                for (; lv + 1 < (uint32_t)gr.levels; lv++) {
-                    uint32_t rows = (uint32_t)level_rows((int)k0, (int)k1, (int)lv);
-                    if (kl < base + rows) break;
-                    base += rows;
-                }
+                uint32_t base, lv = row_level(kl, k0, k1, gr.levels, &base);
                 pr.k = ((k0 >> lv) + (kl - base)) | (lv << 16);
             } else {
                 pr.k = kl + k0;
@@ -1017,15 +1027,15 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             uint32_t held = 0;
             for (;;) {
                 uint32_t q0 = self, q1 = self;
-                bool h0 = cursor_next(cu, q0, mine, col, gr.K);
+                bool got0 = cursor_next(cu, q0, mine, col, gr.K);
                 float dt0 = cu.dt;
-                bool h1 = h0 && cursor_next(cu, q1, mine, col, gr.K);
-                if (!__any_sync(0xffffffffu, h0)) break;
+                bool got1 = got0 && cursor_next(cu, q1, mine, col, gr.K);
+                if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
-                bool k0 = h0 && near_path(m, m0, dt0, h, pad2), k1 = h1 && near_path(m, m1, cu.dt, h, pad2);
-                if (!__any_sync(0xffffffffu, k0 || k1)) continue;
-                held = queue_push(wq, wo, held, k0, q0, lane);
-                held = queue_push(wq, wo, held, k1, q1, lane);
+                bool keep0 = got0 && near_path(m, m0, dt0, h, pad2), keep1 = got1 && near_path(m, m1, cu.dt, h, pad2);
+                if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
+                held = queue_push(wq, wo, held, keep0, q0, lane);
+                held = queue_push(wq, wo, held, keep1, q1, lane);
                 for (; held >= 32; held -= 32) {
                     __syncwarp();
                     uint32_t o = warp * 32 + wo[lane];

@@ -61,6 +61,7 @@ gas() { # N: the input of a gas of N disks (made once)
 now_ns() { date +%s%N; }
 best_of() { printf '%s\n' "$@" | sort -g | head -1; }
 median_of() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
+slowest_and_mean() { sort -g | awk '{ s += $1; m = $1 } END { printf "%s %.4f\n", m, s / NR }'; } # seconds on stdin
 stat_of() { sed -n "s/.*$2.*/\1/p" "$1" | tail -n 1; }
 
 # run PART PROGRAM RANKS THREADS N INPUT: one CSV row; LOOP_RATE is left with its best rate
@@ -145,8 +146,7 @@ for part in $PARTS; do
                     taskset -c "$c" ./omp "$input" --threads 1 > /dev/null 2> "$WORK/mpi_copy$c.err" &
                 done
                 wait
-                worst=$(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | sort -g | tail -n 1)
-                mean=$(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | awk '{ s += $1 } END { printf "%.4f", s / NR }')
+                read -r worst mean < <(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | slowest_and_mean)
                 echo "copies,omp,$p,1,$PER_RANK,$STEPS,$worst,$mean,,,,,,"
                 [ -z "$one" ] && one=$worst
                 summary+=("copies of omp at once, $PER_RANK disks each: $p copies, slowest step loop $worst s against $one s alone: $(awk -v a="$one" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
@@ -160,8 +160,7 @@ for part in $PARTS; do
                         taskset -c "$c" tools/contend "$kind" > "$WORK/contend$c.out" &
                     done
                     wait
-                    worst=$(for ((c = 0; c < p; c++)); do cut -d' ' -f1 "$WORK/contend$c.out"; done | sort -g | tail -n 1)
-                    mean=$(for ((c = 0; c < p; c++)); do cut -d' ' -f1 "$WORK/contend$c.out"; done | awk '{ s += $1 } END { printf "%.4f", s / NR }')
+                    read -r worst mean < <(for ((c = 0; c < p; c++)); do cut -d' ' -f1 "$WORK/contend$c.out"; done | slowest_and_mean)
                     echo "contention,contend $kind,$p,1,,,$worst,$mean,,,,,,"
                     [ -z "$one" ] && one=$worst
                     summary+=("contention, $kind-bound loop: $p copies at once, slowest $worst s, mean $mean s against $one s alone: $(awk -v a="$one" -v b="$worst" -v m="$mean" 'BEGIN { printf "%.0f%% (slowest), %.0f%% (mean)", 100 * a / b, 100 * a / m }')")
