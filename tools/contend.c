@@ -2,8 +2,12 @@
  * part contention). Weak scaling compares a rank among P with one alone; what the ranks share (memory
  * bandwidth, the last-level cache, the clock the package allows) bounds it whatever the program does.
  *
- * usage: tools/contend compute|memory
- *   compute  two chains of dependent floating-point operations: registers only, nothing shared
+ * usage: tools/contend compute|issue|cache|memory
+ *   compute  two chains of dependent floating-point operations: registers only, bound by the latency of
+ *            each operation, so a second hardware thread on the same core barely slows it
+ *   issue    twelve independent chains: bound by how many operations a core issues per cycle, so it
+ *            loses about half its speed to a second hardware thread on the same core
+ *   cache    a sweep over a 256 KB array, 400000 times: from the core's own L2
  *   memory   a sweep reading one double per 64-byte line of a 512 MB array, 10 times: all from DRAM
  * Prints the seconds the loop took (and a checksum that keeps the compiler from dropping it).
  */
@@ -23,12 +27,14 @@ static double now(void)
 
 int main(int argc, char **argv)
 {
-    if (argc != 2 || (strcmp(argv[1], "compute") != 0 && strcmp(argv[1], "memory") != 0)) {
-        fprintf(stderr, "usage: tools/contend compute|memory\n");
+    const char *kind = argc == 2 ? argv[1] : "";
+    if (strcmp(kind, "compute") != 0 && strcmp(kind, "issue") != 0 && strcmp(kind, "cache") != 0 &&
+        strcmp(kind, "memory") != 0) {
+        fprintf(stderr, "usage: tools/contend compute|issue|cache|memory\n");
         return 2;
     }
     double t0, sum;
-    if (strcmp(argv[1], "compute") == 0) {
+    if (strcmp(kind, "compute") == 0) {
         double a = 1, b = 1;
         t0 = now();
         for (long i = 0; i < 400000000L; i++) {
@@ -36,6 +42,33 @@ int main(int argc, char **argv)
             b = b * 0.9999999 - 1e-9;
         }
         sum = a + b;
+    } else if (strcmp(kind, "issue") == 0) {
+        double c[12];
+        for (int j = 0; j < 12; j++) c[j] = 1 + 1e-3 * j;
+        t0 = now();
+        for (long i = 0; i < 220000000L; i++)
+            for (int j = 0; j < 12; j++) c[j] = c[j] * 0.9999999 + 1e-9;
+        sum = 0;
+        for (int j = 0; j < 12; j++) sum += c[j];
+    } else if (strcmp(kind, "cache") == 0) {
+        size_t n = (size_t)32 << 10; /* doubles: 256 KB */
+        double *x = malloc(n * sizeof *x);
+        if (!x) {
+            fprintf(stderr, "contend: out of memory\n");
+            return 1;
+        }
+        for (size_t i = 0; i < n; i++) x[i] = (double)i;
+        double s4[4] = {0, 0, 0, 0};
+        t0 = now();
+        for (int r = 0; r < 400000; r++)
+            for (size_t i = 0; i < n; i += 32) { /* four lines a turn, four chains */
+                s4[0] += x[i];
+                s4[1] += x[i + 8];
+                s4[2] += x[i + 16];
+                s4[3] += x[i + 24];
+            }
+        sum = s4[0] + s4[1] + s4[2] + s4[3];
+        free(x);
     } else {
         size_t n = (size_t)64 << 20; /* doubles: 512 MB, beyond any cache */
         double *x = malloc(n * sizeof *x);

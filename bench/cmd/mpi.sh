@@ -8,9 +8,11 @@
 #   copies  RANKS independent copies of omp on one thread each (a gas of PER_RANK disks, one core each),
 #           at once: what sharing the machine alone costs, the bound of weak scaling (not in the default;
 #           its rows give the slowest copy's step loop as best_loop_s, the mean as median_loop_s);
-#   contention RANKS copies at once, one a core, of a compute-bound and of a memory-bound loop
-#           (tools/contend): how much of a core each keeps when the others run, without any program of
-#           ours (not in the default; rows give the slowest copy's seconds as best_loop_s, the mean as
+#   contention RANKS copies at once, one a core, of loops bound by latency, by issue slots, by the
+#           core's L2 and by DRAM (tools/contend; CONTEND_KINDS picks): how much of a core each keeps
+#           when the others run, without any program of ours; then the issue-bound loop on core 0 beside
+#           one on each other core, which finds cores that are hardware threads of one physical core
+#           (not in the default; rows give the slowest copy's seconds as best_loop_s, the mean as
 #           median_loop_s);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
@@ -153,7 +155,7 @@ for part in $PARTS; do
             done
             ;;
         contention)
-            for kind in compute memory; do
+            for kind in ${CONTEND_KINDS:-compute issue cache memory}; do
                 one=""
                 for p in $RANKS; do
                     for ((c = 0; c < p; c++)); do
@@ -166,6 +168,19 @@ for part in $PARTS; do
                     summary+=("contention, $kind-bound loop: $p copies at once, slowest $worst s, mean $mean s against $one s alone: $(awk -v a="$one" -v b="$worst" -v m="$mean" 'BEGIN { printf "%.0f%% (slowest), %.0f%% (mean)", 100 * a / b, 100 * a / m }')")
                 done
             done
+            # which cores share one core's issue slots (hardware threads of one physical core, which a
+            # virtual machine's own topology may not show): the issue-bound loop on core 0 beside core c
+            one=$(taskset -c 0 tools/contend issue | cut -d' ' -f1)
+            shared=""
+            for ((c = 1; c < CORES; c++)); do
+                taskset -c 0 tools/contend issue > "$WORK/contend0.out" &
+                taskset -c "$c" tools/contend issue > "$WORK/contend$c.out" &
+                wait
+                t=$(cut -d' ' -f1 "$WORK/contend0.out")
+                echo "contention,contend issue with core $c,2,1,,,$t,$t,,,,,,"
+                awk -v a="$one" -v b="$t" 'BEGIN { exit !(a / b < 0.75) }' && shared="$shared $c"
+            done
+            summary+=("contention, issue-bound loop on core 0 beside one on core c: below 75% of its speed alone ($one s) for c in {${shared# }} (none: no two of these cores share a physical core)")
             ;;
         balance)
             p=${RANKS##* } n=$((PER_RANK * ${RANKS##* }))
