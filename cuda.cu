@@ -44,6 +44,7 @@
 #include <string.h>
 
 #include <atomic>
+#include <utility>
 #include <condition_variable>
 #include <mutex>
 #include <thread>
@@ -83,6 +84,9 @@ extern "C" const char backend_options[] = "";
                                      clearing and scanning cells than it saves in pair tests */
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
+#endif
+#ifndef PDL
+#define PDL 1                     /* a step's kernels as programmatic dependent launches (step_kernel) */
 #endif
 #ifndef LEVELS
 #define LEVELS 3                  /* speed levels at most (disk_level); 1: every disk in every slice (of 1
@@ -288,6 +292,19 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     return gr;
 }
 
+/* The first statement of every kernel of a step: waits until the kernel before it in the stream has
+ * finished and its writes are visible, then lets the next one start launching, whose blocks take the
+ * places this kernel's last ones leave and wait there in turn. Both do nothing unless the kernel came
+ * by a programmatic dependent launch (step_kernel), which lets the device start launching a kernel
+ * while the one before it drains instead of after. */
+static __device__ __forceinline__ void after_previous(void)
+{
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
+    asm volatile("griddepcontrol.wait;" ::: "memory");
+    asm volatile("griddepcontrol.launch_dependents;" ::: "memory");
+#endif
+}
+
 /* A slot in a list shared by the whole grid: one atomic per group of threads that append together. */
 static __device__ __forceinline__ unsigned long long list_append(unsigned long long *count)
 {
@@ -473,6 +490,7 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
                             unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid)
 {
+    after_previous();
     /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
      * search nothing (their state buffers may hold anything, even memory never written, whose disks
      * could all fall into one cell); the counters are cleared all the same */
@@ -508,6 +526,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
  * on one address.) */
 __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
 {
+    after_previous();
     static_assert(MAX_ROUNDS <= 32 && WMAX <= 32, "a thread each");
     if (ctl->refused) return;
     int t = threadIdx.x;
@@ -544,6 +563,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
                            const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
                            uint32_t *rank, uint32_t *count)
 {
+    after_previous();
     const Grid gr = *grid;
     /* !LEVELS_LISTED: the compiler drops the lists' decoding (one-slice steps: 44 registers against 52,
      * 5 blocks a multiprocessor against 4) */
@@ -586,6 +606,7 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
                                     const Control *ctl)
 {
+    after_previous();
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) return;
     /* After a refusal the empty grid places nothing, so order may hold an older step's entries (< n
@@ -610,6 +631,7 @@ __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *
                              const uint32_t *keys, const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
                              uint32_t *order)
 {
+    after_previous();
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, LEVELS_LISTED ? lev : NULL, info);
     ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         uint32_t key = keys[e];
@@ -617,6 +639,66 @@ __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *
         int64_t p = (int64_t)start[key] + rank[e];
         keys_sorted[p] = key;
         order[p] = (uint32_t)e;
+    }
+}
+
+/* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with
+ * programmatic launches, step_kernel), in place of cub's: the tile sums, then each tile's sum from those
+ * before it; the second clears the counts behind it for the next binning, which then needs no clearing
+ * of its own. Random scene, N = 32000: 1.74e8 against 1.72e8 particle-steps/s with cub's scan and the
+ * clearing (bench/gpu_h100_variants.log 10c). */
+#define SCAN_ITEMS 8
+#define SCAN_TILE (THREADS * SCAN_ITEMS)
+#ifndef SCAN_TILES
+#define SCAN_TILES 1024 /* the longest table scanned so: 2M cells (each block adds up to SCAN_TILES sums) */
+#endif
+
+__global__ void tile_sum_kernel(const uint32_t *count, int64_t len, uint32_t *sums)
+{
+    after_previous();
+    typedef cub::BlockReduce<uint32_t, THREADS> Reduce;
+    __shared__ typename Reduce::TempStorage tmp;
+    int64_t base = (int64_t)blockIdx.x * SCAN_TILE;
+    uint32_t sum = 0;
+    for (int i = 0; i < SCAN_ITEMS; i++) {
+        int64_t j = base + i * THREADS + threadIdx.x;
+        if (j < len) sum += count[j];
+    }
+    sum = Reduce(tmp).Sum(sum);
+    if (threadIdx.x == 0) sums[blockIdx.x] = sum;
+}
+
+__global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *sums, uint32_t *start)
+{
+    after_previous();
+    typedef cub::BlockLoad<uint32_t, THREADS, SCAN_ITEMS, cub::BLOCK_LOAD_TRANSPOSE> Load;
+    typedef cub::BlockStore<uint32_t, THREADS, SCAN_ITEMS, cub::BLOCK_STORE_TRANSPOSE> Store;
+    typedef cub::BlockReduce<uint32_t, THREADS> Reduce;
+    typedef cub::BlockScan<uint32_t, THREADS> Scan;
+    __shared__ union {
+        typename Load::TempStorage load;
+        typename Store::TempStorage store;
+        typename Reduce::TempStorage reduce;
+        typename Scan::TempStorage scan;
+    } tmp;
+    __shared__ uint32_t before;
+    int64_t base = (int64_t)blockIdx.x * SCAN_TILE;
+    int valid = len - base < SCAN_TILE ? (int)(len - base) : SCAN_TILE;
+    uint32_t sum = 0;
+    for (uint32_t i = threadIdx.x; i < blockIdx.x; i += THREADS) sum += sums[i];
+    sum = Reduce(tmp.reduce).Sum(sum);
+    if (threadIdx.x == 0) before = sum;
+    __syncthreads();
+    uint32_t items[SCAN_ITEMS];
+    Load(tmp.load).Load(count + base, items, valid, 0u);
+    __syncthreads();
+    Scan(tmp.scan).ExclusiveSum(items, items);
+    for (int i = 0; i < SCAN_ITEMS; i++) items[i] += before;
+    __syncthreads();
+    Store(tmp.store).Store(start + base, items, valid);
+    for (int i = 0; i < SCAN_ITEMS; i++) { /* read above by this block alone */
+        int64_t j = base + i * THREADS + threadIdx.x;
+        if (j < len) count[j] = 0;
     }
 }
 
@@ -639,6 +721,7 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
                                       const StepInfo *info, const uint32_t *order, const uint32_t *start,
                                       const Grid *grid, const uint64_t *wall_hi, Entries en)
 {
+    after_previous();
     const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
     const int K = grid->K;
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
@@ -682,6 +765,7 @@ __global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par
                             uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
                             uint8_t *level_of, int32_t *lev, StepInfo *info)
 {
+    after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     const int levels = grid->levels;
     int l = 0;
@@ -709,6 +793,7 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
                                 uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo,
                                 const uint8_t *level_of, int32_t *lev)
 {
+    after_previous();
     const int K = grid->K, k0 = grid->wb[w], end = grid->wb[w + 1], levels = grid->levels;
     if (k0 >= end) return; /* an empty window: so are the later ones */
     int64_t np = w == 1 ? n : (int64_t)info->active[w - 1];
@@ -955,6 +1040,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
                   uint64_t *best_hi)
 {
+    after_previous();
     typedef cub::BlockScan<uint32_t, THREADS> Scan;
     __shared__ typename Scan::TempStorage scan_tmp;
     __shared__ Probe probes[THREADS];
@@ -1154,6 +1240,7 @@ static __device__ __forceinline__ int64_t list_len(const unsigned long long *cou
 __global__ void min_lo_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
                               const uint64_t *best_hi, uint64_t *best_lo)
 {
+    after_previous();
     int64_t len = list_len(count, cap);
     GRID_LOOP(i, len) pass_min_lo(ev, i, best_hi, best_lo);
 }
@@ -1161,6 +1248,7 @@ __global__ void min_lo_kernel(const PairEvent *ev, const unsigned long long *cou
 __global__ void min_hi_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
                               uint64_t *best_hi)
 {
+    after_previous();
     int64_t len = list_len(count, cap);
     GRID_LOOP(i, len) pass_min_hi(ev, i, best_hi);
 }
@@ -1168,6 +1256,7 @@ __global__ void min_hi_kernel(const PairEvent *ev, const unsigned long long *cou
 __global__ void accept_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
                               const uint64_t *best_hi, const uint64_t *best_lo, int32_t *partner)
 {
+    after_previous();
     int64_t len = list_len(count, cap);
     GRID_LOOP(i, len) pass_accept(ev, i, best_hi, best_lo, partner);
 }
@@ -1176,6 +1265,7 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
                                PairEvent *out, unsigned long long *count_out, const int32_t *partner,
                                const uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo)
 {
+    after_previous();
     int64_t len = list_len(count, cap);
     GRID_LOOP(i, len) pass_compact(ev, i, out, count_out, cap, partner, wall_hi, best_hi, best_lo);
 }
@@ -1184,6 +1274,7 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
 __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned long long *count, int64_t cap,
                               int32_t *partner, const uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo)
 {
+    after_previous();
     __shared__ unsigned long long n_out;
     PairEvent *in = ev0, *out = ev1;
     int64_t len = list_len(count, cap);
@@ -1216,6 +1307,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
                             StepInfo *info, int64_t cap, Control *ctl)
 {
+    after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
     int32_t id = 0, o = -1;
@@ -1343,6 +1435,11 @@ typedef struct {
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
+    uint32_t *tile_sums;                 /* SCAN_TILES: the short tables' tile sums (tile_sum_kernel) */
+    int64_t scan_tiles;                  /* tables of as many tiles at most are scanned so (else cub) */
+    int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
+    int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
+    int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
     Entries en;                          /* K > 1 only */
     GridLimits lim;
     int64_t entry_cap;   /* entries the key arrays hold */
@@ -1365,6 +1462,7 @@ typedef struct {
     int checkpoints;            /* --checkpoint: out_host also holds the counts */
     cudaStream_t stream;
     int graphs;                 /* batches of BATCH steps launched as one CUDA graph (batch_launch) */
+    int pdl;                    /* a step's kernels as programmatic dependent launches (step_kernel) */
     cudaGraphExec_t graph[2];   /* one per batch in flight */
     uint64_t shape[2];          /* the shape of each slot's last batch (batch_shape) */
     int sms;
@@ -1489,6 +1587,17 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
      * ways; --stats always does) */
     const char *graphs = getenv("SIM_CUDA_GRAPH");
     c->graphs = GRAPHS && !timed && !(graphs && atoi(graphs) == 0);
+    /* SIM_CUDA_PDL=0 (or -DPDL=0): no programmatic dependent launches (sm_90 and later have them) */
+    const char *pdl = getenv("SIM_CUDA_PDL");
+    int major = 0;
+    CUDA_CHECK(cudaDeviceGetAttribute(&major, cudaDevAttrComputeCapabilityMajor, 0));
+    c->pdl = PDL && major >= 9 && !(pdl && atoi(pdl) == 0);
+    /* SIM_CUDA_SCAN_TILES=T: cell tables of more than T tiles go to cub (0: all), -1: the batches of
+     * one slot (batch_launch) to cub, of the other to the short scan (the tests take both ways) */
+    const char *scan_tiles = getenv("SIM_CUDA_SCAN_TILES");
+    c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
+    c->scan_alternate = c->scan_tiles < 0;
+    if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
     c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
@@ -1544,6 +1653,9 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->start = (uint32_t *)dev_alloc(nc * 4, "the cell table");
     CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
     c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
+    c->tile_sums = (uint32_t *)dev_alloc(SCAN_TILES * sizeof(uint32_t), "the cell table");
+    CUDA_CHECK(cudaMemsetAsync(c->count, 0, nc * 4, c->stream)); /* the short scans keep it clear */
+    c->dirty = 0;
     if (lim->max_slices > 1) {
         c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
         c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
@@ -1594,6 +1706,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->count);
     cudaFree(c->start);
     cudaFree(c->scan_tmp);
+    cudaFree(c->tile_sums);
     cudaFree(c->en.pos);
     cudaFree(c->en.vel);
     cudaFree(c->en.id);
@@ -1653,6 +1766,8 @@ static void phase_report(const Cuda *c, const Control *h)
         fprintf(stderr, "\ncuda: per window, disks free at its start and pair events found:");
         for (int w = 0; w < WMAX && h->wactive[w]; w++) fprintf(stderr, " %llu/%llu", h->wactive[w], h->wfound[w]);
     }
+    fprintf(stderr, "\ncuda: cell tables scanned in two short kernels: %lld, by cub: %lld", (long long)c->scans[1],
+            (long long)c->scans[0]);
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
             "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
 }
@@ -1759,38 +1874,49 @@ static int64_t window_blocks(const Cuda *c, const Plan *pl, int w)
     return pl->W == 1 ? blocks_for(pl->went[w]) : loop_blocks(c, pl->went[w], LOOP_BLOCKS);
 }
 
+/* A kernel of a step, as a programmatic dependent launch where c->pdl (after_previous): random scene,
+ * N = 32000, 1.72e8 against 1.66e8 particle-steps/s without; 1e5 and 1e6 4% to 5% faster, the gas of
+ * 1e7 alike (bench/gpu_h100_variants.log 10b). */
+template <typename... P, typename... A>
+static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void (*kernel)(P...), A &&...args)
+{
+    cudaLaunchConfig_t cfg = {};
+    cfg.gridDim = dim3((unsigned)blocks);
+    cfg.blockDim = dim3((unsigned)threads);
+    cfg.dynamicSmemBytes = smem;
+    cfg.stream = c->stream;
+    cudaLaunchAttribute pdl;
+    pdl.id = cudaLaunchAttributeProgrammaticStreamSerialization;
+    pdl.val.programmaticStreamSerializationAllowed = 1;
+    cfg.attrs = &pdl;
+    cfg.numAttrs = c->pdl ? 1 : 0;
+    CUDA_CHECK(cudaLaunchKernelEx(&cfg, kernel, std::forward<A>(args)...));
+}
+
 /* The choice among window w's pair events (wall: the wall events as it sees them). */
 static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
 {
-    cudaStream_t s = c->stream;
     phase_mark(c, ring, w, 4);
     int64_t blocks = pl->choose_blocks[w];
     const unsigned long long *found = &c->info->found[w];
     unsigned long long *counts = c->counts + w * (MAX_ROUNDS + 1);
-    min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
-    CUDA_LAUNCHED();
-    accept_kernel<<<blocks, THREADS, 0, s>>>(c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
-    CUDA_LAUNCHED();
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
+    step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
     int list = 0;
     const unsigned long long *len = found;
     for (int r = 1; r < pl->rounds[w]; r++) {
-        compact_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->ev[1 - list], &counts[r],
-                                                c->partner, wall, c->best_hi, c->best_lo);
-        CUDA_LAUNCHED();
+        step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[list], len, c->ev_cap, c->ev[1 - list],
+                    &counts[r], c->partner, wall, c->best_hi, c->best_lo);
         list = 1 - list;
         len = &counts[r];
-        min_hi_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi);
-        CUDA_LAUNCHED();
-        min_lo_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
-        CUDA_LAUNCHED();
-        accept_kernel<<<blocks, THREADS, 0, s>>>(c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
-                                                 c->partner);
-        CUDA_LAUNCHED();
+        step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[list], len, c->ev_cap, c->best_hi);
+        step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+        step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
+                    c->partner);
     }
     phase_mark(c, ring, w, 5);
-    finish_kernel<<<1, 1024, 0, s>>>(c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner, wall, c->best_hi,
-                                     c->best_lo);
-    CUDA_LAUNCHED();
+    step_kernel(c, 1, 1024, 0, finish_kernel, c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner, wall,
+                c->best_hi, c->best_lo);
     phase_mark(c, ring, w, 6);
 }
 
@@ -1799,66 +1925,70 @@ template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
                              int ring)
 {
-    cudaStream_t s = c->stream;
-    int64_t blocks = window_blocks(c, pl, w);
-    CUDA_CHECK(cudaMemsetAsync(c->count, 0, ((size_t)pl->wcells[w] + 1) * sizeof(uint32_t), s));
+    int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
+    bool short_scan = tiles <= c->scan_tiles;
+    c->scans[short_scan]++;
+    /* the short scans clear the counts behind them; after cub's, they are cleared before binning */
+    if (!short_scan || c->dirty > 0) {
+        int64_t clear = len > c->dirty ? len : c->dirty;
+        CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)clear * sizeof(uint32_t), c->stream));
+        c->dirty = 0;
+    }
     if (lev)
-        bin_kernel<WINDOWS, true><<<blocks, THREADS, 0, s>>>(c->st[in], c->n, c->grid, w, act, lev, c->info,
-                                                             c->wall_hi, c->keys, c->rank, c->count);
+        step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
+                    c->info, c->wall_hi, c->keys, c->rank, c->count);
     else
-        bin_kernel<WINDOWS, false><<<blocks, THREADS, 0, s>>>(c->st[in], c->n, c->grid, w, act, lev, c->info,
-                                                              c->wall_hi, c->keys, c->rank, c->count);
-    CUDA_LAUNCHED();
+        step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
+                    c->info, c->wall_hi, c->keys, c->rank, c->count);
     phase_mark(c, ring, w, 1);
-    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start,
-                                             pl->wcells[w] + 1, s));
+    if (short_scan) {
+        step_kernel(c, tiles, THREADS, 0, tile_sum_kernel, c->count, len, c->tile_sums);
+        step_kernel(c, tiles, THREADS, 0, tile_scan_kernel, c->count, len, c->tile_sums, c->start);
+    } else {
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start, len,
+                                                 c->stream));
+        c->dirty = len;
+    }
     phase_mark(c, ring, w, 2);
     if (lev)
-        place_kernel<WINDOWS, true><<<blocks, THREADS, 0, s>>>(c->grid, w, c->n, lev, c->info, c->keys, c->rank,
-                                                               c->start, c->keys_sorted, c->order);
+        step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, true>, c->grid, w, c->n, lev, c->info, c->keys,
+                    c->rank, c->start, c->keys_sorted, c->order);
     else
-        place_kernel<WINDOWS, false><<<blocks, THREADS, 0, s>>>(c->grid, w, c->n, lev, c->info, c->keys, c->rank,
-                                                                c->start, c->keys_sorted, c->order);
-    CUDA_LAUNCHED();
+        step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, false>, c->grid, w, c->n, lev, c->info, c->keys,
+                    c->rank, c->start, c->keys_sorted, c->order);
 }
 
 /* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1). */
 static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
 {
-    cudaStream_t s = c->stream;
     int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
     const uint32_t *keys = c->keys_sorted, *start = c->start;
     if (pl->K == 1)
-        detect_kernel<false, false><<<one, THREADS, 0, s>>>(en, keys, start, c->grid, w, c->par.sigma2, c->ev[0],
-                                                            c->ev_cap, c->info, c->best_hi);
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false>, en, keys, start, c->grid, w, c->par.sigma2,
+                    c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        detect_kernel<false, true><<<one, THREADS, RUN_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
-                                                                      c->ev[0], c->ev_cap, c->info, c->best_hi);
+        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true>, en, keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        detect_kernel<true, true><<<tiles, THREADS, RUN_BYTES, s>>>(en, keys, start, c->grid, w, c->par.sigma2,
-                                                                       c->ev[0], c->ev_cap, c->info, c->best_hi);
-    CUDA_LAUNCHED();
+        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true>, en, keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
 }
 
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
  * ring: the step's phase marks under --stats. */
 static void step_launch(Cuda *c, const Plan *pl, int ring)
 {
-    cudaStream_t s = c->stream;
     int64_t n = c->n;
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
-    gate_kernel<<<1, 1, 0, s>>>(c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W, pl->levels,
-                                c->grid);
-    CUDA_LAUNCHED();
+    step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
+                pl->levels, c->grid);
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
         bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring);
-        gather_state_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], c->order, n, c->par,
-                                                              c->wall_hi, c->best_hi, c->best_lo, c->partner,
-                                                              c->ctl);
-        CUDA_LAUNCHED();
+        step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
+                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl);
         in = 1 - in;
         DevState *d = &c->st[in];
         Entries en;
@@ -1875,44 +2005,42 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
             int32_t *act = c->act[w & 1];
             int32_t *lev = pl->levels > 1 ? c->lev : NULL; /* the device's grid may take fewer */
             if (w == 0)
-                init_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], n, grid, c->par, c->wall_hi, c->wall_win,
-                                                              c->best_hi, c->best_lo, c->partner, c->level_of,
-                                                              c->lev, c->info);
+                step_kernel(c, blocks_for(n), THREADS, 0, init_kernel, c->st[in], n, grid, c->par, c->wall_hi,
+                            c->wall_win, c->best_hi, c->best_lo, c->partner, c->level_of, c->lev, c->info);
             else
-                activate_kernel<<<loop_blocks(c, n, 16), THREADS, 0, s>>>(n, grid, w, c->act[(w - 1) & 1], act,
-                                                                        c->info, c->partner, c->wall_hi,
-                                                                        c->wall_win, c->best_hi, c->best_lo,
-                                                                        c->level_of, c->lev);
-            CUDA_LAUNCHED();
+                step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, activate_kernel, n, grid, w, c->act[(w - 1) & 1],
+                            act, c->info, c->partner, c->wall_hi, c->wall_win, c->best_hi, c->best_lo, c->level_of,
+                            c->lev);
             if (pl->W == 1)
                 bin_place_launch<false>(c, pl, w, in, act, lev, ring);
             else
                 bin_place_launch<true>(c, pl, w, in, act, lev, ring);
-            gather_entries_kernel<<<window_blocks(c, pl, w), THREADS, 0, s>>>(
-                c->st[in], n, w, act, lev, c->info, c->order, c->start, grid, c->wall_hi, c->en);
-            CUDA_LAUNCHED();
+            step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act, lev,
+                        c->info, c->order, c->start, grid, c->wall_hi, c->en);
             phase_mark(c, ring, w, 3);
             detect_launch(c, pl, w, c->en);
             choose_launch(c, pl, w, c->wall_win, ring);
         }
     }
-    move_kernel<<<blocks_for(n), THREADS, 0, s>>>(c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
-                                                  c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
-    CUDA_LAUNCHED();
+    step_kernel(c, blocks_for(n), THREADS, 0, move_kernel, c->st[in], c->st[1 - in], n, c->par, c->partner,
+                c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
     phase_mark(c, ring, pl->W - 1, 7);
-    commit_kernel<<<1, 32, 0, s>>>(c->ctl, c->info, c->counts);
-    CUDA_LAUNCHED();
+    step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
     c->cur = 1 - in;
 }
 
 /* What sets the kernels a batch launches, and in what order (step_launch): its steps, one slice or
- * several, the windows, the speed levels' lists, each window's choice rounds. */
-static uint64_t batch_shape(const Plan *pl, int64_t steps)
+ * several, the windows, the speed levels' lists, each window's choice rounds and way of scanning its
+ * cell table, and whether a scan by cub left counts to clear. */
+static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    int64_t f[4 + WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1};
-    for (int w = 0; w < pl->W && w < WMAX; w++) f[4 + w] = pl->rounds[w];
-    for (int i = 0; i < 4 + WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
+    int64_t f[5 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0};
+    for (int w = 0; w < pl->W && w < WMAX; w++) {
+        f[5 + 2 * w] = pl->rounds[w];
+        f[6 + 2 * w] = (pl->wcells[w] + SCAN_TILE) / SCAN_TILE <= c->scan_tiles; /* bin_place_launch */
+    }
+    for (int i = 0; i < 5 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
     return h;
 }
 
@@ -1926,7 +2054,8 @@ static uint64_t batch_shape(const Plan *pl, int64_t steps)
  * when every full batch made one), and so do --stats runs. bench/gpu_h100_variants.log 9h. */
 static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at)
 {
-    uint64_t shape = batch_shape(pl, last - first + 1);
+    if (c->scan_alternate) c->scan_tiles = b ? SCAN_TILES : 0; /* SIM_CUDA_SCAN_TILES=-1 */
+    uint64_t shape = batch_shape(c, pl, last - first + 1);
     int graph = c->graphs && last - first + 1 == BATCH && shape == c->shape[b];
     c->shape[b] = shape;
     if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));

@@ -84,17 +84,46 @@ done
 # cases above do: here kernel by kernel (SIM_CUDA_GRAPH=0), and in graphs through refused steps and
 # plans that alternate between one slice and several, which change the graphs' shape (the event list
 # of 2 overflows on these scenes: the --stats cases above count the refusals; without --stats the
-# graphs stay on).
+# graphs stay on). Each kernel of a step starts launching while the one before it drains (programmatic
+# dependent launch, cuda.cu step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
 for name in fast random dense spread; do
-    for what in "kernel by kernel" "graphs, refused steps"; do
+    for what in "kernel by kernel" "graphs, refused steps" "graphs, no programmatic launches"; do
         label="cuda/$name perf, $what"
         if ! have_gpu; then
             skip "$label" "no GPU"
             continue
         fi
         envs="SIM_CUDA_GRAPH=0"
-        [ "$what" != "kernel by kernel" ] && envs="SIM_CUDA_EVENTS=2 SIM_CUDA_PLAN_SPEED=0,1"
+        [ "$what" = "graphs, refused steps" ] && envs="SIM_CUDA_EVENTS=2 SIM_CUDA_PLAN_SPEED=0,1"
+        [ "$what" = "graphs, no programmatic launches" ] && envs="SIM_CUDA_PDL=0 SIM_CUDA_EVENTS=2"
         same_bytes "$label" "$TMP/cuda_${name}_perf.expected" env $envs ./cuda "$TMP/cuda_${name}_perf.in" --quiet
+    done
+done
+
+# The cell table's exclusive sum: two short kernels that also clear the counts behind them, or cub's
+# for long tables, after which the counts are cleared before the next binning (cuda.cu,
+# bin_place_launch). These scenes' tables are short; SIM_CUDA_SCAN_TILES=-1 sends every other batch to
+# cub, so the short scans also follow cub's, in graphs and (with SIM_CUDA_WINDOW=1) across windows.
+# --stats counts the tables each way: both must have been taken.
+for name in slow fast walls random spread mixed_gas; do
+    for mode in print perf; do
+        label="cuda/$name $mode, cell tables scanned short and by cub in turn"
+        if ! have_gpu; then
+            skip "$label" "no GPU"
+            skip "$label, windows from 1 slice" "no GPU"
+            continue
+        fi
+        same_bytes "$label" "$TMP/cuda_${name}_$mode.expected" env SIM_CUDA_SCAN_TILES=-1 \
+            ./cuda "$TMP/cuda_${name}_$mode.in" --quiet
+        same_bytes "$label, windows from 1 slice" "$TMP/cuda_${name}_$mode.expected" env SIM_CUDA_SCAN_TILES=-1 \
+            SIM_CUDA_WINDOW=1 ./cuda "$TMP/cuda_${name}_$mode.in" --quiet --stats
+        line=$(grep "cell tables scanned" "$TMP/err")
+        if [[ $line =~ short\ kernels:\ ([0-9]+),\ by\ cub:\ ([0-9]+) ]] && [ "${BASH_REMATCH[1]}" -gt 0 ] &&
+            [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+            pass "$label: both ways taken"
+        else
+            fail "$label: both ways taken" "stats: ${line:-no line}"
+        fi
     done
 done
 
