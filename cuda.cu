@@ -863,18 +863,21 @@ typedef struct {
  * the disks are 2r apart plus the broad phase's margin: pad covers both, and the float rounding of
  * positions, velocities and times (a few units of 6e-8 of the scale, grid_fit). The closest approach
  * is taken at the time the relative motion gives, clamped to the slice: a time a little off it (the
- * fast division) adds only the square of that error to the squared distance. About 20 float
- * operations against the pair test's dozens in double and its 40 bytes of loads: in the assignment's
+ * fast division) adds only the square of that error to the squared distance. Fused multiply-adds
+ * round once where a product and a sum would round twice, so pad covers them too; the build's
+ * --fmad=false keeps them out of the double-precision physics only (random scene, N = 32000: 1.77e8
+ * against 1.74e8 particle-steps/s with separate operations, bench/gpu_h100_variants.log 10f). About 18
+ * float operations against the pair test's dozens in double and its 40 bytes of loads: in the assignment's
  * random scene the cells are as wide as the fastest disk's travel in a slice, and most pairs in
  * neighbouring cells pass far from each other. Not finite (speeds near the float range): kept. */
 static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, float h, float pad2)
 {
-    float dx = (c.x - m.x) + c.z * dt, dy = (c.y - m.y) + c.w * dt; /* c - m at the probe's middle */
-    float ux = c.z - m.z, uy = c.w - m.w;                             /* and its rate */
-    float a = ux * ux + uy * uy, b = dx * ux + dy * uy;
+    float dx = __fmaf_rn(c.z, dt, c.x - m.x), dy = __fmaf_rn(c.w, dt, c.y - m.y); /* c - m at the probe's middle */
+    float ux = c.z - m.z, uy = c.w - m.w;                                         /* and its rate */
+    float a = __fmaf_rn(ux, ux, uy * uy), b = __fmaf_rn(dx, ux, dy * uy);
     float tau = fminf(fmaxf(__fdividef(-b, a), -h), h); /* a = 0: NaN, then -h (any time is closest) */
-    float ex = dx + ux * tau, ey = dy + uy * tau;
-    return !(ex * ex + ey * ey > pad2) || !(a < 1e30f);
+    float ex = __fmaf_rn(ux, tau, dx), ey = __fmaf_rn(uy, tau, dy);
+    return !(__fmaf_rn(ex, ex, ey * ey) > pad2) || !(a < 1e30f);
 }
 
 /* The pair events a block found, appended to the step's list together: one atomic on the list's count
