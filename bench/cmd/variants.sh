@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # ./bench.sh variants: on a machine with an NVIDIA GPU, builds cuda.cu once per variant (VARIANTS: a list
-# of NAME=FLAGS, the flags being -D macros of cuda.cu) and, with BASE_REV, that revision's cuda; times each
+# of NAME=FLAGS, the flags being -D macros of cuda.cu) and, with BASE_REV, that revision's cuda (or with
+# BASE_SRC=FILE, an earlier cuda.cu built on this tree's objects, where the copy has no git); times each
 # on the same inputs (gas at area fraction 0.2, N = 1e7, 50 steps; the assignment's random scene at
 # N = 32000, 200 steps, and at each N of RANDOM_N, 10 steps), checks that all print the same bytes, and
 # keeps each one's phase times (--stats). Results go to $OUT (default bench/tmp/variants).
@@ -23,6 +24,12 @@ done
 if [ -n "${BASE_REV:-}" ]; then
     build_revision "$BASE_REV" "$DATA/base" "$OUT/build_base.log" &
     progs+=("$DATA/base/cuda")
+elif [ -n "${BASE_SRC:-}" ]; then # an earlier cuda.cu (say from `git show REV:cuda.cu`) on this tree's objects
+    mkdir -p "$DATA/base"
+    nvcc -O2 --fmad=false -std=c++17 -gencode arch=compute_90,code=sm_90 -Xcompiler -ffp-contract=off -I. \
+        "$BASE_SRC" io.o state.o -o "$DATA/base/cuda" -lm > "$OUT/build_base.log" 2>&1 &
+    progs+=("$DATA/base/cuda")
+    echo "# base: $BASE_SRC, sha256 $(sha256sum < "$BASE_SRC" | cut -c1-16)"
 fi
 wait
 [ -s "$DATA/gas.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas.in"
