@@ -14,6 +14,12 @@
 #           one on each other core, which finds cores that are hardware threads of one physical core
 #           (not in the default; rows give the slowest copy's seconds as best_loop_s, the mean as
 #           median_loop_s);
+#   cachesim how much memory one rank's step reads from beyond its cache: omp on one thread, a gas of
+#           PER_RANK disks, under valgrind's cache simulator with a last-level cache of each size of
+#           CACHE_MB (default "16 128": a sixteenth of a 300 MB L3, and most of it), run for 2 and for 6
+#           steps; the difference in last-level misses over the 4 steps, in bytes a disk a step, is what
+#           a step reads or writes beyond that cache (not in the default; needs valgrind; the rows give
+#           those bytes as bytes_per_step, the cache's MB as largest_rank_mb);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
@@ -182,6 +188,23 @@ for part in $PARTS; do
             done
             summary+=("contention, issue-bound loop on core 0 beside one on core c: below 75% of its speed alone ($one s) for c in {${shared# }} (none: no two of these cores share a physical core)")
             ;;
+        cachesim)
+            command -v valgrind > /dev/null || die "cachesim needs valgrind (apt-get install valgrind)"
+            for mb in ${CACHE_MB:-16 128}; do
+                misses=()
+                for s in 2 6; do
+                    f=$WORK/cachesim_$s.in
+                    tools/gen "$PER_RANK" --fraction 0.2 --speed 0.5 --steps "$s" --seed 3 > "$f"
+                    valgrind --tool=cachegrind --cache-sim=yes --LL=$((mb << 20)),16,64 \
+                        --cachegrind-out-file=/dev/null ./omp "$f" --threads 1 > /dev/null 2> "$WORK/cachesim.err" ||
+                        die "valgrind failed: $(tail -n 3 "$WORK/cachesim.err")"
+                    misses+=("$(sed -n 's/.*LL misses: *\([0-9,]*\).*/\1/p' "$WORK/cachesim.err" | tr -d ,)")
+                done
+                per=$(awk -v a="${misses[0]}" -v b="${misses[1]}" -v n="$PER_RANK" 'BEGIN { d = b > a ? b - a : 0; printf "%.1f", d * 64 / (4 * n) }')
+                echo "cachesim,omp,1,1,$PER_RANK,4,,,,,$per,,$mb,,,,"
+                summary+=("cachesim, a gas of $PER_RANK disks on one thread, a $mb MB last-level cache: ${misses[0]} misses over 2 steps, ${misses[1]} over 6: $per bytes a disk a step beyond it")
+            done
+            ;;
         balance)
             p=${RANKS##* } n=$((PER_RANK * ${RANKS##* }))
             input=$(gas "$n")
@@ -196,7 +219,7 @@ for part in $PARTS; do
             kill "$hog"
             summary+=("balance, $p ranks, the last one's core shared with a busy loop: --balance 0 ${rates[0]}, --balance 4 ${rates[1]} particle-steps/s: $(awk -v a="${rates[1]}" -v b="${rates[0]}" 'BEGIN { printf "%.2f", a / b }')x")
             ;;
-        *) die "unknown part '$part' (strong, weak, memory, copies, contention, balance)" ;;
+        *) die "unknown part '$part' (strong, weak, memory, copies, contention, cachesim, balance)" ;;
     esac
 done
 for line in "${summary[@]}"; do echo "# $line"; done
