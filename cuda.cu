@@ -1121,7 +1121,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 bool got1 = got0 && cursor_next(cu, q1, mine, col, gr.K);
                 if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
-                bool keep0 = got0 && near_path(m, m0, dt0, h, pad2), keep1 = got1 && near_path(m, m1, cu.dt, h, pad2);
+                /* screened whether got or not (q = self then: an entry there is), so no branch */
+                bool keep0 = near_path(m, m0, dt0, h, pad2) & got0, keep1 = near_path(m, m1, cu.dt, h, pad2) & got1;
                 if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
                 held = queue_push(wq, wo, held, keep0, q0, lane);
                 held = queue_push(wq, wo, held, keep1, q1, lane);
