@@ -1869,13 +1869,21 @@ static int64_t loop_blocks(const Cuda *c, int64_t upper, int per_sm)
     return b > 0 ? b : 1;
 }
 
-/* Blocks for window w's loops over its entries: one entry a thread in a step of one window (the launch
+/* Blocks for window w's loops over its entries: one entry a thread in a step of one slice (the launch
  * then has no more threads than entries), else loop_blocks. The one-entry-a-thread kernels (<false>)
  * drop what lies beyond their launch: it covers the plan's entries, which bound the device's only
- * because gate_kernel never takes more slices than planned nor grid_fit more cells per side than gcap. */
+ * because gate_kernel never takes more slices than planned nor grid_fit more cells per side than gcap.
+ * A step of one window and several slices loops too (W1_LOOP), over one wave of blocks: sized for n K
+ * entries of which the speed levels leave about two fifths, most of a launch of one entry a thread
+ * would be blocks with nothing to do (random scene, N = 32000: 1.79e8 against 1.77e8 particle-steps/s
+ * with -DW1_LOOP=0; launches twice as large cost it 6%: bench/gpu_h100_variants.log 10i). */
+#ifndef W1_LOOP
+#define W1_LOOP 1
+#endif
 static int64_t window_blocks(const Cuda *c, const Plan *pl, int w)
 {
-    return pl->W == 1 ? blocks_for(pl->went[w]) : loop_blocks(c, pl->went[w], LOOP_BLOCKS);
+    if (pl->W == 1 && (pl->K == 1 || !W1_LOOP)) return blocks_for(pl->went[w]);
+    return loop_blocks(c, pl->went[w], pl->W == 1 ? 8 : LOOP_BLOCKS);
 }
 
 /* A kernel of a step, as a programmatic dependent launch where c->pdl (after_previous): random scene,
@@ -2015,7 +2023,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                 step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, activate_kernel, n, grid, w, c->act[(w - 1) & 1],
                             act, c->info, c->partner, c->wall_hi, c->wall_win, c->best_hi, c->best_lo, c->level_of,
                             c->lev);
-            if (pl->W == 1)
+            if (pl->W == 1 && !W1_LOOP)
                 bin_place_launch<false>(c, pl, w, in, act, lev, ring);
             else
                 bin_place_launch<true>(c, pl, w, in, act, lev, ring);
