@@ -25,6 +25,18 @@ static double now(void)
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
+/* n doubles 0, 1, 2, ...; exits when memory runs out */
+static double *filled(size_t n)
+{
+    double *x = malloc(n * sizeof *x);
+    if (!x) {
+        fprintf(stderr, "contend: out of memory\n");
+        exit(1);
+    }
+    for (size_t i = 0; i < n; i++) x[i] = (double)i;
+    return x;
+}
+
 int main(int argc, char **argv)
 {
     const char *kind = argc == 2 ? argv[1] : "";
@@ -52,12 +64,7 @@ int main(int argc, char **argv)
         for (int j = 0; j < 12; j++) sum += c[j];
     } else if (strcmp(kind, "cache") == 0) {
         size_t n = (size_t)32 << 10; /* doubles: 256 KB */
-        double *x = malloc(n * sizeof *x);
-        if (!x) {
-            fprintf(stderr, "contend: out of memory\n");
-            return 1;
-        }
-        for (size_t i = 0; i < n; i++) x[i] = (double)i;
+        double *x = filled(n);
         double s4[4] = {0, 0, 0, 0};
         t0 = now();
         for (int r = 0; r < 400000; r++)
@@ -71,12 +78,7 @@ int main(int argc, char **argv)
         free(x);
     } else {
         size_t n = (size_t)64 << 20; /* doubles: 512 MB, beyond any cache */
-        double *x = malloc(n * sizeof *x);
-        if (!x) {
-            fprintf(stderr, "contend: out of memory\n");
-            return 1;
-        }
-        for (size_t i = 0; i < n; i++) x[i] = (double)i;
+        double *x = filled(n);
         sum = 0;
         t0 = now();
         for (int r = 0; r < 10; r++)

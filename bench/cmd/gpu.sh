@@ -216,15 +216,10 @@ do_kernels() {
         || tail -5 "$OUT/kernels_full.txt"
 }
 
-# BASE_SRC=FILE: an earlier cuda.cu built as $DATA/base/cuda (a copy of the tree without git history
-# cannot build a revision, BASE_REV).
+# BASE_SRC=FILE: an earlier cuda.cu built as $DATA/base/cuda (build_source).
 build_base_source() {
     BASE=$DATA/base
-    mkdir -p "$BASE"
-    make io.o state.o > /dev/null
-    # shellcheck disable=SC2046
-    $(make_var NVCC) $(make_var NVCCFLAGS) -Xcompiler -ffp-contract=off -I. "$BASE_SRC" io.o state.o \
-        -o "$BASE/cuda" -lm > "$OUT/base_build.log" 2>&1 || { tail -5 "$OUT/base_build.log"; exit 1; }
+    build_source "$BASE_SRC" "$BASE/cuda" "$OUT/base_build.log" || { tail -5 "$OUT/base_build.log"; exit 1; }
 }
 
 do_targets() {

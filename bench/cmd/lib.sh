@@ -26,6 +26,16 @@ build_revision() {
     git worktree add --detach "$2" "$1" > /dev/null && make -C "$2" -j"$(nproc)" ${4:-cuda} > "$3" 2>&1
 }
 
+# build_source FILE OUT LOG: an earlier cuda.cu (say from `git show REV:cuda.cu`) built as OUT against this
+# tree's objects, with the Makefile's flags: a copy of the tree without git history cannot build a
+# revision (build_revision). The build's output goes to LOG. Non-zero status when it fails.
+build_source() {
+    mkdir -p "$(dirname "$2")"
+    make io.o state.o > /dev/null || return
+    # shellcheck disable=SC2046
+    $(make_var NVCC) $(make_var NVCCFLAGS) -Xcompiler -ffp-contract=off -I. "$1" io.o state.o -o "$2" -lm > "$3" 2>&1
+}
+
 # machine_provenance LOAD CORES: the '#' lines of a results file that name the tree (REVISION, or git),
 # the machine and the C compiler.
 machine_provenance() {

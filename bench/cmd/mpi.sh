@@ -190,11 +190,13 @@ for part in $PARTS; do
             ;;
         cachesim)
             command -v valgrind > /dev/null || die "cachesim needs valgrind (apt-get install valgrind)"
+            for s in 2 6; do
+                tools/gen "$PER_RANK" --fraction 0.2 --speed 0.5 --steps "$s" --seed 3 > "$WORK/cachesim_$s.in"
+            done
             for mb in ${CACHE_MB:-16 128}; do
                 misses=()
                 for s in 2 6; do
                     f=$WORK/cachesim_$s.in
-                    tools/gen "$PER_RANK" --fraction 0.2 --speed 0.5 --steps "$s" --seed 3 > "$f"
                     valgrind --tool=cachegrind --cache-sim=yes --LL=$((mb << 20)),16,64 \
                         --cachegrind-out-file=/dev/null ./omp "$f" --threads 1 > /dev/null 2> "$WORK/cachesim.err" ||
                         die "valgrind failed: $(tail -n 3 "$WORK/cachesim.err")"

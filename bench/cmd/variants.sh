@@ -24,10 +24,8 @@ done
 if [ -n "${BASE_REV:-}" ]; then
     build_revision "$BASE_REV" "$DATA/base" "$OUT/build_base.log" &
     progs+=("$DATA/base/cuda")
-elif [ -n "${BASE_SRC:-}" ]; then # an earlier cuda.cu (say from `git show REV:cuda.cu`) on this tree's objects
-    mkdir -p "$DATA/base"
-    nvcc -O2 --fmad=false -std=c++17 -gencode arch=compute_90,code=sm_90 -Xcompiler -ffp-contract=off -I. \
-        "$BASE_SRC" io.o state.o -o "$DATA/base/cuda" -lm > "$OUT/build_base.log" 2>&1 &
+elif [ -n "${BASE_SRC:-}" ]; then
+    build_source "$BASE_SRC" "$DATA/base/cuda" "$OUT/build_base.log" &
     progs+=("$DATA/base/cuda")
     echo "# base: $BASE_SRC, sha256 $(sha256sum < "$BASE_SRC" | cut -c1-16)"
 fi
