@@ -837,7 +837,9 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
 #endif
 #define PROBE_RUNS (1 + 3 * (LEVELS - 1)) /* a probe's runs of candidates after its first, at most (Cursor) */
-#define RUN_BYTES ((size_t)PROBE_RUNS * THREADS * sizeof(uint2)) /* their bounds, dynamic shared memory */
+static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower levels begin, in 8 bits each");
+/* dynamic shared memory: their bounds, and the time offsets of the probe's level and the slower ones */
+#define RUN_BYTES ((size_t)PROBE_RUNS * THREADS * sizeof(uint2) + (size_t)LEVELS * THREADS * sizeof(float))
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
@@ -959,76 +961,87 @@ static __device__ __forceinline__ void queue_shift(uint32_t *queue, uint8_t *own
     __syncwarp();
 }
 
-/* Where a lane stands in its probe's candidates (K > 1): entries q to qe - 1 of run r, of `runs`. Runs
- * 0 and 1 are the probe's own level (Probe: na, nb); then, for each slower level, the 3 rows of 3 cells
- * around the probe's cell in the slice of that level containing the probe's slice. The bounds of all
- * but the first are loaded before the search (probe_runs) into shared memory, run r of thread t at
- * (r - 1) THREADS + t.
+/* Where a lane stands in its probe's candidates (K > 1): entries q to qe - 1 of its current run, then
+ * the runs left in its column (slots r to runs - 1). Its first run is the rest of its own row (Probe:
+ * na); the column holds the others that are not empty: the row below (nb), then, for each slower level,
+ * the 3 rows of 3 cells around the probe's cell in the slice of that level containing the probe's slice.
+ * All are loaded before the search (probe_runs) into shared memory, slot s of thread t at s THREADS + t.
  * (Loaded as each run began, a lane's search waited on them in turn: at 4 levels the search took longer
- * than at one with half the candidates.) */
+ * than at one with half the candidates.) A run ends, in some lane of a warp, on most of the warp's
+ * turns, so the whole warp takes that branch: it is one shared load and two selects, with no empty
+ * run to step over and no division (the slower levels' time offsets are computed once, into dts). */
 typedef struct {
     uint32_t q, qe, r, runs;
-    float dt; /* the middle of run r's level slice, before the probe's (near_path) */
+    uint32_t lv; /* the slots where the second and the third level begin, in bits 0-7 and 8-15 */
+    float dt;    /* the middle of the current run's level slice, before the probe's (near_path) */
 } Cursor;
 
-/* Probe pr's runs after its first into runs (thread t's column); returns its candidates. k0, k1: the
- * window's slices. */
-static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Grid &gr, int k0, int k1,
-                                                      const uint32_t *__restrict__ start, uint2 *runs, uint32_t t)
+/* How long before the middle of the probe's level slice the middle of level b's slice containing it is
+ * (slice_mid: (k + ke) / 2K). */
+static __device__ __forceinline__ float level_offset(const Probe &pr, uint32_t b, int K)
 {
-    uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
-    uint32_t cy = pr.c / g, cx = pr.c - cy * g;
-    uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
-    runs[t] = make_uint2(pr.b0, pr.b0 + pr.nb);
-    uint32_t total = pr.na + pr.nb;
-    for (uint32_t b = a + 1; b < (uint32_t)gr.levels; b++) {
-        uint32_t row = (uint32_t)level_base(k0, k1, (int)b) + (j >> (b - a)) - ((uint32_t)k0 >> b);
-        for (uint32_t y = cy; y <= cy + 2; y++) { /* the row above, its own, the one below: y - 1 */
-            uint2 run = make_uint2(0, 0);
-            if (y >= 1 && y <= g) {
-                uint32_t base = row * gr.ncell + (y - 1) * g;
-                run = make_uint2(__ldg(&start[base + x0]), __ldg(&start[base + x1 + 1]));
-            }
-            runs[(1 + 3 * (b - a - 1) + (y - cy)) * THREADS + t] = run;
-            total += run.y - run.x;
-        }
-    }
-    return total;
-}
-
-static __device__ __forceinline__ Cursor cursor_start(const Probe &pr, uint32_t p, int levels, bool live)
-{
-    Cursor cu;
-    cu.q = p + 1;
-    cu.qe = live ? p + 1 + pr.na : p + 1;
-    cu.r = 0;
-    cu.runs = live ? 2 + 3 * (uint32_t)(levels - 1 - (int)PROBE_LEVEL(pr.k)) : 0;
-    cu.dt = 0;
-    return cu;
-}
-
-/* How long before the middle of the probe's level slice the middle of run r's level slice is (0 for
- * runs 0 and 1, its own level; slice_mid: (k + ke) / 2K). */
-static __device__ __forceinline__ float run_offset(const Probe &pr, uint32_t r, int K)
-{
-    uint32_t a = PROBE_LEVEL(pr.k), b = a + 1 + (r - 2) / 3;
+    uint32_t a = PROBE_LEVEL(pr.k);
     int2 p = level_span(a, PROBE_SLICE(pr.k), K), q = level_span(b, (uint32_t)p.x >> b, K);
     return (float)(p.x + p.y - q.x - q.y) / (float)(2 * K);
 }
 
-/* The next candidate of the probe into q (left as it was when none is left: false). col: the thread's
- * column of runs. */
-static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const Probe &pr, const uint2 *col, int K)
+/* Probe pr's runs after its first, those not empty, into its column (thread t's: runs + t), their
+ * levels' time offsets into dts (dts + t, one slot a level from its own, which is 0), and into *shape
+ * the column's length (bits 16 and up) and where its levels begin (Cursor: lv); returns its
+ * candidates. k0, k1: the window's slices. */
+static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Grid &gr, int k0, int k1,
+                                                      const uint32_t *__restrict__ start, uint2 *runs, float *dts,
+                                                      uint32_t t, uint32_t *shape)
 {
-    while (cu.q >= cu.qe) {
-        if (++cu.r >= cu.runs) {
-            cu.r = cu.runs; /* stays done */
-            return false;
+    uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
+    uint32_t cy = pr.c / g, cx = pr.c - cy * g;
+    uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+    uint32_t slots = 0, lv = 0;
+    if (pr.nb > 0) runs[slots++ * THREADS + t] = make_uint2(pr.b0, pr.b0 + pr.nb);
+    uint32_t total = pr.na + pr.nb;
+    dts[t] = 0;
+    for (uint32_t b = a + 1; b < (uint32_t)gr.levels; b++) {
+        lv |= slots << (8 * (b - a - 1));
+        dts[(b - a) * THREADS + t] = level_offset(pr, b, gr.K);
+        uint32_t row = (uint32_t)level_base(k0, k1, (int)b) + (j >> (b - a)) - ((uint32_t)k0 >> b);
+        for (uint32_t y = cy; y <= cy + 2; y++) { /* the row above, its own, the one below: y - 1 */
+            if (y < 1 || y > g) continue;
+            uint32_t base = row * gr.ncell + (y - 1) * g;
+            uint2 run = make_uint2(__ldg(&start[base + x0]), __ldg(&start[base + x1 + 1]));
+            if (run.y > run.x) runs[slots++ * THREADS + t] = run;
+            total += run.y - run.x;
         }
-        uint2 run = col[(cu.r - 1) * THREADS];
+    }
+    for (uint32_t b = (uint32_t)gr.levels; b < a + 3; b++) lv |= slots << (8 * (b - a - 1)); /* none */
+    *shape = slots << 16 | lv;
+    return total;
+}
+
+/* The cursor before probe entry p's first candidate (shape: probe_runs'; 0 and na 0 where there is no
+ * probe). */
+static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, uint32_t shape)
+{
+    Cursor cu;
+    cu.q = p + 1;
+    cu.qe = p + 1 + na;
+    cu.r = 0;
+    cu.runs = shape >> 16;
+    cu.lv = shape & 0xffffu;
+    cu.dt = 0;
+    return cu;
+}
+
+/* The next candidate of the probe into q (left as it was when none is left: false). col, dts: the
+ * thread's column of runs and of offsets. */
+static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const uint2 *col, const float *dts)
+{
+    if (cu.q >= cu.qe) {
+        if (cu.r >= cu.runs) return false;
+        uint2 run = col[cu.r * THREADS];
         cu.q = run.x;
         cu.qe = run.y;
-        if (cu.r >= 2 && (cu.r - 2) % 3 == 0) cu.dt = run_offset(pr, cu.r, K); /* a slower level begins */
+        cu.dt = dts[((cu.r >= (cu.lv & 0xffu)) + (cu.r >= (cu.lv >> 8))) * THREADS];
+        cu.r++;
     }
     q = cu.q++;
     return true;
@@ -1047,14 +1060,17 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
     typedef cub::BlockScan<uint32_t, THREADS> Scan;
     __shared__ typename Scan::TempStorage scan_tmp;
     __shared__ Probe probes[THREADS];
+    /* !MID deals candidates out: where each thread's begin, and the thread whose entry each dealt pair is;
+     * MID: each thread's column of runs (probe_runs' shape) */
     __shared__ uint32_t first[THREADS];
     static_assert(THREADS <= 256, "owner holds a thread index in 8 bits");
-    __shared__ uint8_t owner[DEAL_MAX > 0 ? DEAL_MAX * THREADS : 1]; /* the thread whose entry each dealt pair is */
+    __shared__ uint8_t owner[DEAL_MAX > 0 && !MID ? DEAL_MAX * THREADS : 1];
     __shared__ BlockEvents be;
     __shared__ unsigned long long tests;
     __shared__ uint32_t queue[THREADS / 32][QUEUE]; /* per warp: candidates near_path passed, and whose */
     __shared__ uint8_t queue_owner[THREADS / 32][QUEUE];
-    extern __shared__ uint2 runs[]; /* MID: RUN_BYTES (Cursor) */
+    extern __shared__ uint2 runs[]; /* MID: RUN_BYTES (Cursor), then the offsets */
+    float *dts = (float *)(runs + PROBE_RUNS * THREADS);
     const Grid gr = *grid;
     /* !TILES: a step of one window (w = 0, all K slices); the constants keep the loop's registers */
     const uint32_t end = TILES ? window_end(grid, w, start) : __ldg(&start[gr.cells]);
@@ -1088,7 +1104,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             pr.id = __ldg(&en.id[p]);
             pr.wall = __ldg(&en.wall[p]);
             if (MID) pr.mid = __ldg(&en.mid[p]);
-            if (MID) seen = probe_runs(pr, gr, (int)k0, (int)k1, start, runs, threadIdx.x);
+            if (MID) seen = probe_runs(pr, gr, (int)k0, (int)k1, start, runs, dts, threadIdx.x, &first[threadIdx.x]);
+        } else if (MID) {
+            first[threadIdx.x] = 0;
         }
         probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
         if (threadIdx.x == 0) {
@@ -1106,19 +1124,20 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
             const Probe &mine = probes[threadIdx.x];
             const uint2 *col = runs + threadIdx.x;
+            const float *off = dts + threadIdx.x;
             const float4 m = mine.mid;
             const int2 span = level_span(PROBE_LEVEL(mine.k), PROBE_SLICE(mine.k), gr.K);
             const float h = (float)(span.y - span.x) / (float)(2 * gr.K), pad2 = gr.pad * gr.pad;
             const uint32_t self = p < end ? p : p0; /* an entry there is */
-            Cursor cu = cursor_start(mine, p, gr.levels, p < end);
+            Cursor cu = cursor_start(p, mine.na, first[threadIdx.x]);
             uint32_t *wq = queue[warp];
             uint8_t *wo = queue_owner[warp];
             uint32_t held = 0;
             for (;;) {
                 uint32_t q0 = self, q1 = self;
-                bool got0 = cursor_next(cu, q0, mine, col, gr.K);
+                bool got0 = cursor_next(cu, q0, col, off);
                 float dt0 = cu.dt;
-                bool got1 = got0 && cursor_next(cu, q1, mine, col, gr.K);
+                bool got1 = cursor_next(cu, q1, col, off); /* none left after the first: false */
                 if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
                 /* screened whether got or not (q = self then: an entry there is), so no branch */
