@@ -859,13 +859,24 @@ typedef struct {
 #define PROBE_LEVEL(k) ((k) >> 16)
 #define PROBE_SLICE(k) ((k) & 0xffffu)
 
+/* 1 / a to about an ulp, subnormal results and arguments taken as 0 (one MUFU.RCP: __fdividef scales
+ * subnormal divisors first, five more instructions a screen). Where a, the squared relative speed, is
+ * subnormal, any time of the slice is within a^(1/2) h < 1e-19 of the closest approach, so the time
+ * near_path then takes (an end of the slice) changes its squared distance by less than a 4 h^2. */
+static __device__ __forceinline__ float fast_rcp(float a)
+{
+    float r;
+    asm("rcp.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(a));
+    return r;
+}
+
 /* Whether the paths of probe entry m and candidate entry c (K > 1; midpoint and velocity, mid) come
  * within pad of each other while the probe's level slice lasts: from its middle, times -h to h, c's
  * middle being dt before it. A pair is kept only when its event is in that slice, and at the event
  * the disks are 2r apart plus the broad phase's margin: pad covers both, and the float rounding of
  * positions, velocities and times (a few units of 6e-8 of the scale, grid_fit). The closest approach
  * is taken at the time the relative motion gives, clamped to the slice: a time a little off it (the
- * fast division) adds only the square of that error to the squared distance. Fused multiply-adds
+ * fast reciprocal) adds only the square of that error to the squared distance. Fused multiply-adds
  * round once where a product and a sum would round twice, so pad covers them too; the build's
  * --fmad=false keeps them out of the double-precision physics only (random scene, N = 32000: 1.77e8
  * against 1.74e8 particle-steps/s with separate operations, bench/gpu_h100_variants.log 10f). About 18
@@ -877,7 +888,7 @@ static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, f
     float dx = __fmaf_rn(c.z, dt, c.x - m.x), dy = __fmaf_rn(c.w, dt, c.y - m.y); /* c - m at the probe's middle */
     float ux = c.z - m.z, uy = c.w - m.w;                                         /* and its rate */
     float a = __fmaf_rn(ux, ux, uy * uy), b = __fmaf_rn(dx, ux, dy * uy);
-    float tau = fminf(fmaxf(__fdividef(-b, a), -h), h); /* a = 0: NaN, then -h (any time is closest) */
+    float tau = fminf(fmaxf(-b * fast_rcp(a), -h), h); /* a = 0: NaN, then -h (any time is closest) */
     float ex = __fmaf_rn(ux, tau, dx), ey = __fmaf_rn(uy, tau, dy);
     return !(__fmaf_rn(ex, ex, ey * ey) > pad2) || !(a < 1e30f);
 }
@@ -1031,20 +1042,26 @@ static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, u
     return cu;
 }
 
-/* The next candidate of the probe into q (left as it was when none is left: false). col, dts: the
- * thread's column of runs and of offsets. */
-static __device__ __forceinline__ bool cursor_next(Cursor &cu, uint32_t &q, const uint2 *col, const float *dts)
+/* The lane's candidates of a turn: the next two of its current run, or of the next run where the current
+ * one is done. Into q0 and q1 where got (as they were otherwise), and into dt their run's offset; the
+ * second is not got where the run has only one left (a run of odd length leaves one turn half used:
+ * about 5% more turns at N = 32000, for one branch a turn instead of two). col, dts: the thread's column
+ * of runs and of offsets. */
+static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t &q0, uint32_t &q1, bool &got0, bool &got1,
+                                                   const uint2 *col, const float *dts)
 {
-    if (cu.q >= cu.qe) {
-        if (cu.r >= cu.runs) return false;
+    if (cu.q >= cu.qe && cu.r < cu.runs) {
         uint2 run = col[cu.r * THREADS];
         cu.q = run.x;
         cu.qe = run.y;
         cu.dt = dts[((cu.r >= (cu.lv & 0xffu)) + (cu.r >= (cu.lv >> 8))) * THREADS];
         cu.r++;
     }
-    q = cu.q++;
-    return true;
+    got0 = cu.q < cu.qe;
+    got1 = cu.q + 1 < cu.qe;
+    q0 = got0 ? cu.q : q0;
+    q1 = got1 ? cu.q + 1 : q1;
+    cu.q = got0 ? cu.q + 2 : cu.q;
 }
 
 /* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
@@ -1135,13 +1152,12 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             uint32_t held = 0;
             for (;;) {
                 uint32_t q0 = self, q1 = self;
-                bool got0 = cursor_next(cu, q0, col, off);
-                float dt0 = cu.dt;
-                bool got1 = cursor_next(cu, q1, col, off); /* none left after the first: false */
+                bool got0, got1;
+                cursor_take(cu, q0, q1, got0, got1, col, off);
                 if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
                 /* screened whether got or not (q = self then: an entry there is), so no branch */
-                bool keep0 = near_path(m, m0, dt0, h, pad2) & got0, keep1 = near_path(m, m1, cu.dt, h, pad2) & got1;
+                bool keep0 = near_path(m, m0, cu.dt, h, pad2) & got0, keep1 = near_path(m, m1, cu.dt, h, pad2) & got1;
                 if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
                 held = queue_push(wq, wo, held, keep0, q0, lane);
                 held = queue_push(wq, wo, held, keep1, q1, lane);
