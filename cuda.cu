@@ -838,7 +838,9 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
 #endif
 #define PROBE_RUNS (1 + 3 * (LEVELS - 1)) /* a probe's runs of candidates after its first, at most (Cursor) */
 static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower levels begin, in 8 bits each");
-/* dynamic shared memory: their bounds, and the time offsets of the probe's level and the slower ones */
+/* dynamic shared memory: their bounds, and the time offsets of the probe's level and the slower ones (an
+ * offset beside each run would save the selects but take 4 KB more a block: random scene, N = 32000,
+ * 1.90e8 against 2.05e8-2.14e8 particle-steps/s, bench/gpu_h100_variants.log 10k) */
 #define RUN_BYTES ((size_t)PROBE_RUNS * THREADS * sizeof(uint2) + (size_t)LEVELS * THREADS * sizeof(float))
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
@@ -979,7 +981,7 @@ static __device__ __forceinline__ void queue_shift(uint32_t *queue, uint8_t *own
  * All are loaded before the search (probe_runs) into shared memory, slot s of thread t at s THREADS + t.
  * (Loaded as each run began, a lane's search waited on them in turn: at 4 levels the search took longer
  * than at one with half the candidates.) A run ends, in some lane of a warp, on most of the warp's
- * turns, so the whole warp takes that branch: it is one shared load and two selects, with no empty
+ * turns, so the whole warp takes that branch: it is two shared loads and two selects, with no empty
  * run to step over and no division (the slower levels' time offsets are computed once, into dts). */
 typedef struct {
     uint32_t q, qe, r, runs;
@@ -1028,13 +1030,15 @@ static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Gri
     return total;
 }
 
-/* The cursor before probe entry p's first candidate (shape: probe_runs'; 0 and na 0 where there is no
- * probe). */
-static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, uint32_t shape)
+/* The cursor before probe entry p's first candidate, of its na and its column (shape: probe_runs');
+ * where there is no probe (p at or past end), one with none, at entry p0 (cursor_take: qe - 1 is an
+ * entry). */
+static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, uint32_t shape, uint32_t end,
+                                                      uint32_t p0)
 {
     Cursor cu;
-    cu.q = p + 1;
-    cu.qe = p + 1 + na;
+    cu.q = p < end ? p + 1 : p0 + 1;
+    cu.qe = cu.q + na;
     cu.r = 0;
     cu.runs = shape >> 16;
     cu.lv = shape & 0xffffu;
@@ -1043,7 +1047,8 @@ static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, u
 }
 
 /* The lane's candidates of a turn: the next two of its current run, or of the next run where the current
- * one is done. Into q0 and q1 where got (as they were otherwise), and into dt their run's offset; the
+ * one is done. Into q0 and q1 where got, else an entry there is (the last of the lane's current run, or
+ * its own, to be screened and not kept), and into dt their run's offset; the
  * second is not got where the run has only one left (a run of odd length leaves one turn half used:
  * about 5% more turns at N = 32000, for one branch a turn instead of two). col, dts: the thread's column
  * of runs and of offsets. */
@@ -1059,8 +1064,8 @@ static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t &q0, uin
     }
     got0 = cu.q < cu.qe;
     got1 = cu.q + 1 < cu.qe;
-    q0 = got0 ? cu.q : q0;
-    q1 = got1 ? cu.q + 1 : q1;
+    q0 = got0 ? cu.q : cu.qe - 1;
+    q1 = got1 ? cu.q + 1 : cu.qe - 1;
     cu.q = got0 ? cu.q + 2 : cu.q;
 }
 
@@ -1134,9 +1139,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             /* each lane walks its own candidates (Cursor) and screens them, two a turn (their loads
              * overlap); those passed queue up in the warp, and each 32 of them take one pair test a
              * lane (tested where found, few lanes of a warp would do the work of all). The loop is
-             * what the search spends its instructions on: a lane with no candidate left loads its own
-             * entry rather than branch around the load, and the queue is touched only by turns in
-             * which some lane passed one. */
+             * what the search spends its instructions on: a lane with no candidate left loads an entry
+             * of its own runs rather than branch around the load, and the queue is touched only by
+             * turns in which some lane passed one. */
             __syncthreads();
             const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
             const Probe &mine = probes[threadIdx.x];
@@ -1145,18 +1150,17 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             const float4 m = mine.mid;
             const int2 span = level_span(PROBE_LEVEL(mine.k), PROBE_SLICE(mine.k), gr.K);
             const float h = (float)(span.y - span.x) / (float)(2 * gr.K), pad2 = gr.pad * gr.pad;
-            const uint32_t self = p < end ? p : p0; /* an entry there is */
-            Cursor cu = cursor_start(p, mine.na, first[threadIdx.x]);
+            Cursor cu = cursor_start(p, mine.na, first[threadIdx.x], end, p0);
             uint32_t *wq = queue[warp];
             uint8_t *wo = queue_owner[warp];
             uint32_t held = 0;
             for (;;) {
-                uint32_t q0 = self, q1 = self;
+                uint32_t q0, q1;
                 bool got0, got1;
                 cursor_take(cu, q0, q1, got0, got1, col, off);
                 if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
-                /* screened whether got or not (q = self then: an entry there is), so no branch */
+                /* screened whether got or not (cursor_take: an entry there is), so no branch */
                 bool keep0 = near_path(m, m0, cu.dt, h, pad2) & got0, keep1 = near_path(m, m1, cu.dt, h, pad2) & got1;
                 if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
                 held = queue_push(wq, wo, held, keep0, q0, lane);
