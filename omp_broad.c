@@ -119,6 +119,7 @@ void broad_free(Broad *b)
     slots_free(&b->spare);
     for (int t = 0; t < b->nt_max; t++) {
         free(b->th[t].found.ev);
+        free(b->th[t].found.wall);
         free(b->th[t].fast);
     }
     free(b->th);
@@ -305,6 +306,13 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
     return (int64_t)c;
 }
 
+/* The cell of a box's centre. */
+static inline int32_t span_cell(const Span *sp, const Plan *pl)
+{
+    return (int32_t)(cell_coord(sp->ylo, sp->yhi, pl->y0, pl->inv_h, pl->gy) * pl->gx +
+                     cell_coord(sp->xlo, sp->xhi, pl->x0, pl->inv_h, pl->gx));
+}
+
 /* A fast disk's slot (as it will be) goes to this thread's list. */
 static void note_fast(BroadThread *th, int32_t slot)
 {
@@ -321,9 +329,11 @@ static inline int is_fast(const Broad *b, int64_t q)
 }
 
 /* Counting sort of the slots into the cells of their boxes: per-thread histograms, a prefix sum over
- * cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell order
- * with their slots; with reorder, the disks themselves move to the new order (through spare). The
- * wall events (3.1) are found on the way. */
+ * cells and threads, a scatter (inside a cell the slots keep their order). The scatter finds each
+ * box's cell again from the disk it reads anyway, which costs less than storing the cells by slot
+ * and reading them back (4 bytes a disk each way, beyond the cache on large gases). The boxes go in
+ * cell order with their slots; with reorder, the disks themselves move to the new order (through
+ * spare). The wall events (3.1) are found on the way, and the slots that have one listed. */
 static void bin_grid(Broad *b, int tid, int reorder)
 {
     const Plan *pl = &b->plan;
@@ -339,11 +349,12 @@ static void bin_grid(Broad *b, int tid, int reorder)
     for (int64_t q = from; q < to; q++) {
         Span sp;
         step_span(s, q, pl->grow, &sp);
-        int64_t c = cell_coord(sp.ylo, sp.yhi, pl->y0, pl->inv_h, pl->gy) * pl->gx +
-                    cell_coord(sp.xlo, sp.xhi, pl->x0, pl->inv_h, pl->gx);
-        b->cell_of[q] = (int32_t)c;
-        h[c]++;
-        if (!reorder) b->wall_t[q] = slot_wall_time(s, b->p, q);
+        h[span_cell(&sp, pl)]++;
+        if (!reorder) {
+            real wt = slot_wall_time(s, b->p, q);
+            b->wall_t[q] = wt;
+            if (wt >= 0) found_wall(&th->found, (int32_t)q);
+        }
     }
 #pragma omp barrier
     int64_t c0, c1, sum = 0;
@@ -372,18 +383,20 @@ static void bin_grid(Broad *b, int tid, int reorder)
     if (reorder) {
         const Slots *d = &b->spare;
         for (int64_t q = from; q < to; q++) {
-            int32_t c = b->cell_of[q];
+            Span sp;
+            step_span(s, q, pl->grow, &sp);
+            int32_t c = span_cell(&sp, pl);
             int32_t pos = b->cell_start[c] + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, pos);
             } else {
-                Span sp;
-                step_span(s, q, pl->grow, &sp);
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = pos;
-            b->wall_t[pos] = slot_wall_time(s, b->p, q);
+            real wt = slot_wall_time(s, b->p, q);
+            b->wall_t[pos] = wt;
+            if (wt >= 0) found_wall(&th->found, pos);
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -395,14 +408,14 @@ static void bin_grid(Broad *b, int tid, int reorder)
         }
     } else {
         for (int64_t q = from; q < to; q++) {
-            int32_t c = b->cell_of[q];
+            Span sp;
+            step_span(s, q, pl->grow, &sp);
+            int32_t c = span_cell(&sp, pl);
             int32_t pos = b->cell_start[c] + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, (int32_t)q);
             } else {
-                Span sp;
-                step_span(s, q, pl->grow, &sp);
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = (int32_t)q;
@@ -568,7 +581,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
     BroadThread *th = &b->th[tid];
 
     /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
-    th->found.len = 0;
+    th->found.len = th->found.wall_len = 0;
 #pragma omp single
     {
         b->plan = plan_step(b, b->nt);

@@ -25,11 +25,14 @@ typedef struct {
     int32_t a, b;
 } PairEvent;
 
-/* What one thread's broad phase finds in a step: pair events, the exact tests (pair_time) done, and
- * for the paths (--stats) the cells visited and the pairs of visits that overlap in time. */
+/* What one thread's broad phase finds in a step: pair events, the slots with a wall event (so that
+ * the choice need not look at every slot), the exact tests (pair_time) done, and for the paths
+ * (--stats) the cells visited and the pairs of visits that overlap in time. */
 typedef struct {
     PairEvent *ev;
     size_t len, cap;
+    int32_t *wall;
+    size_t wall_len, wall_cap;
     uint64_t tests, visits, overlaps;
 } Found;
 
@@ -41,6 +44,13 @@ static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a,
     if (f->len == f->cap) f->ev = omp_grow(f->ev, &f->cap, f->len + 1, sizeof *f->ev);
     PairEvent e = {t, i, j, a, b};
     f->ev[f->len++] = e;
+}
+
+static inline void found_wall(Found *f, int32_t q)
+{
+    if (f->wall_len == f->wall_cap)
+        f->wall = omp_grow(f->wall, &f->wall_cap, f->wall_len + 1, sizeof *f->wall);
+    f->wall[f->wall_len++] = q;
 }
 
 /* 3.1: the wall event time of the disk in slot q, or -1 when it has none within the step. Most disks
@@ -205,7 +215,7 @@ typedef struct {
     Paths *paths;     /* the broad phase of fast scenes */
     int64_t cap;      /* slots allocated */
     int64_t max_cells;
-    int32_t *cell_of; /* by slot: its cell */
+    int32_t *cell_of; /* cap entries the caller may use between steps (mpi.c) */
     int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
     int32_t *cell_start; /* max cells + 1: first box of each cell */
     Box *boxes;       /* the boxes in cell order */
