@@ -57,7 +57,6 @@ typedef struct {
 typedef struct {
     int64_t lo, hi;   /* this owner's segment of end, node, adj and active */
     int64_t n_active; /* undecided nodes of this owner, at active + lo */
-    size_t ev_off;    /* where this thread's events go in the gathered list */
     uint64_t events;
     char pad[64];
 } Thread;
@@ -77,12 +76,12 @@ typedef struct {
 
 /* One of a node's pair events and the node of its other disk. */
 typedef struct {
-    int64_t e; /* index into ev */
+    int64_t e; /* the event (event_at) */
     int32_t other;
 } Adj;
 
 /* An end of an event, on its way to the thread whose range of slots holds its disk: ref is 2 e for
- * disk a of pair event e, 2 e + 1 for disk b, -1 for a wall event. */
+ * disk a of pair event e, 2 e + 1 for disk b, -1 - e for wall event e (each named as event_at's). */
 typedef struct {
     int64_t ref;
     int32_t slot;
@@ -98,8 +97,7 @@ typedef struct {
     int nt;           /* threads in the parallel region */
     Thread *th;
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
-    PairEvent *ev;    /* all pair events of the step */
-    size_t n_ev, ev_cap;
+    int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
     End *end;         /* the ends of the step's events, by owner */
     size_t end_cap;
     Node *node;       /* the step's nodes, by owner */
@@ -145,6 +143,13 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
+/* The pair event e (see ev_shift): the events stay where the threads found them (their wall events
+ * too, named alike). */
+static inline const PairEvent *event_at(const Work *w, int64_t e)
+{
+    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.ev[e >> w->ev_shift];
+}
+
 /* Which of nown owners (range_of's ranges of the n slots) holds slot q. */
 static int owner_of(int64_t q, int64_t n, int nown)
 {
@@ -169,23 +174,16 @@ static void ends_count(Work *w, int t, int nown)
         row[owner_of(f->ev[k].a, n, nown)]++;
         row[owner_of(f->ev[k].b, n, nown)]++;
     }
-    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(f->wall[k], n, nown)]++;
+    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(f->wall[k].slot, n, nown)]++;
 }
 
-/* Where the events and the ends go: each thread's events after those of the threads before it, each
- * owner's ends in a segment [lo, hi) of w->end, each thread's part of it after those of the threads
- * before it (w->ends then holds where the next one goes). An owner's nodes, lists and active nodes
- * take the same segment of their arrays: there are no more of them than ends. Called by one thread. */
+/* Where the ends go: each owner's in a segment [lo, hi) of w->end, each thread's part of it after
+ * those of the threads before it (w->ends then holds where the next one goes). An owner's nodes,
+ * lists and active nodes take the same segment of their arrays: there are no more of them than
+ * ends. Called by one thread. */
 static void ends_scan(Work *w, int nown)
 {
     int nt = w->nt;
-    size_t total = 0;
-    for (int t = 0; t < nt; t++) {
-        w->th[t].ev_off = total;
-        total += w->b.th[t].found.len;
-    }
-    w->n_ev = total;
-    w->ev = omp_grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
     int64_t acc = 0;
     for (int u = 0; u < nt; u++) {
         w->th[u].lo = acc;
@@ -205,23 +203,21 @@ static void ends_scan(Work *w, int nown)
     w->active = omp_grow(w->active, &w->active_cap, need, sizeof *w->active);
 }
 
-/* Thread t's events into the gathered list and its ends to their owners' segments. */
+/* Thread t's ends to their owners' segments. */
 static void ends_scatter(Work *w, int t, int nown)
 {
     const Found *f = &w->b.th[t].found;
     int64_t *row = w->ends + (size_t)t * (size_t)w->nt, n = w->p->n;
-    size_t e0 = w->th[t].ev_off;
-    if (f->len) memcpy(w->ev + e0, f->ev, f->len * sizeof *w->ev);
     for (size_t k = 0; k < f->len; k++) {
         int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
         for (int u = 0; u < 2; u++) {
-            End x = {(int64_t)(2 * (e0 + k)) + u, ends[u]};
+            End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u]};
             w->end[row[nown > 1 ? owner_of(ends[u], n, nown) : 0]++] = x;
         }
     }
     for (size_t k = 0; k < f->wall_len; k++) {
-        End x = {-1, f->wall[k]};
-        w->end[row[nown > 1 ? owner_of(f->wall[k], n, nown) : 0]++] = x;
+        End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot};
+        w->end[row[nown > 1 ? owner_of(f->wall[k].slot, n, nown) : 0]++] = x;
     }
 }
 
@@ -243,9 +239,10 @@ static void nodes_build(Work *w, int u)
         }
         Node *nd = &w->node[v];
         if (x->ref < 0) {
-            nd->wall_t = w->b.wall_t[x->slot];
+            int64_t e = -1 - x->ref;
+            nd->wall_t = w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift].t;
         } else {
-            const PairEvent *e = &w->ev[x->ref >> 1];
+            const PairEvent *e = event_at(w, x->ref >> 1);
             nd->id = x->ref & 1 ? e->j : e->i;
             nd->cnt++;
         }
@@ -282,7 +279,7 @@ static void nodes_link(Work *w, int u)
     for (int64_t k = 0; k < w->th[u].n_active; k++) {
         const Node *nd = &w->node[act[k]];
         for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-            const PairEvent *e = &w->ev[w->adj[a].e];
+            const PairEvent *e = event_at(w, w->adj[a].e);
             w->adj[a].other = w->node_of[e->a == nd->slot ? e->b : e->a];
         }
     }
@@ -372,7 +369,7 @@ static void finish_sequential(Work *w)
                 w->fin[len++] = e;
             }
             for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-                const PairEvent *pe = &w->ev[w->adj[a].e];
+                const PairEvent *pe = event_at(w, w->adj[a].e);
                 if (pe->a != nd->slot || w->node[w->adj[a].other].taken) continue;
                 w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
                 SeqEvent e = {pe->t, 1, pe->i, pe->j, v, w->adj[a].other};
@@ -417,7 +414,7 @@ static void choose_events(Work *w, int tid)
             for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
                 int32_t other = w->adj[a].other;
                 if (node[other].taken) continue;
-                const PairEvent *e = &w->ev[w->adj[a].e];
+                const PairEvent *e = event_at(w, w->adj[a].e);
                 if (bp < 0 || event_before(e->t, 1, e->i, e->j, bt, bk, bi, bj)) {
                     bp = other;
                     bt = e->t;
@@ -626,6 +623,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.opt = opt;
     w.out = out;
     broad_init(&w.b, par, opt, n, nt_max, sim->wi != NULL);
+    w.b.wall_lists = 1;
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
@@ -634,7 +632,10 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 #pragma omp parallel
     {
 #pragma omp single
+    {
         w.nt = w.b.nt = omp_get_num_threads();
+        while (1 << w.ev_shift < w.nt) w.ev_shift++;
+    }
         int tid = omp_get_thread_num();
         slots_fill(&w, tid);
 #pragma omp single
@@ -665,7 +666,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     broad_free(&w.b);
     free(w.th);
     free(w.ends);
-    free(w.ev);
     free(w.end);
     free(w.node);
     free(w.adj);

@@ -343,6 +343,8 @@ static void bin_grid(Broad *b, int tid, int reorder)
     int32_t *h = b->hist + (size_t)tid * (size_t)cells;
     BroadThread *th = &b->th[tid];
     int mixed = pl->mode == MODE_MIXED;
+    /* a gas's dense wall_t would be written for nothing but the rare disk near a wall */
+    int wall_all = !b->wall_lists || mixed || b->opt->check;
     th->fast_len = 0;
     memset(h, 0, (size_t)cells * sizeof *h);
     range_of(b->p->n, tid, nt, &from, &to);
@@ -352,8 +354,8 @@ static void bin_grid(Broad *b, int tid, int reorder)
         h[span_cell(&sp, pl)]++;
         if (!reorder) {
             real wt = slot_wall_time(s, b->p, q);
-            b->wall_t[q] = wt;
-            if (wt >= 0) found_wall(&th->found, (int32_t)q);
+            if (wall_all) b->wall_t[q] = wt;
+            if (wt >= 0) found_wall(&th->found, wt, (int32_t)q);
         }
     }
 #pragma omp barrier
@@ -395,8 +397,8 @@ static void bin_grid(Broad *b, int tid, int reorder)
             }
             b->box_slot[pos] = pos;
             real wt = slot_wall_time(s, b->p, q);
-            b->wall_t[pos] = wt;
-            if (wt >= 0) found_wall(&th->found, pos);
+            if (wall_all) b->wall_t[pos] = wt;
+            if (wt >= 0) found_wall(&th->found, wt, pos);
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -433,7 +435,9 @@ static void bin_grid(Broad *b, int tid, int reorder)
 }
 
 /* Narrow phase for two disks whose boxes overlap: the disk with the lower original index is always
- * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. */
+ * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. The wall
+ * event times are found again (wall_t need not hold them, see wall_lists), for the few pairs with
+ * an event. */
 static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b)
 {
     const Slots *s = &w->s;
@@ -448,7 +452,7 @@ static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t 
     th->found.tests++;
     real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
                        w->p->sigma2);
-    if (t >= 0 && before_walls(t, w->wall_t[a], w->wall_t[b]))
+    if (t >= 0 && before_walls(t, slot_wall_time(s, w->p, a), slot_wall_time(s, w->p, b)))
         found_push(&th->found, t, s->id[a], s->id[b], a, b);
 }
 
