@@ -67,8 +67,7 @@ typedef struct {
 typedef struct {
     real wall_t;      /* its wall event time, or -1 */
     real t;           /* the time of its smallest remaining event (rounds), then of the accepted one */
-    int64_t lo;       /* its pair events: adj[lo .. lo + cnt) */
-    int32_t cnt;
+    int32_t lo, cnt;  /* its pair events: adj[lo .. lo + cnt) */
     int32_t slot, id; /* id: the original index (where cnt > 0: the move and the keys need it) */
     int32_t p;        /* the node of that event's other disk (itself: wall; -1: none) */
     int32_t taken;    /* 1 once it has an accepted event: p and t are that event */
@@ -98,6 +97,7 @@ typedef struct {
     Thread *th;
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
     int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
+    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
     End *end;         /* the ends of the step's events, by owner */
     size_t end_cap;
     Node *node;       /* the step's nodes, by owner */
@@ -177,6 +177,15 @@ static void ends_count(Work *w, int t, int nown)
     for (size_t k = 0; k < f->wall_len; k++) row[owner_of(f->wall[k].slot, n, nown)]++;
 }
 
+/* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
+static void *scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap) return ptr;
+    free(ptr);
+    *cap = 0;
+    return omp_grow(NULL, cap, need, size);
+}
+
 /* Where the ends go: each owner's in a segment [lo, hi) of w->end, each thread's part of it after
  * those of the threads before it (w->ends then holds where the next one goes). An owner's nodes,
  * lists and active nodes take the same segment of their arrays: there are no more of them than
@@ -185,6 +194,7 @@ static void ends_scan(Work *w, int nown)
 {
     int nt = w->nt;
     int64_t acc = 0;
+    w->owners = nown;
     for (int u = 0; u < nt; u++) {
         w->th[u].lo = acc;
         for (int t = 0; t < nt && u < nown; t++) {
@@ -197,13 +207,13 @@ static void ends_scan(Work *w, int nown)
     }
     if (acc > INT32_MAX) sim_fail("%lld events in one step: too many", (long long)acc);
     size_t need = (size_t)acc;
-    w->end = omp_grow(w->end, &w->end_cap, need, sizeof *w->end);
-    w->node = omp_grow(w->node, &w->node_cap, need, sizeof *w->node);
-    w->adj = omp_grow(w->adj, &w->adj_cap, need, sizeof *w->adj);
-    w->active = omp_grow(w->active, &w->active_cap, need, sizeof *w->active);
+    if (nown > 1) w->end = scratch_grow(w->end, &w->end_cap, need, sizeof *w->end);
+    w->node = scratch_grow(w->node, &w->node_cap, need, sizeof *w->node);
+    w->adj = scratch_grow(w->adj, &w->adj_cap, need, sizeof *w->adj);
+    w->active = scratch_grow(w->active, &w->active_cap, need, sizeof *w->active);
 }
 
-/* Thread t's ends to their owners' segments. */
+/* Thread t's ends to their owners' segments (nown > 1). */
 static void ends_scatter(Work *w, int t, int nown)
 {
     const Found *f = &w->b.th[t].found;
@@ -212,43 +222,76 @@ static void ends_scatter(Work *w, int t, int nown)
         int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
         for (int u = 0; u < 2; u++) {
             End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u]};
-            w->end[row[nown > 1 ? owner_of(ends[u], n, nown) : 0]++] = x;
+            w->end[row[owner_of(ends[u], n, nown)]++] = x;
         }
     }
     for (size_t k = 0; k < f->wall_len; k++) {
         End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot};
-        w->end[row[nown > 1 ? owner_of(f->wall[k].slot, n, nown) : 0]++] = x;
+        w->end[row[owner_of(f->wall[k].slot, n, nown)]++] = x;
     }
 }
 
-/* Owner u's nodes from its ends: one a slot (node_of finds it), with its wall event and the list of
- * its pair events (CSR in adj). A node with a wall event and no pair event keeps its wall event; the
+/* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none,
+ * its wall event or one more pair event; in its second, the pair event into the node's list. */
+static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_t *nn)
+{
+    int32_t v = w->node_of[slot];
+    if (fill) {
+        if (ref >= 0) {
+            Node *nd = &w->node[v];
+            w->adj[nd->lo + nd->cnt++].e = ref >> 1;
+        }
+        return;
+    }
+    if (v < 0) {
+        v = (int32_t)(*nn)++;
+        Node fresh = {-1, 0, 0, 0, slot, -1, -1, 0};
+        w->node[v] = fresh;
+        w->node_of[slot] = v;
+    }
+    Node *nd = &w->node[v];
+    if (ref < 0) {
+        int64_t e = -1 - ref;
+        nd->wall_t = w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift].t;
+    } else {
+        const PairEvent *e = event_at(w, ref >> 1);
+        nd->id = ref & 1 ? e->j : e->i;
+        nd->cnt++;
+    }
+}
+
+/* A pass of nodes_build over owner u's ends: those ends_scatter gave it or, where one owner holds all
+ * slots, the threads' lists themselves (no copy of them). */
+static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
+{
+    if (w->owners > 1) {
+        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++)
+            node_end(w, w->end[k].slot, w->end[k].ref, fill, nn);
+        return;
+    }
+    for (int t = 0; t < w->nt; t++) {
+        const Found *f = &w->b.th[t].found;
+        for (size_t k = 0; k < f->len; k++) {
+            int64_t e = ((int64_t)k << w->ev_shift) + t;
+            node_end(w, f->ev[k].a, 2 * e, fill, nn);
+            node_end(w, f->ev[k].b, 2 * e + 1, fill, nn);
+        }
+        for (size_t k = 0; k < f->wall_len; k++)
+            node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), fill, nn);
+    }
+}
+
+/* Owner u's nodes from its ends: one a slot with an event, with its wall event and the list of its
+ * pair events (CSR in adj). A node with a wall event and no pair event keeps its wall event; the
  * others are the owner's active nodes, which go to the rounds of choose_events. */
 static void nodes_build(Work *w, int u)
 {
     Thread *th = &w->th[u];
-    int64_t lo = th->lo, hi = th->hi, nn = lo;
-    for (int64_t k = lo; k < hi; k++) {
-        const End *x = &w->end[k];
-        int32_t v = w->node_of[x->slot];
-        if (v < 0) {
-            v = (int32_t)nn++;
-            Node fresh = {-1, 0, 0, 0, x->slot, -1, -1, 0};
-            w->node[v] = fresh;
-            w->node_of[x->slot] = v;
-        }
-        Node *nd = &w->node[v];
-        if (x->ref < 0) {
-            int64_t e = -1 - x->ref;
-            nd->wall_t = w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift].t;
-        } else {
-            const PairEvent *e = event_at(w, x->ref >> 1);
-            nd->id = x->ref & 1 ? e->j : e->i;
-            nd->cnt++;
-        }
-    }
+    int64_t lo = th->lo, nn = lo;
+    nodes_pass(w, u, 0, &nn);
     int32_t *act = w->active + lo;
-    int64_t pos = lo, na = 0;
+    int64_t na = 0;
+    int32_t pos = (int32_t)lo;
     for (int64_t v = lo; v < nn; v++) {
         Node *nd = &w->node[v];
         nd->lo = pos;
@@ -263,12 +306,7 @@ static void nodes_build(Work *w, int u)
         nd->cnt = 0;
     }
     th->n_active = na;
-    for (int64_t k = lo; k < hi; k++) {
-        const End *x = &w->end[k];
-        if (x->ref < 0) continue;
-        Node *nd = &w->node[w->node_of[x->slot]];
-        w->adj[nd->lo + nd->cnt++].e = x->ref >> 1;
-    }
+    nodes_pass(w, u, 1, &nn);
 }
 
 /* The node of the other disk of each pair event in owner u's lists (once every owner has built its
@@ -278,7 +316,7 @@ static void nodes_link(Work *w, int u)
     const int32_t *act = w->active + w->th[u].lo;
     for (int64_t k = 0; k < w->th[u].n_active; k++) {
         const Node *nd = &w->node[act[k]];
-        for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
             const PairEvent *e = event_at(w, w->adj[a].e);
             w->adj[a].other = w->node_of[e->a == nd->slot ? e->b : e->a];
         }
@@ -293,7 +331,7 @@ static void build_nodes(Work *w, int tid)
 #pragma omp barrier
 #pragma omp single
     ends_scan(w, w->nt);
-    ends_scatter(w, tid, w->nt);
+    if (w->nt > 1) ends_scatter(w, tid, w->nt);
 #pragma omp barrier
     nodes_build(w, tid);
 #pragma omp barrier
@@ -368,7 +406,7 @@ static void finish_sequential(Work *w)
                 SeqEvent e = {nd->wall_t, 0, nd->id, nd->id, v, v};
                 w->fin[len++] = e;
             }
-            for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
                 const PairEvent *pe = event_at(w, w->adj[a].e);
                 if (pe->a != nd->slot || w->node[w->adj[a].other].taken) continue;
                 w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
@@ -386,7 +424,6 @@ static void choose_small(Work *w)
 {
     for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
     ends_scan(w, 1);
-    for (int t = 0; t < w->nt; t++) ends_scatter(w, t, 1);
     nodes_build(w, 0);
     nodes_link(w, 0);
     finish_sequential(w);
@@ -411,7 +448,7 @@ static void choose_events(Work *w, int tid)
                 bi = bj = nd->id;
                 bt = nd->wall_t;
             }
-            for (int64_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
                 int32_t other = w->adj[a].other;
                 if (node[other].taken) continue;
                 const PairEvent *e = event_at(w, w->adj[a].e);

@@ -340,13 +340,16 @@ static void bin_grid(Broad *b, int tid, int reorder)
     const Slots *s = &b->s;
     int nt = b->nt;
     int64_t cells = pl->gx * pl->gy, from, to;
-    int32_t *h = b->hist + (size_t)tid * (size_t)cells;
+    /* one thread counts into cell_start shifted by a cell, and its scatter's cursors end as the
+     * cells' starts: no histogram to clear and sum (a gas has about a cell a disk) */
+    int one = nt == 1;
+    int32_t *h = one ? b->cell_start + 1 : b->hist + (size_t)tid * (size_t)cells;
     BroadThread *th = &b->th[tid];
     int mixed = pl->mode == MODE_MIXED;
     /* a gas's dense wall_t would be written for nothing but the rare disk near a wall */
     int wall_all = !b->wall_lists || mixed || b->opt->check;
     th->fast_len = 0;
-    memset(h, 0, (size_t)cells * sizeof *h);
+    memset(h - one, 0, (size_t)(cells + one) * sizeof *h);
     range_of(b->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         Span sp;
@@ -359,8 +362,16 @@ static void bin_grid(Broad *b, int tid, int reorder)
         }
     }
 #pragma omp barrier
+    if (one) {
+        int32_t acc = 0;
+        for (int64_t c = 0; c < cells; c++) {
+            int32_t v = h[c];
+            h[c] = acc;
+            acc += v;
+        }
+    }
     int64_t c0, c1, sum = 0;
-    range_of(cells, tid, nt, &c0, &c1);
+    range_of(one ? 0 : cells, tid, nt, &c0, &c1);
     for (int64_t c = c0; c < c1; c++) {
         int32_t tot = 0;
         for (int t = 0; t < nt; t++) {
@@ -374,7 +385,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
     b->th[tid].partial = sum;
 #pragma omp barrier
 #pragma omp single
-    b->cell_start[cells] = (int32_t)scan_partials(b, nt);
+    if (!one) b->cell_start[cells] = (int32_t)scan_partials(b, nt);
     int64_t base = b->th[tid].partial;
     for (int64_t c = c0; c < c1; c++) {
         int32_t v = b->cell_start[c];
@@ -388,7 +399,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
             Span sp;
             step_span(s, q, pl->grow, &sp);
             int32_t c = span_cell(&sp, pl);
-            int32_t pos = b->cell_start[c] + h[c]++;
+            int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, pos);
@@ -413,7 +424,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
             Span sp;
             step_span(s, q, pl->grow, &sp);
             int32_t c = span_cell(&sp, pl);
-            int32_t pos = b->cell_start[c] + h[c]++;
+            int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, (int32_t)q);
@@ -434,26 +445,27 @@ static void bin_grid(Broad *b, int tid, int reorder)
     }
 }
 
-/* Narrow phase for two disks whose boxes overlap: the disk with the lower original index is always
- * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. The wall
- * event times are found again (wall_t need not hold them, see wall_lists), for the few pairs with
- * an event. */
+/* Narrow phase for two disks whose boxes overlap. Only pairs that approach (b < 0, as in pair_time)
+ * count as tested. SPEC.md makes the disk of lower original index pair_time's first, but pair_time
+ * gives the same bits either way round (swapping the disks negates dx, dy, dvx and dvy exactly, and
+ * only their products and squares follow), so the indices are read only for the few pairs with an
+ * event; so are the wall event times, found again (wall_t need not hold them, see wall_lists). */
 static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b)
 {
     const Slots *s = &w->s;
     real dx = s->x[b] - s->x[a], dy = s->y[b] - s->y[a];
     real dvx = s->vx[b] - s->vx[a], dvy = s->vy[b] - s->vy[a];
     if (!(dx * dvx + dy * dvy < 0)) return;
-    if (s->id[b] < s->id[a]) {
-        int32_t t = a;
-        a = b;
-        b = t;
-    }
     th->found.tests++;
     real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
                        w->p->sigma2);
-    if (t >= 0 && before_walls(t, slot_wall_time(s, w->p, a), slot_wall_time(s, w->p, b)))
-        found_push(&th->found, t, s->id[a], s->id[b], a, b);
+    if (!(t >= 0 && before_walls(t, slot_wall_time(s, w->p, a), slot_wall_time(s, w->p, b)))) return;
+    if (s->id[b] < s->id[a]) {
+        int32_t u = a;
+        a = b;
+        b = u;
+    }
+    found_push(&th->found, t, s->id[a], s->id[b], a, b);
 }
 
 /* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
