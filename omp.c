@@ -235,14 +235,14 @@ static void ends_scatter(Work *w, int t, int nown)
  * its wall event or one more pair event; in its second, the pair event into the node's list. */
 static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_t *nn)
 {
-    int32_t v = w->node_of[slot];
     if (fill) {
         if (ref >= 0) {
-            Node *nd = &w->node[v];
+            Node *nd = &w->node[w->node_of[slot]];
             w->adj[nd->lo + nd->cnt++].e = ref >> 1;
         }
         return;
     }
+    int32_t v = w->node_of[slot];
     if (v < 0) {
         v = (int32_t)(*nn)++;
         Node fresh = {-1, 0, 0, 0, slot, -1, -1, 0};
@@ -276,7 +276,7 @@ static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
             node_end(w, f->ev[k].a, 2 * e, fill, nn);
             node_end(w, f->ev[k].b, 2 * e + 1, fill, nn);
         }
-        for (size_t k = 0; k < f->wall_len; k++)
+        for (size_t k = 0; k < f->wall_len && !fill; k++)
             node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), fill, nn);
     }
 }
