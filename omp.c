@@ -80,7 +80,8 @@ typedef struct {
 } Adj;
 
 /* An end of an event, on its way to the thread whose range of slots holds its disk: ref is 2 e for
- * disk a of pair event e, 2 e + 1 for disk b, -1 - e for wall event e (each named as event_at's). */
+ * disk a of pair event e, 2 e + 1 for disk b, -1 - e for wall event e (event_at's and wall_at's
+ * names). */
 typedef struct {
     int64_t ref;
     int32_t slot;
@@ -143,11 +144,16 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
-/* The pair event e (see ev_shift): the events stay where the threads found them (their wall events
- * too, named alike). */
+/* The pair event e (see ev_shift): the events stay where the threads found them. */
 static inline const PairEvent *event_at(const Work *w, int64_t e)
 {
     return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.ev[e >> w->ev_shift];
+}
+
+/* The wall event e, named alike. */
+static inline const WallEvent *wall_at(const Work *w, int64_t e)
+{
+    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift];
 }
 
 /* Which of nown owners (range_of's ranges of the n slots) holds slot q. */
@@ -251,8 +257,7 @@ static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_
     }
     Node *nd = &w->node[v];
     if (ref < 0) {
-        int64_t e = -1 - ref;
-        nd->wall_t = w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift].t;
+        nd->wall_t = wall_at(w, -1 - ref)->t;
     } else {
         const PairEvent *e = event_at(w, ref >> 1);
         nd->id = ref & 1 ? e->j : e->i;
