@@ -73,7 +73,7 @@ typedef struct {
     int32_t taken;    /* 1 once it has an accepted event: p and t are that event */
 } Node;
 
-/* One of a node's pair events and the node of its other disk. */
+/* One of a node's pair events and its other disk: its slot, then (nodes_link) its node. */
 typedef struct {
     int64_t e; /* the event (event_at) */
     int32_t other;
@@ -85,6 +85,7 @@ typedef struct {
 typedef struct {
     int64_t ref;
     int32_t slot;
+    int32_t other; /* a pair event's other disk's slot */
 } End;
 
 typedef struct {
@@ -99,6 +100,8 @@ typedef struct {
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
     int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
     int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
+    int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
+    double owner_scale; /* nt / n */
     End *end;         /* the ends of the step's events, by owner */
     size_t end_cap;
     Node *node;       /* the step's nodes, by owner */
@@ -156,31 +159,33 @@ static inline const WallEvent *wall_at(const Work *w, int64_t e)
     return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift];
 }
 
-/* Which of nown owners (range_of's ranges of the n slots) holds slot q. */
-static int owner_of(int64_t q, int64_t n, int nown)
+/* Which thread's range (range_of) holds slot q: a guess in floating point, set right against the
+ * ranges' bounds (no division per event: a step of a fast scene has tens of thousands). */
+static inline int owner_of(const Work *w, int64_t q)
 {
-    int u = (int)(q * nown / n);
-    while (u + 1 < nown && n * (u + 1) / nown <= q) u++;
-    while (u > 0 && n * u / nown > q) u--;
+    int u = (int)((double)q * w->owner_scale);
+    if (u > w->nt - 1) u = w->nt - 1;
+    while (u > 0 && q < w->bound[u]) u--;
+    while (q >= w->bound[u + 1]) u++;
     return u;
 }
 
 /* Counts the ends that thread t's broad phase found (two a pair event, one a wall event) for each of
- * nown owners, into row t of w->ends. */
+ * nown owners (every thread its range, or thread 0 all), into row t of w->ends. */
 static void ends_count(Work *w, int t, int nown)
 {
     const Found *f = &w->b.th[t].found;
-    int64_t *row = w->ends + (size_t)t * (size_t)w->nt, n = w->p->n;
+    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
     for (int u = 0; u < nown; u++) row[u] = 0;
     if (nown == 1) {
         row[0] = (int64_t)(2 * f->len + f->wall_len);
         return;
     }
     for (size_t k = 0; k < f->len; k++) {
-        row[owner_of(f->ev[k].a, n, nown)]++;
-        row[owner_of(f->ev[k].b, n, nown)]++;
+        row[owner_of(w, f->ev[k].a)]++;
+        row[owner_of(w, f->ev[k].b)]++;
     }
-    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(f->wall[k].slot, n, nown)]++;
+    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(w, f->wall[k].slot)]++;
 }
 
 /* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
@@ -219,32 +224,35 @@ static void ends_scan(Work *w, int nown)
     w->active = scratch_grow(w->active, &w->active_cap, need, sizeof *w->active);
 }
 
-/* Thread t's ends to their owners' segments (nown > 1). */
-static void ends_scatter(Work *w, int t, int nown)
+/* Thread t's ends to their owners' segments (every thread owns its range). */
+static void ends_scatter(Work *w, int t)
 {
     const Found *f = &w->b.th[t].found;
-    int64_t *row = w->ends + (size_t)t * (size_t)w->nt, n = w->p->n;
+    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
     for (size_t k = 0; k < f->len; k++) {
         int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
         for (int u = 0; u < 2; u++) {
-            End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u]};
-            w->end[row[owner_of(ends[u], n, nown)]++] = x;
+            End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u], ends[1 - u]};
+            w->end[row[owner_of(w, ends[u])]++] = x;
         }
     }
     for (size_t k = 0; k < f->wall_len; k++) {
-        End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot};
-        w->end[row[owner_of(f->wall[k].slot, n, nown)]++] = x;
+        End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot, -1};
+        w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
     }
 }
 
 /* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none,
- * its wall event or one more pair event; in its second, the pair event into the node's list. */
-static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_t *nn)
+ * its wall event or one more pair event (of the disk of original index id); in its second, the pair
+ * event into the node's list with the other disk's slot (nodes_link makes it its node). */
+static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int32_t other, int fill,
+                            int64_t *nn)
 {
     if (fill) {
         if (ref >= 0) {
             Node *nd = &w->node[w->node_of[slot]];
-            w->adj[nd->lo + nd->cnt++].e = ref >> 1;
+            Adj x = {ref >> 1, other};
+            w->adj[nd->lo + nd->cnt++] = x;
         }
         return;
     }
@@ -259,8 +267,7 @@ static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_
     if (ref < 0) {
         nd->wall_t = wall_at(w, -1 - ref)->t;
     } else {
-        const PairEvent *e = event_at(w, ref >> 1);
-        nd->id = ref & 1 ? e->j : e->i;
+        nd->id = id;
         nd->cnt++;
     }
 }
@@ -270,19 +277,27 @@ static inline void node_end(Work *w, int32_t slot, int64_t ref, int fill, int64_
 static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
 {
     if (w->owners > 1) {
-        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++)
-            node_end(w, w->end[k].slot, w->end[k].ref, fill, nn);
+        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++) {
+            const End *x = &w->end[k];
+            int32_t id = -1;
+            if (x->ref >= 0 && !fill) {
+                const PairEvent *e = event_at(w, x->ref >> 1);
+                id = x->ref & 1 ? e->j : e->i;
+            }
+            node_end(w, x->slot, x->ref, id, x->other, fill, nn);
+        }
         return;
     }
     for (int t = 0; t < w->nt; t++) {
         const Found *f = &w->b.th[t].found;
         for (size_t k = 0; k < f->len; k++) {
-            int64_t e = ((int64_t)k << w->ev_shift) + t;
-            node_end(w, f->ev[k].a, 2 * e, fill, nn);
-            node_end(w, f->ev[k].b, 2 * e + 1, fill, nn);
+            const PairEvent *e = &f->ev[k];
+            int64_t name = ((int64_t)k << w->ev_shift) + t;
+            node_end(w, e->a, 2 * name, e->i, e->b, fill, nn);
+            node_end(w, e->b, 2 * name + 1, e->j, e->a, fill, nn);
         }
         for (size_t k = 0; k < f->wall_len && !fill; k++)
-            node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), fill, nn);
+            node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), -1, -1, fill, nn);
     }
 }
 
@@ -314,17 +329,15 @@ static void nodes_build(Work *w, int u)
     nodes_pass(w, u, 1, &nn);
 }
 
-/* The node of the other disk of each pair event in owner u's lists (once every owner has built its
- * nodes). */
+/* The node of the other disk of each pair event in owner u's lists, in place of its slot (once every
+ * owner has built its nodes). */
 static void nodes_link(Work *w, int u)
 {
     const int32_t *act = w->active + w->th[u].lo;
     for (int64_t k = 0; k < w->th[u].n_active; k++) {
         const Node *nd = &w->node[act[k]];
-        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-            const PairEvent *e = event_at(w, w->adj[a].e);
-            w->adj[a].other = w->node_of[e->a == nd->slot ? e->b : e->a];
-        }
+        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++)
+            w->adj[a].other = w->node_of[w->adj[a].other];
     }
 }
 
@@ -336,7 +349,7 @@ static void build_nodes(Work *w, int tid)
 #pragma omp barrier
 #pragma omp single
     ends_scan(w, w->nt);
-    if (w->nt > 1) ends_scatter(w, tid, w->nt);
+    if (w->nt > 1) ends_scatter(w, tid);
 #pragma omp barrier
     nodes_build(w, tid);
 #pragma omp barrier
@@ -668,6 +681,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.b.wall_lists = 1;
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
+    w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
 
     double t0 = 0;
@@ -677,6 +691,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     {
         w.nt = w.b.nt = omp_get_num_threads();
         while (1 << w.ev_shift < w.nt) w.ev_shift++;
+        for (int t = 0; t <= w.nt; t++) w.bound[t] = n * t / w.nt;
+        w.owner_scale = (double)w.nt / (double)n;
     }
         int tid = omp_get_thread_num();
         slots_fill(&w, tid);
@@ -708,6 +724,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     broad_free(&w.b);
     free(w.th);
     free(w.ends);
+    free(w.bound);
     free(w.end);
     free(w.node);
     free(w.adj);
