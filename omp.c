@@ -45,22 +45,48 @@ const unsigned backend_features =
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
-/* An event of the sequential finish: the key of SPEC.md 3.3 and the slots of its disks. */
+/* An event of the sequential finish: the key of SPEC.md 3.3 and the nodes of its disks. */
 typedef struct {
     real t;
     int kind;     /* 0: wall, 1: pair */
     int32_t i, j; /* original indices */
-    int32_t a, b; /* slots */
+    int32_t a, b; /* nodes */
 } SeqEvent;
 
 /* Per-thread state of the choice and the moves, padded so that threads never share a cache line. */
 typedef struct {
-    int64_t n_active; /* undecided disks of this thread's range, at active + range start */
-    int64_t partial;  /* this thread's part of a prefix sum */
-    size_t ev_off;    /* where this thread's events go in the gathered list */
+    int64_t lo, hi;   /* this owner's segment of end, node, adj and active */
+    int64_t n_active; /* undecided nodes of this owner, at active + lo */
     uint64_t events;
     char pad[64];
 } Thread;
+
+/* A disk with an event this step (a pair event, or a wall event): the choice works on these alone,
+ * so that its passes touch a few bytes per event rather than arrays over all slots, which on large
+ * gases are read from beyond the cache every step. */
+typedef struct {
+    real wall_t;      /* its wall event time, or -1 */
+    real t;           /* the time of its smallest remaining event (rounds), then of the accepted one */
+    int32_t lo, cnt;  /* its pair events: adj[lo .. lo + cnt) */
+    int32_t slot, id; /* id: the original index (where cnt > 0: the move and the keys need it) */
+    int32_t p;        /* the node of that event's other disk (itself: wall; -1: none) */
+    int32_t taken;    /* 1 once it has an accepted event: p and t are that event */
+} Node;
+
+/* One of a node's pair events and its other disk: its slot, then (nodes_link) its node. */
+typedef struct {
+    int64_t e; /* the event (event_at) */
+    int32_t other;
+} Adj;
+
+/* An end of an event, on its way to the thread whose range of slots holds its disk: ref is 2 e for
+ * disk a of pair event e, 2 e + 1 for disk b, -1 - e for wall event e (event_at's and wall_at's
+ * names). */
+typedef struct {
+    int64_t ref;
+    int32_t slot;
+    int32_t other; /* a pair event's other disk's slot */
+} End;
 
 typedef struct {
     Sim *sim;         /* the caller's state, original order: filled for printing and at the end */
@@ -71,19 +97,21 @@ typedef struct {
     TextJob text;     /* print mode: the state being formatted and written */
     int nt;           /* threads in the parallel region */
     Thread *th;
-    /* the rest is indexed by slot */
-    PairEvent *ev;    /* all pair events of the step */
-    size_t n_ev, ev_cap;
-    int64_t *off;     /* n + 1: CSR offsets of each disk's events in adj */
-    size_t *adj;      /* 2 * n_ev: event indices */
+    int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
+    int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
+    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
+    int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
+    double owner_scale; /* nt / n */
+    End *end;         /* the ends of the step's events, by owner */
+    size_t end_cap;
+    Node *node;       /* the step's nodes, by owner */
+    size_t node_cap;
+    Adj *adj;         /* the nodes' lists of pair events */
     size_t adj_cap;
-    int32_t *active;  /* n: undecided disks, each thread's in its own range */
-    int32_t *best_p;  /* n: partner slot of the smallest remaining event (itself: wall; -1: none) */
-    real *best_t;   /* n: time of that event */
-    int32_t *acc_p;   /* n: partner of the accepted event (itself: wall; -1: none) */
-    real *acc_t;    /* n: time of the accepted event */
-    unsigned char *taken; /* n: 1 once the disk has an accepted event */
-    int64_t undecided;   /* disks left after a round of the choice */
+    int32_t *active;  /* undecided nodes, each owner's in its segment */
+    size_t active_cap;
+    int32_t *node_of; /* n, by slot: its node this step, else -1 */
+    int64_t undecided;   /* nodes left after a round of the choice */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
     SeqEvent *fin_tmp; /* sort_events' buffer */
@@ -97,19 +125,6 @@ static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
 }
 
 /* ==== slots ========================================================================================= */
-
-/* Turns each thread's partial count into the sum of the counts of the threads before it; returns the
- * total. Called by one thread between barriers. */
-static int64_t scan_partials(Work *w, int nt)
-{
-    int64_t acc = 0;
-    for (int t = 0; t < nt; t++) {
-        int64_t v = w->th[t].partial;
-        w->th[t].partial = acc;
-        acc += v;
-    }
-    return acc;
-}
 
 /* Copies the slots of this thread's range back to the caller's state, in original order. */
 static void slots_unpermute(Work *w, int tid)
@@ -132,76 +147,213 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
-/* Gathers the threads' pair events, builds each slot's list of them (CSR: count, prefix, fill; the
- * order inside a list does not matter, only its smallest event is ever used) and starts the choice. */
-static void build_lists(Work *w, int tid)
+/* The pair event e (see ev_shift): the events stay where the threads found them. */
+static inline const PairEvent *event_at(const Work *w, int64_t e)
+{
+    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.ev[e >> w->ev_shift];
+}
+
+/* The wall event e, named alike. */
+static inline const WallEvent *wall_at(const Work *w, int64_t e)
+{
+    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift];
+}
+
+/* Which thread's range (range_of) holds slot q: a guess in floating point, set right against the
+ * ranges' bounds (no division per event: a step of a fast scene has tens of thousands). */
+static inline int owner_of(const Work *w, int64_t q)
+{
+    int u = (int)((double)q * w->owner_scale);
+    if (u > w->nt - 1) u = w->nt - 1;
+    while (u > 0 && q < w->bound[u]) u--;
+    while (q >= w->bound[u + 1]) u++;
+    return u;
+}
+
+/* Counts the ends that thread t's broad phase found (two a pair event, one a wall event) for each of
+ * nown owners (every thread its range, or thread 0 all), into row t of w->ends. */
+static void ends_count(Work *w, int t, int nown)
+{
+    const Found *f = &w->b.th[t].found;
+    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    for (int u = 0; u < nown; u++) row[u] = 0;
+    if (nown == 1) {
+        row[0] = (int64_t)(2 * f->len + f->wall_len);
+        return;
+    }
+    for (size_t k = 0; k < f->len; k++) {
+        row[owner_of(w, f->ev[k].a)]++;
+        row[owner_of(w, f->ev[k].b)]++;
+    }
+    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(w, f->wall[k].slot)]++;
+}
+
+/* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
+static void *scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap) return ptr;
+    free(ptr);
+    *cap = 0;
+    return omp_grow(NULL, cap, need, size);
+}
+
+/* Where the ends go: each owner's in a segment [lo, hi) of w->end, each thread's part of it after
+ * those of the threads before it (w->ends then holds where the next one goes). An owner's nodes,
+ * lists and active nodes take the same segment of their arrays: there are no more of them than
+ * ends. Called by one thread. */
+static void ends_scan(Work *w, int nown)
 {
     int nt = w->nt;
-    int64_t n = w->p->n, from, to;
-#pragma omp single
-    {
-        size_t total = 0;
-        for (int t = 0; t < nt; t++) {
-            w->th[t].ev_off = total;
-            total += w->b.th[t].found.len;
+    int64_t acc = 0;
+    w->owners = nown;
+    for (int u = 0; u < nt; u++) {
+        w->th[u].lo = acc;
+        for (int t = 0; t < nt && u < nown; t++) {
+            int64_t v = w->ends[(size_t)t * (size_t)nt + (size_t)u];
+            w->ends[(size_t)t * (size_t)nt + (size_t)u] = acc;
+            acc += v;
         }
-        w->n_ev = total;
-        w->ev = omp_grow(w->ev, &w->ev_cap, total, sizeof *w->ev);
-        w->adj = omp_grow(w->adj, &w->adj_cap, 2 * total, sizeof *w->adj);
-        w->off[n] = (int64_t)(2 * total);
+        w->th[u].hi = acc;
+        w->th[u].n_active = 0;
     }
-    Thread *th = &w->th[tid];
-    const Found *f = &w->b.th[tid].found;
-    if (f->len) memcpy(w->ev + th->ev_off, f->ev, f->len * sizeof *w->ev);
-    range_of(n, tid, nt, &from, &to);
-    for (int64_t q = from; q < to; q++) {
-        w->off[q] = 0;
-        w->taken[q] = 0;
-        w->acc_p[q] = -1;
-    }
-#pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + f->len; e++) {
-#pragma omp atomic
-        w->off[w->ev[e].a]++;
-#pragma omp atomic
-        w->off[w->ev[e].b]++;
-    }
-#pragma omp barrier
-    /* a disk with a wall event and no pair event keeps its wall event; a disk with pair events
-     * goes to the rounds of choose_events */
-    int32_t *act = w->active + from;
-    int64_t sum = 0, na = 0;
-    for (int64_t q = from; q < to; q++) {
-        int64_t c = w->off[q];
-        sum += c;
-        if (c > 0) {
-            act[na++] = (int32_t)q;
-        } else if (w->b.wall_t[q] >= 0) {
-            w->taken[q] = 1;
-            w->acc_p[q] = (int32_t)q;
-            w->acc_t[q] = w->b.wall_t[q];
+    if (acc > INT32_MAX) sim_fail("%lld events in one step: too many", (long long)acc);
+    size_t need = (size_t)acc;
+    if (nown > 1) w->end = scratch_grow(w->end, &w->end_cap, need, sizeof *w->end);
+    w->node = scratch_grow(w->node, &w->node_cap, need, sizeof *w->node);
+    w->adj = scratch_grow(w->adj, &w->adj_cap, need, sizeof *w->adj);
+    w->active = scratch_grow(w->active, &w->active_cap, need, sizeof *w->active);
+}
+
+/* Thread t's ends to their owners' segments (every thread owns its range). */
+static void ends_scatter(Work *w, int t)
+{
+    const Found *f = &w->b.th[t].found;
+    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    for (size_t k = 0; k < f->len; k++) {
+        int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
+        for (int u = 0; u < 2; u++) {
+            End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u], ends[1 - u]};
+            w->end[row[owner_of(w, ends[u])]++] = x;
         }
+    }
+    for (size_t k = 0; k < f->wall_len; k++) {
+        End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot, -1};
+        w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
+    }
+}
+
+/* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none,
+ * its wall event or one more pair event (of the disk of original index id); in its second, the pair
+ * event into the node's list with the other disk's slot (nodes_link makes it its node). */
+static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int32_t other, int fill,
+                            int64_t *nn)
+{
+    if (fill) {
+        if (ref >= 0) {
+            Node *nd = &w->node[w->node_of[slot]];
+            Adj x = {ref >> 1, other};
+            w->adj[nd->lo + nd->cnt++] = x;
+        }
+        return;
+    }
+    int32_t v = w->node_of[slot];
+    if (v < 0) {
+        v = (int32_t)(*nn)++;
+        Node fresh = {-1, 0, 0, 0, slot, -1, -1, 0};
+        w->node[v] = fresh;
+        w->node_of[slot] = v;
+    }
+    Node *nd = &w->node[v];
+    if (ref < 0) {
+        nd->wall_t = wall_at(w, -1 - ref)->t;
+    } else {
+        nd->id = id;
+        nd->cnt++;
+    }
+}
+
+/* A pass of nodes_build over owner u's ends: those ends_scatter gave it or, where one owner holds all
+ * slots, the threads' lists themselves (no copy of them). */
+static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
+{
+    if (w->owners > 1) {
+        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++) {
+            const End *x = &w->end[k];
+            int32_t id = -1;
+            if (x->ref >= 0 && !fill) {
+                const PairEvent *e = event_at(w, x->ref >> 1);
+                id = x->ref & 1 ? e->j : e->i;
+            }
+            node_end(w, x->slot, x->ref, id, x->other, fill, nn);
+        }
+        return;
+    }
+    for (int t = 0; t < w->nt; t++) {
+        const Found *f = &w->b.th[t].found;
+        for (size_t k = 0; k < f->len; k++) {
+            const PairEvent *e = &f->ev[k];
+            int64_t name = ((int64_t)k << w->ev_shift) + t;
+            node_end(w, e->a, 2 * name, e->i, e->b, fill, nn);
+            node_end(w, e->b, 2 * name + 1, e->j, e->a, fill, nn);
+        }
+        for (size_t k = 0; k < f->wall_len && !fill; k++)
+            node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), -1, -1, fill, nn);
+    }
+}
+
+/* Owner u's nodes from its ends: one a slot with an event, with its wall event and the list of its
+ * pair events (CSR in adj). A node with a wall event and no pair event keeps its wall event; the
+ * others are the owner's active nodes, which go to the rounds of choose_events. */
+static void nodes_build(Work *w, int u)
+{
+    Thread *th = &w->th[u];
+    int64_t lo = th->lo, nn = lo;
+    nodes_pass(w, u, 0, &nn);
+    int32_t *act = w->active + lo;
+    int64_t na = 0;
+    int32_t pos = (int32_t)lo;
+    for (int64_t v = lo; v < nn; v++) {
+        Node *nd = &w->node[v];
+        nd->lo = pos;
+        pos += nd->cnt;
+        if (nd->cnt > 0) {
+            act[na++] = (int32_t)v;
+        } else {
+            nd->taken = 1;
+            nd->p = (int32_t)v;
+            nd->t = nd->wall_t;
+        }
+        nd->cnt = 0;
     }
     th->n_active = na;
-    th->partial = sum;
+    nodes_pass(w, u, 1, &nn);
+}
+
+/* The node of the other disk of each pair event in owner u's lists, in place of its slot (once every
+ * owner has built its nodes). */
+static void nodes_link(Work *w, int u)
+{
+    const int32_t *act = w->active + w->th[u].lo;
+    for (int64_t k = 0; k < w->th[u].n_active; k++) {
+        const Node *nd = &w->node[act[k]];
+        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++)
+            w->adj[a].other = w->node_of[w->adj[a].other];
+    }
+}
+
+/* Gathers the threads' events into nodes (see Node), each thread those of its range of slots, and
+ * starts the choice. */
+static void build_nodes(Work *w, int tid)
+{
+    ends_count(w, tid, w->nt);
 #pragma omp barrier
 #pragma omp single
-    scan_partials(w, nt);
-    sum = th->partial; /* inclusive prefix: off[q] = end of slot q's list */
-    for (int64_t q = from; q < to; q++) {
-        sum += w->off[q];
-        w->off[q] = sum;
-    }
+    ends_scan(w, w->nt);
+    if (w->nt > 1) ends_scatter(w, tid);
 #pragma omp barrier
-    for (size_t e = th->ev_off; e < th->ev_off + f->len; e++) {
-        int64_t pos;
-#pragma omp atomic capture
-        pos = --w->off[w->ev[e].a];
-        w->adj[pos] = e;
-#pragma omp atomic capture
-        pos = --w->off[w->ev[e].b];
-        w->adj[pos] = e;
-    }
+    nodes_build(w, tid);
+#pragma omp barrier
+    nodes_link(w, tid);
 #pragma omp barrier
 }
 
@@ -250,62 +402,33 @@ static void walk_events(Work *w, size_t len)
     sort_events(w->fin, len, w->fin_tmp);
     for (size_t u = 0; u < len; u++) {
         const SeqEvent *e = &w->fin[u];
-        if (w->taken[e->a] || w->taken[e->b]) continue;
-        w->taken[e->a] = w->taken[e->b] = 1;
-        w->acc_p[e->a] = e->b;
-        w->acc_p[e->b] = e->a;
-        w->acc_t[e->a] = w->acc_t[e->b] = e->t;
+        Node *a = &w->node[e->a], *b = &w->node[e->b];
+        if (a->taken || b->taken) continue;
+        a->taken = b->taken = 1;
+        a->p = e->b;
+        b->p = e->a;
+        a->t = b->t = e->t;
     }
 }
 
-/* The whole choice on one thread, for steps with few pair events (the barriers and passes over all
- * disks of the parallel rounds would cost more). Every disk starts with its wall event accepted, if
- * it has one (choice_defaults); only disks with pair events can end otherwise, so the walk takes
- * their pair events and their wall events. */
-static void choose_small(Work *w)
-{
-    size_t len = 0;
-    for (int t = 0; t < w->nt; t++) {
-        const Found *f = &w->b.th[t].found;
-        w->fin = omp_grow(w->fin, &w->fin_cap, len + 3 * f->len, sizeof *w->fin);
-        for (size_t k = 0; k < f->len; k++) {
-            const PairEvent *pe = &f->ev[k];
-            SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
-            w->fin[len++] = e;
-            int32_t ends[2] = {pe->a, pe->b};
-            for (int u = 0; u < 2; u++) {
-                int32_t q = ends[u];
-                if (w->taken[q] || w->b.wall_t[q] < 0) continue;
-                w->taken[q] = 1; /* marks the wall event as listed; cleared before the walk */
-                SeqEvent x = {w->b.wall_t[q], 0, w->b.s.id[q], w->b.s.id[q], q, q};
-                w->fin[len++] = x;
-            }
-        }
-    }
-    for (size_t u = 0; u < len; u++) w->taken[w->fin[u].a] = w->taken[w->fin[u].b] = 0;
-    walk_events(w, len);
-}
-
-/* The last undecided disks: their remaining events sorted and walked, as seq.c does. */
+/* The last undecided nodes: their remaining events sorted and walked, as seq.c does. */
 static void finish_sequential(Work *w)
 {
-    const Slots *s = &w->b.s;
     size_t len = 0;
     for (int t = 0; t < w->nt; t++) {
-        int64_t from, to;
-        range_of(w->p->n, t, w->nt, &from, &to);
         for (int64_t k = 0; k < w->th[t].n_active; k++) {
-            int32_t q = w->active[from + k];
+            int32_t v = w->active[w->th[t].lo + k];
+            const Node *nd = &w->node[v];
             w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-            if (w->b.wall_t[q] >= 0) {
-                SeqEvent e = {w->b.wall_t[q], 0, s->id[q], s->id[q], q, q};
+            if (nd->wall_t >= 0) {
+                SeqEvent e = {nd->wall_t, 0, nd->id, nd->id, v, v};
                 w->fin[len++] = e;
             }
-            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
-                const PairEvent *pe = &w->ev[w->adj[u]];
-                if (pe->a != q || w->taken[pe->b]) continue;
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+                const PairEvent *pe = event_at(w, w->adj[a].e);
+                if (pe->a != nd->slot || w->node[w->adj[a].other].taken) continue;
                 w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-                SeqEvent e = {pe->t, 1, pe->i, pe->j, pe->a, pe->b};
+                SeqEvent e = {pe->t, 1, pe->i, pe->j, v, w->adj[a].other};
                 w->fin[len++] = e;
             }
         }
@@ -313,30 +436,40 @@ static void finish_sequential(Work *w)
     walk_events(w, len);
 }
 
-/* Rounds: every undecided disk finds its smallest event among those whose disks are all free; an
+/* The whole choice on one thread, for steps with few pair events (the barriers of the parallel
+ * rounds would cost more): thread 0 owns every node, the walk decides them all. */
+static void choose_small(Work *w)
+{
+    for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
+    ends_scan(w, 1);
+    nodes_build(w, 0);
+    nodes_link(w, 0);
+    finish_sequential(w);
+}
+
+/* Rounds: every undecided node finds its smallest event among those whose disks are all free; an
  * event that is the smallest of each of its disks is accepted. The global smallest always is, so
  * every round makes progress; once few disks remain the sequential walk ends the step. */
 static void choose_events(Work *w, int tid)
 {
-    const int32_t *id = w->b.s.id;
     Thread *th = &w->th[tid];
-    int64_t from, to;
-    range_of(w->p->n, tid, w->nt, &from, &to);
-    int32_t *act = w->active + from;
+    Node *node = w->node;
+    int32_t *act = w->active + th->lo;
     int64_t na = th->n_active;
     for (;;) {
         for (int64_t k = 0; k < na; k++) {
-            int32_t q = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
+            int32_t v = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
+            Node *nd = &node[v];
             real bt = 0;
-            if (w->b.wall_t[q] >= 0) {
-                bp = q;
-                bi = bj = id[q];
-                bt = w->b.wall_t[q];
+            if (nd->wall_t >= 0) {
+                bp = v;
+                bi = bj = nd->id;
+                bt = nd->wall_t;
             }
-            for (int64_t u = w->off[q]; u < w->off[q + 1]; u++) {
-                const PairEvent *e = &w->ev[w->adj[u]];
-                int32_t other = e->a == q ? e->b : e->a;
-                if (w->taken[other]) continue;
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+                int32_t other = w->adj[a].other;
+                if (node[other].taken) continue;
+                const PairEvent *e = event_at(w, w->adj[a].e);
                 if (bp < 0 || event_before(e->t, 1, e->i, e->j, bt, bk, bi, bj)) {
                     bp = other;
                     bt = e->t;
@@ -345,27 +478,21 @@ static void choose_events(Work *w, int tid)
                     bj = e->j;
                 }
             }
-            w->best_p[q] = bp;
-            w->best_t[q] = bt;
+            nd->p = bp;
+            nd->t = bt;
         }
 #pragma omp barrier
+        /* an accepted pair is marked by its node of lower index; both have its time already */
         int64_t kept = 0;
         for (int64_t k = 0; k < na; k++) {
-            int32_t q = act[k], bp = w->best_p[q];
+            int32_t v = act[k], bp = node[v].p;
             if (bp < 0) continue;
-            if (bp == q) {
-                w->taken[q] = 1;
-                w->acc_p[q] = q;
-                w->acc_t[q] = w->best_t[q];
-            } else if (w->best_p[bp] == q) {
-                if (q < bp) {
-                    w->taken[q] = w->taken[bp] = 1;
-                    w->acc_p[q] = bp;
-                    w->acc_p[bp] = q;
-                    w->acc_t[q] = w->acc_t[bp] = w->best_t[q];
-                }
+            if (bp == v) {
+                node[v].taken = 1;
+            } else if (node[bp].p == v) {
+                if (v < bp) node[v].taken = node[bp].taken = 1;
             } else {
-                act[kept++] = q;
+                act[kept++] = v;
             }
         }
         na = kept;
@@ -382,26 +509,15 @@ static void choose_events(Work *w, int tid)
     }
 }
 
-/* Every disk of this thread's range starts the choice free, its wall event accepted if it has one. */
-static void choice_defaults(Work *w, int tid)
-{
-    int64_t from, to;
-    range_of(w->p->n, tid, w->nt, &from, &to);
-    for (int64_t q = from; q < to; q++) {
-        w->taken[q] = 0;
-        w->acc_p[q] = w->b.wall_t[q] >= 0 ? (int32_t)q : -1;
-        w->acc_t[q] = w->b.wall_t[q];
-    }
-}
-
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
 
 /* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
  * notes the largest velocity component it leaves and the disks' next steps, for the next step's
- * plan. */
+ * plan. A slot without a node has no event; node_of is left all -1 for the next step. */
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->b.s;
+    const Node *node = w->node;
     real lo = w->p->lo, hi = w->p->hi, vm = 0;
     double inv_span = 1 / ((double)hi - (double)lo);
     BroadThread *th = &w->b.th[tid];
@@ -409,19 +525,27 @@ static void move_range(Work *w, int tid)
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
-        int64_t j = w->acc_p[i];
-        real t = w->acc_t[i];
-        if (j < 0) {
+        int32_t v = w->node_of[i], p = -1;
+        real t = 0;
+        if (v >= 0) {
+            w->node_of[i] = -1;
+            if (node[v].taken) {
+                p = node[v].p;
+                t = node[v].t;
+            }
+        }
+        if (p < 0) {
             s->x[i] = s->x[i] + s->vx[i];
             s->y[i] = s->y[i] + s->vy[i];
-        } else if (j == i) {
+        } else if (p == v) {
             real vx0 = s->vx[i], vy0 = s->vy[i];
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
             if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
             events++;
-        } else if (s->id[i] < s->id[j]) {
+        } else if (node[v].id < node[p].id) {
+            int64_t j = node[p].slot;
             note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
             note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
             pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
@@ -476,12 +600,10 @@ static void step_run(Work *w, int tid, int64_t step)
     size_t total = 0;
     for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
     if (total <= SMALL_CHOICE) {
-        choice_defaults(w, tid);
-#pragma omp barrier
 #pragma omp single
         choose_small(w);
     } else {
-        build_lists(w, tid);
+        build_nodes(w, tid);
         choose_events(w, tid);
 #pragma omp barrier
     }
@@ -519,6 +641,7 @@ static void slots_fill(Work *w, int tid)
         s->vx[i] = sim->vx[i];
         s->vy[i] = sim->vy[i];
         s->id[i] = (int32_t)i;
+        w->node_of[i] = -1;
         s->pc[i] = sim->pc[i];
         s->wc[i] = sim->wc[i];
         if (sim->wi) s->wi[i] = sim->wi[i];
@@ -555,20 +678,22 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.opt = opt;
     w.out = out;
     broad_init(&w.b, par, opt, n, nt_max, sim->wi != NULL);
+    w.b.wall_lists = 1;
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
-    w.off = sim_calloc((size_t)n + 1, sizeof *w.off);
-    w.active = sim_calloc((size_t)n, sizeof *w.active);
-    w.best_p = sim_calloc((size_t)n, sizeof *w.best_p);
-    w.best_t = sim_calloc((size_t)n, sizeof *w.best_t);
-    w.acc_p = sim_calloc((size_t)n, sizeof *w.acc_p);
-    w.acc_t = sim_calloc((size_t)n, sizeof *w.acc_t);
-    w.taken = sim_calloc((size_t)n, sizeof *w.taken);
+    w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
+    w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
+    w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
 
     double t0 = 0;
 #pragma omp parallel
     {
 #pragma omp single
+    {
         w.nt = w.b.nt = omp_get_num_threads();
+        while (1 << w.ev_shift < w.nt) w.ev_shift++;
+        for (int t = 0; t <= w.nt; t++) w.bound[t] = n * t / w.nt;
+        w.owner_scale = (double)w.nt / (double)n;
+    }
         int tid = omp_get_thread_num();
         slots_fill(&w, tid);
 #pragma omp single
@@ -598,15 +723,13 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     broad_free(&w.b);
     free(w.th);
-    free(w.ev);
-    free(w.off);
+    free(w.ends);
+    free(w.bound);
+    free(w.end);
+    free(w.node);
     free(w.adj);
     free(w.active);
-    free(w.best_p);
-    free(w.best_t);
-    free(w.acc_p);
-    free(w.acc_t);
-    free(w.taken);
+    free(w.node_of);
     free(w.fin);
     free(w.fin_tmp);
     return 0;

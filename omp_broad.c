@@ -119,7 +119,10 @@ void broad_free(Broad *b)
     slots_free(&b->spare);
     for (int t = 0; t < b->nt_max; t++) {
         free(b->th[t].found.ev);
+        free(b->th[t].found.wall);
         free(b->th[t].fast);
+        free(b->th[t].row[0]);
+        free(b->th[t].row[1]);
     }
     free(b->th);
     paths_free(b->paths);
@@ -283,10 +286,12 @@ static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
 {
     real xa = s->x[q], xb = s->x[q] + s->vx[q];
     real ya = s->y[q], yb = s->y[q] + s->vy[q];
+    /* a minimum and a maximum each (minsd, maxsd) rather than one comparison for both, which the
+     * compiler turns into a branch that the signs of the velocities mispredict half the time */
     b->xlo = (xa < xb ? xa : xb) - grow;
-    b->xhi = (xa < xb ? xb : xa) + grow;
+    b->xhi = (xa > xb ? xa : xb) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
-    b->yhi = (ya < yb ? yb : ya) + grow;
+    b->yhi = (ya > yb ? ya : yb) + grow;
 }
 
 static inline void span_box(const Span *a, const Plan *pl, Box *b)
@@ -305,6 +310,13 @@ static inline int64_t cell_coord(double lo, double hi, double origin, double inv
     return (int64_t)c;
 }
 
+/* The cell of a box's centre. */
+static inline int32_t span_cell(const Span *sp, const Plan *pl)
+{
+    return (int32_t)(cell_coord(sp->ylo, sp->yhi, pl->y0, pl->inv_h, pl->gy) * pl->gx +
+                     cell_coord(sp->xlo, sp->xhi, pl->x0, pl->inv_h, pl->gx));
+}
+
 /* A fast disk's slot (as it will be) goes to this thread's list. */
 static void note_fast(BroadThread *th, int32_t slot)
 {
@@ -321,33 +333,50 @@ static inline int is_fast(const Broad *b, int64_t q)
 }
 
 /* Counting sort of the slots into the cells of their boxes: per-thread histograms, a prefix sum over
- * cells and threads, a scatter (inside a cell the slots keep their order). The boxes go in cell order
- * with their slots; with reorder, the disks themselves move to the new order (through spare). The
- * wall events (3.1) are found on the way. */
+ * cells and threads, a scatter (inside a cell the slots keep their order). The scatter finds each
+ * box's cell again from the disk it reads anyway, which costs less than storing the cells by slot
+ * and reading them back (4 bytes a disk each way, beyond the cache on large gases). The boxes go in
+ * cell order with their slots (the boxes themselves only in a mixed step, for the paths: scan_grid
+ * finds them again); with reorder, the disks themselves move to the new order (through spare). The
+ * wall events (3.1) are found on the way, and the slots that have one listed. */
 static void bin_grid(Broad *b, int tid, int reorder)
 {
     const Plan *pl = &b->plan;
     const Slots *s = &b->s;
     int nt = b->nt;
     int64_t cells = pl->gx * pl->gy, from, to;
-    int32_t *h = b->hist + (size_t)tid * (size_t)cells;
+    /* one thread counts into cell_start shifted by a cell, and its scatter's cursors end as the
+     * cells' starts: no histogram to clear and sum (a gas has about a cell a disk) */
+    int one = nt == 1;
+    int32_t *h = one ? b->cell_start + 1 : b->hist + (size_t)tid * (size_t)cells;
     BroadThread *th = &b->th[tid];
     int mixed = pl->mode == MODE_MIXED;
+    /* a gas's dense wall_t would be written for nothing but the rare disk near a wall */
+    int wall_all = !b->wall_lists || mixed || b->opt->check;
     th->fast_len = 0;
-    memset(h, 0, (size_t)cells * sizeof *h);
+    memset(h - one, 0, (size_t)(cells + one) * sizeof *h);
     range_of(b->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         Span sp;
         step_span(s, q, pl->grow, &sp);
-        int64_t c = cell_coord(sp.ylo, sp.yhi, pl->y0, pl->inv_h, pl->gy) * pl->gx +
-                    cell_coord(sp.xlo, sp.xhi, pl->x0, pl->inv_h, pl->gx);
-        b->cell_of[q] = (int32_t)c;
-        h[c]++;
-        if (!reorder) b->wall_t[q] = slot_wall_time(s, b->p, q);
+        h[span_cell(&sp, pl)]++;
+        if (!reorder) {
+            real wt = slot_wall_time(s, b->p, q);
+            if (wall_all) b->wall_t[q] = wt;
+            if (wt >= 0) found_wall(&th->found, wt, (int32_t)q);
+        }
     }
 #pragma omp barrier
+    if (one) {
+        int32_t acc = 0;
+        for (int64_t c = 0; c < cells; c++) {
+            int32_t v = h[c];
+            h[c] = acc;
+            acc += v;
+        }
+    }
     int64_t c0, c1, sum = 0;
-    range_of(cells, tid, nt, &c0, &c1);
+    range_of(one ? 0 : cells, tid, nt, &c0, &c1);
     for (int64_t c = c0; c < c1; c++) {
         int32_t tot = 0;
         for (int t = 0; t < nt; t++) {
@@ -361,7 +390,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
     b->th[tid].partial = sum;
 #pragma omp barrier
 #pragma omp single
-    b->cell_start[cells] = (int32_t)scan_partials(b, nt);
+    if (!one) b->cell_start[cells] = (int32_t)scan_partials(b, nt);
     int64_t base = b->th[tid].partial;
     for (int64_t c = c0; c < c1; c++) {
         int32_t v = b->cell_start[c];
@@ -372,18 +401,20 @@ static void bin_grid(Broad *b, int tid, int reorder)
     if (reorder) {
         const Slots *d = &b->spare;
         for (int64_t q = from; q < to; q++) {
-            int32_t c = b->cell_of[q];
-            int32_t pos = b->cell_start[c] + h[c]++;
+            Span sp;
+            step_span(s, q, pl->grow, &sp);
+            int32_t c = span_cell(&sp, pl);
+            int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, pos);
-            } else {
-                Span sp;
-                step_span(s, q, pl->grow, &sp);
+            } else if (mixed) {
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = pos;
-            b->wall_t[pos] = slot_wall_time(s, b->p, q);
+            real wt = slot_wall_time(s, b->p, q);
+            if (wall_all) b->wall_t[pos] = wt;
+            if (wt >= 0) found_wall(&th->found, wt, pos);
             d->x[pos] = s->x[q];
             d->y[pos] = s->y[q];
             d->vx[pos] = s->vx[q];
@@ -395,14 +426,14 @@ static void bin_grid(Broad *b, int tid, int reorder)
         }
     } else {
         for (int64_t q = from; q < to; q++) {
-            int32_t c = b->cell_of[q];
-            int32_t pos = b->cell_start[c] + h[c]++;
+            Span sp;
+            step_span(s, q, pl->grow, &sp);
+            int32_t c = span_cell(&sp, pl);
+            int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, (int32_t)q);
-            } else {
-                Span sp;
-                step_span(s, q, pl->grow, &sp);
+            } else if (mixed) {
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = (int32_t)q;
@@ -419,24 +450,27 @@ static void bin_grid(Broad *b, int tid, int reorder)
     }
 }
 
-/* Narrow phase for two disks whose boxes overlap: the disk with the lower original index is always
- * pair_time's first. Only pairs that approach (b < 0, as in pair_time) count as tested. */
+/* Narrow phase for two disks whose boxes overlap. Only pairs that approach (b < 0, as in pair_time)
+ * count as tested. SPEC.md makes the disk of lower original index pair_time's first, but pair_time
+ * gives the same bits either way round (swapping the disks negates dx, dy, dvx and dvy exactly, and
+ * only their products and squares follow), so the indices are read only for the few pairs with an
+ * event; so are the wall event times, found again (wall_t need not hold them, see wall_lists). */
 static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b)
 {
     const Slots *s = &w->s;
     real dx = s->x[b] - s->x[a], dy = s->y[b] - s->y[a];
     real dvx = s->vx[b] - s->vx[a], dvy = s->vy[b] - s->vy[a];
     if (!(dx * dvx + dy * dvy < 0)) return;
-    if (s->id[b] < s->id[a]) {
-        int32_t t = a;
-        a = b;
-        b = t;
-    }
     th->found.tests++;
     real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
                        w->p->sigma2);
-    if (t >= 0 && before_walls(t, w->wall_t[a], w->wall_t[b]))
-        found_push(&th->found, t, s->id[a], s->id[b], a, b);
+    if (!(t >= 0 && before_walls(t, slot_wall_time(s, w->p, a), slot_wall_time(s, w->p, b)))) return;
+    if (s->id[b] < s->id[a]) {
+        int32_t u = a;
+        a = b;
+        b = u;
+    }
+    found_push(&th->found, t, s->id[a], s->id[b], a, b);
 }
 
 /* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
@@ -446,36 +480,71 @@ static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, uns
         if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
 }
 
-/* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
- * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
- * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
- * entries) and masks them off. */
-static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
+/* Tests box ba (at a) against the boxes [b0, b1), found at bx[b - off], in groups of SCAN_WIDTH, each
+ * group's overlaps a mask without a branch per box: ranges hold a few boxes each, and a branch per box
+ * and per range end would be mispredicted about once per box. The last group reads boxes past b1
+ * (there are SCAN_WIDTH spare entries) and masks them off. */
+static inline void scan_range(const Broad *w, BroadThread *th, const Box *ba, int32_t a, const Box *bx,
+                              int32_t off, int32_t b0, int32_t b1)
 {
-    const Box *bx = w->boxes, *ba = &w->boxes[a];
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
-        unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
-                     (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
-                     (unsigned)boxes_overlap(ba, &bx[b + 2]) << 2 |
-                     (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
+        const Box *r = bx + (b - off);
+        unsigned m = (unsigned)boxes_overlap(ba, &r[0]) | (unsigned)boxes_overlap(ba, &r[1]) << 1 |
+                     (unsigned)boxes_overlap(ba, &r[2]) << 2 | (unsigned)boxes_overlap(ba, &r[3]) << 3;
         int32_t rest = b1 - b;
         m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
         if (m) scan_hits(w, th, a, b, m);
     }
 }
 
+/* The boxes of row cy's cells, into this thread's buffer k, SCAN_WIDTH empty ones after them; the
+ * position of the row's first is returned in *off. A grid step computes them again here from the
+ * disks rather than storing them in bin_grid's scatter and reading them back (16 bytes a disk each
+ * way, beyond the cache on large gases); a mixed step reads those it stored. */
+static const Box *row_boxes(const Broad *b, BroadThread *th, int k, int64_t cy, int32_t *off)
+{
+    const Plan *pl = &b->plan;
+    int32_t lo = b->cell_start[cy * pl->gx], hi = b->cell_start[(cy + 1) * pl->gx];
+    *off = lo;
+    if (pl->mode == MODE_MIXED) return b->boxes + lo;
+    th->row[k] = omp_grow(th->row[k], &th->row_cap[k], (size_t)(hi - lo) + SCAN_WIDTH, sizeof(Box));
+    Box *r = th->row[k];
+    for (int32_t pos = lo; pos < hi; pos++) {
+        Span sp;
+        step_span(&b->s, b->box_slot[pos], pl->grow, &sp);
+        span_box(&sp, pl, &r[pos - lo]);
+    }
+    for (int u = 0; u < SCAN_WIDTH; u++) r[hi - lo + u] = empty_box;
+    return r;
+}
+
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
  * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
- * memory and the three northern cells are contiguous, so two ranges cover them. */
+ * memory and the three northern cells are contiguous, so two ranges cover them. The boxes of two rows
+ * at a time are at hand (row_boxes), the northern row kept as the next row's own. */
 static void scan_grid(Broad *b, int tid)
 {
     const Plan *pl = &b->plan;
     BroadThread *th = &b->th[tid];
     const int32_t *cs = b->cell_start;
-    int64_t gx = pl->gx, gy = pl->gy;
+    int64_t gx = pl->gx, gy = pl->gy, next = -1; /* next: the row in buffer cur ^ 1 */
     int64_t chunk = gy / (8 * b->nt) + 1;
+    const Box *own = NULL, *north = NULL;
+    int32_t own_off = 0, north_off = 0;
+    int cur = 0;
 #pragma omp for schedule(dynamic, chunk)
     for (int64_t cy = 0; cy < gy; cy++) {
+        if (next == cy) {
+            cur ^= 1;
+            own = north;
+            own_off = north_off;
+        } else {
+            own = row_boxes(b, th, cur, cy, &own_off);
+        }
+        if (cy + 1 < gy) {
+            north = row_boxes(b, th, cur ^ 1, cy + 1, &north_off);
+            next = cy + 1;
+        }
         for (int64_t cx = 0; cx < gx; cx++) {
             int64_t c = cy * gx + cx;
             int32_t end1 = cs[cx + 1 < gx ? c + 2 : c + 1];
@@ -487,8 +556,9 @@ static void scan_grid(Broad *b, int tid)
                 end2 = cs[last + 1];
             }
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                scan_range(b, th, a, a + 1, end1);
-                scan_range(b, th, a, lo2, end2);
+                const Box *ba = own + (a - own_off);
+                scan_range(b, th, ba, a, own, own_off, a + 1, end1);
+                if (lo2 < end2) scan_range(b, th, ba, a, north, north_off, lo2, end2);
             }
         }
     }
@@ -568,7 +638,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
     BroadThread *th = &b->th[tid];
 
     /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
-    th->found.len = 0;
+    th->found.len = th->found.wall_len = 0;
 #pragma omp single
     {
         b->plan = plan_step(b, b->nt);

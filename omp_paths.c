@@ -447,6 +447,7 @@ static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t
         for (int64_t q = from; q < to; q++) {
             real wt = slot_wall_time(s, p, q);
             wall_t[q] = wt;
+            if (wt >= 0) found_wall(mine, wt, (int32_t)q);
             Body *b = &pp->body[q];
             body_of(s, q, wt, b);
             if (b->cap > 0) path_cells(pp, b, (int32_t)q, bk);

@@ -25,11 +25,20 @@ typedef struct {
     int32_t a, b;
 } PairEvent;
 
-/* What one thread's broad phase finds in a step: pair events, the exact tests (pair_time) done, and
- * for the paths (--stats) the cells visited and the pairs of visits that overlap in time. */
+/* A wall event: its time and slot. */
+typedef struct {
+    real t;
+    int32_t slot;
+} WallEvent;
+
+/* What one thread's broad phase finds in a step: pair events, wall events (so that the choice need
+ * not look at every slot), the exact tests (pair_time) done, and for the paths (--stats) the cells
+ * visited and the pairs of visits that overlap in time. */
 typedef struct {
     PairEvent *ev;
     size_t len, cap;
+    WallEvent *wall;
+    size_t wall_len, wall_cap;
     uint64_t tests, visits, overlaps;
 } Found;
 
@@ -41,6 +50,14 @@ static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a,
     if (f->len == f->cap) f->ev = omp_grow(f->ev, &f->cap, f->len + 1, sizeof *f->ev);
     PairEvent e = {t, i, j, a, b};
     f->ev[f->len++] = e;
+}
+
+static inline void found_wall(Found *f, real t, int32_t q)
+{
+    if (f->wall_len == f->wall_cap)
+        f->wall = omp_grow(f->wall, &f->wall_cap, f->wall_len + 1, sizeof *f->wall);
+    WallEvent e = {t, q};
+    f->wall[f->wall_len++] = e;
 }
 
 /* 3.1: the wall event time of the disk in slot q, or -1 when it has none within the step. Most disks
@@ -190,6 +207,8 @@ typedef struct {
     int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
     int32_t *fast;   /* MODE_MIXED: the fast slots this thread binned */
     size_t fast_len, fast_cap;
+    Box *row[2];     /* the boxes of two rows of the grid, for its scan */
+    size_t row_cap[2];
     char pad[64];
 } BroadThread;
 
@@ -200,17 +219,19 @@ typedef struct {
     double rx0, rx1, ry0, ry1; /* where the centres lie (the box unless the caller narrows it) */
     int nt, nt_max;   /* threads in the parallel region; BroadThreads allocated */
     int with_wi;
+    int wall_lists;   /* 1: the caller reads the Found lists of wall events, and wall_t need hold
+                       * every slot's time only where the paths or --check read it */
     Plan plan;
     BroadThread *th;
     Paths *paths;     /* the broad phase of fast scenes */
     int64_t cap;      /* slots allocated */
     int64_t max_cells;
-    int32_t *cell_of; /* by slot: its cell */
+    int32_t *cell_of; /* cap entries the caller may use between steps (mpi.c) */
     int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
     int32_t *cell_start; /* max cells + 1: first box of each cell */
-    Box *boxes;       /* the boxes in cell order */
+    Box *boxes;       /* the boxes in cell order (MODE_MIXED: the paths read them) */
     int32_t *box_slot; /* the slots of those boxes */
-    real *wall_t;     /* by slot: wall event time, or -1 */
+    real *wall_t;     /* by slot: wall event time, or -1 (see wall_lists) */
     /* the disks by speed_bin, for the plan: how many, and the sum of their axis speeds (each at
      * most the box) in units of the box / 2^20; kept up to date through the threads' changes, as
      * only pair collisions change the size of a velocity component */
