@@ -121,8 +121,6 @@ void broad_free(Broad *b)
         free(b->th[t].found.ev);
         free(b->th[t].found.wall);
         free(b->th[t].fast);
-        free(b->th[t].row[0]);
-        free(b->th[t].row[1]);
     }
     free(b->th);
     paths_free(b->paths);
@@ -336,9 +334,8 @@ static inline int is_fast(const Broad *b, int64_t q)
  * cells and threads, a scatter (inside a cell the slots keep their order). The scatter finds each
  * box's cell again from the disk it reads anyway, which costs less than storing the cells by slot
  * and reading them back (4 bytes a disk each way, beyond the cache on large gases). The boxes go in
- * cell order with their slots (the boxes themselves only in a mixed step, for the paths: scan_grid
- * finds them again); with reorder, the disks themselves move to the new order (through spare). The
- * wall events (3.1) are found on the way, and the slots that have one listed. */
+ * cell order with their slots; with reorder, the disks themselves move to the new order (through
+ * spare). The wall events (3.1) are found on the way, and the slots that have one listed. */
 static void bin_grid(Broad *b, int tid, int reorder)
 {
     const Plan *pl = &b->plan;
@@ -408,7 +405,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, pos);
-            } else if (mixed) {
+            } else {
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = pos;
@@ -433,7 +430,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
             if (mixed && is_fast(b, q)) {
                 b->boxes[pos] = empty_box;
                 note_fast(th, (int32_t)q);
-            } else if (mixed) {
+            } else {
                 span_box(&sp, pl, &b->boxes[pos]);
             }
             b->box_slot[pos] = (int32_t)q;
@@ -480,71 +477,36 @@ static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, uns
         if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
 }
 
-/* Tests box ba (at a) against the boxes [b0, b1), found at bx[b - off], in groups of SCAN_WIDTH, each
- * group's overlaps a mask without a branch per box: ranges hold a few boxes each, and a branch per box
- * and per range end would be mispredicted about once per box. The last group reads boxes past b1
- * (there are SCAN_WIDTH spare entries) and masks them off. */
-static inline void scan_range(const Broad *w, BroadThread *th, const Box *ba, int32_t a, const Box *bx,
-                              int32_t off, int32_t b0, int32_t b1)
+/* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
+ * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
+ * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
+ * entries) and masks them off. */
+static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
 {
+    const Box *bx = w->boxes, *ba = &w->boxes[a];
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
-        const Box *r = bx + (b - off);
-        unsigned m = (unsigned)boxes_overlap(ba, &r[0]) | (unsigned)boxes_overlap(ba, &r[1]) << 1 |
-                     (unsigned)boxes_overlap(ba, &r[2]) << 2 | (unsigned)boxes_overlap(ba, &r[3]) << 3;
+        unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
+                     (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
+                     (unsigned)boxes_overlap(ba, &bx[b + 2]) << 2 |
+                     (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
         int32_t rest = b1 - b;
         m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
         if (m) scan_hits(w, th, a, b, m);
     }
 }
 
-/* The boxes of row cy's cells, into this thread's buffer k, SCAN_WIDTH empty ones after them; the
- * position of the row's first is returned in *off. A grid step computes them again here from the
- * disks rather than storing them in bin_grid's scatter and reading them back (16 bytes a disk each
- * way, beyond the cache on large gases); a mixed step reads those it stored. */
-static const Box *row_boxes(const Broad *b, BroadThread *th, int k, int64_t cy, int32_t *off)
-{
-    const Plan *pl = &b->plan;
-    int32_t lo = b->cell_start[cy * pl->gx], hi = b->cell_start[(cy + 1) * pl->gx];
-    *off = lo;
-    if (pl->mode == MODE_MIXED) return b->boxes + lo;
-    th->row[k] = omp_grow(th->row[k], &th->row_cap[k], (size_t)(hi - lo) + SCAN_WIDTH, sizeof(Box));
-    Box *r = th->row[k];
-    for (int32_t pos = lo; pos < hi; pos++) {
-        Span sp;
-        step_span(&b->s, b->box_slot[pos], pl->grow, &sp);
-        span_box(&sp, pl, &r[pos - lo]);
-    }
-    for (int u = 0; u < SCAN_WIDTH; u++) r[hi - lo + u] = empty_box;
-    return r;
-}
-
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
  * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
- * memory and the three northern cells are contiguous, so two ranges cover them. The boxes of two rows
- * at a time are at hand (row_boxes), the northern row kept as the next row's own. */
+ * memory and the three northern cells are contiguous, so two ranges cover them. */
 static void scan_grid(Broad *b, int tid)
 {
     const Plan *pl = &b->plan;
     BroadThread *th = &b->th[tid];
     const int32_t *cs = b->cell_start;
-    int64_t gx = pl->gx, gy = pl->gy, next = -1; /* next: the row in buffer cur ^ 1 */
+    int64_t gx = pl->gx, gy = pl->gy;
     int64_t chunk = gy / (8 * b->nt) + 1;
-    const Box *own = NULL, *north = NULL;
-    int32_t own_off = 0, north_off = 0;
-    int cur = 0;
 #pragma omp for schedule(dynamic, chunk)
     for (int64_t cy = 0; cy < gy; cy++) {
-        if (next == cy) {
-            cur ^= 1;
-            own = north;
-            own_off = north_off;
-        } else {
-            own = row_boxes(b, th, cur, cy, &own_off);
-        }
-        if (cy + 1 < gy) {
-            north = row_boxes(b, th, cur ^ 1, cy + 1, &north_off);
-            next = cy + 1;
-        }
         for (int64_t cx = 0; cx < gx; cx++) {
             int64_t c = cy * gx + cx;
             int32_t end1 = cs[cx + 1 < gx ? c + 2 : c + 1];
@@ -556,9 +518,8 @@ static void scan_grid(Broad *b, int tid)
                 end2 = cs[last + 1];
             }
             for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                const Box *ba = own + (a - own_off);
-                scan_range(b, th, ba, a, own, own_off, a + 1, end1);
-                if (lo2 < end2) scan_range(b, th, ba, a, north, north_off, lo2, end2);
+                scan_range(b, th, a, a + 1, end1);
+                scan_range(b, th, a, lo2, end2);
             }
         }
     }

@@ -207,8 +207,6 @@ typedef struct {
     int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
     int32_t *fast;   /* MODE_MIXED: the fast slots this thread binned */
     size_t fast_len, fast_cap;
-    Box *row[2];     /* the boxes of two rows of the grid, for its scan */
-    size_t row_cap[2];
     char pad[64];
 } BroadThread;
 
@@ -229,7 +227,7 @@ typedef struct {
     int32_t *cell_of; /* cap entries the caller may use between steps (mpi.c) */
     int32_t *hist;    /* nt * max cells: per-thread cell counts, then write cursors */
     int32_t *cell_start; /* max cells + 1: first box of each cell */
-    Box *boxes;       /* the boxes in cell order (MODE_MIXED: the paths read them) */
+    Box *boxes;       /* the boxes in cell order */
     int32_t *box_slot; /* the slots of those boxes */
     real *wall_t;     /* by slot: wall event time, or -1 (see wall_lists) */
     /* the disks by speed_bin, for the plan: how many, and the sum of their axis speeds (each at
