@@ -44,11 +44,11 @@
 #include <string.h>
 
 #include <atomic>
-#include <utility>
 #include <condition_variable>
 #include <mutex>
 #include <thread>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 extern "C" const char backend_name[] = "cuda" SIM_SUFFIX;
@@ -1971,13 +1971,19 @@ static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, 
     phase_mark(c, ring, w, 6);
 }
 
+/* Whether a cell table of len counts is scanned by the step's two short kernels (else by cub's scan). */
+static bool scan_short(const Cuda *c, int64_t len)
+{
+    return (len + SCAN_TILE - 1) / SCAN_TILE <= c->scan_tiles;
+}
+
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). */
 template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
                              int ring)
 {
     int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
-    bool short_scan = tiles <= c->scan_tiles;
+    bool short_scan = scan_short(c, len);
     c->scans[short_scan]++;
     /* the short scans clear the counts behind them; after cub's, they are cleared before binning */
     if (!short_scan || c->dirty > 0) {
@@ -2089,7 +2095,7 @@ static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
     int64_t f[5 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0};
     for (int w = 0; w < pl->W && w < WMAX; w++) {
         f[5 + 2 * w] = pl->rounds[w];
-        f[6 + 2 * w] = (pl->wcells[w] + SCAN_TILE) / SCAN_TILE <= c->scan_tiles; /* bin_place_launch */
+        f[6 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
     }
     for (int i = 0; i < 5 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
     return h;
