@@ -20,6 +20,11 @@
 #           steps; the difference in last-level misses over the 4 steps, in bytes a disk a step, is what
 #           a step reads or writes beyond that cache (not in the default; needs valgrind; the rows give
 #           those bytes as bytes_per_step, the cache's MB as largest_rank_mb);
+#   turns   this tree against an earlier one (BASE_REV, or BASE_DIR: a folder holding an earlier tree's
+#           Makefile and sources, for a copy without git), in turn, TURNS rounds (default 3): one copy of
+#           omp on one thread alone, the slowest of P copies at once (one a core), mpi on one rank and on
+#           P ranks (PER_RANK disks a rank; P the largest of RANKS) (not in the default; rows give the
+#           seconds of each, the base's with program omp_base and mpi_base);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
@@ -71,6 +76,7 @@ best_of() { printf '%s\n' "$@" | sort -g | head -1; }
 median_of() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
 slowest_and_mean() { sort -g | awk '{ s += $1; m = $1 } END { printf "%s %.4f\n", m, s / NR }'; } # seconds on stdin
 stat_of() { sed -n "s/.*$2.*/\1/p" "$1" | tail -n 1; }
+loop_stdin() { sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' | tail -n 1; } # loop_seconds of stdin
 
 # run PART PROGRAM RANKS THREADS N INPUT: one CSV row; LOOP_RATE is left with its best rate
 run() {
@@ -158,6 +164,38 @@ for part in $PARTS; do
                 echo "copies,omp,$p,1,$PER_RANK,$STEPS,$worst,$mean,,,,,,"
                 [ -z "$one" ] && one=$worst
                 summary+=("copies of omp at once, $PER_RANK disks each: $p copies, slowest step loop $worst s against $one s alone: $(awk -v a="$one" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')")
+            done
+            ;;
+        turns)
+            base=$WORK/turns_base
+            if [ -n "${BASE_REV:-}" ]; then
+                build_revision "$BASE_REV" "$base" "$WORK/turns_build.log" "omp mpi" || die "the build of $BASE_REV failed"
+            else
+                [ -n "${BASE_DIR:-}" ] || die "turns needs BASE_REV or BASE_DIR"
+                rm -rf "$base" && cp -r "$BASE_DIR" "$base"
+                make -C "$base" -j"$CORES" omp mpi > "$WORK/turns_build.log" 2>&1 || die "the build in $BASE_DIR failed"
+            fi
+            echo "# base: ${BASE_REV:-$BASE_DIR}"
+            p=${RANKS##* }
+            one=$(gas "$PER_RANK") all=$(gas $((PER_RANK * p)))
+            for ((k = 1; k <= ${TURNS:-3}; k++)); do
+                for d in . "$base"; do
+                    sfx=""
+                    [ "$d" = . ] || sfx=_base
+                    alone=$(taskset -c 1 "$d/omp" "$one" --threads 1 2>&1 > /dev/null | loop_stdin)
+                    for ((c = 0; c < p; c++)); do
+                        taskset -c "$c" "$d/omp" "$one" --threads 1 > /dev/null 2> "$WORK/mpi_copy$c.err" &
+                    done
+                    wait
+                    read -r worst mean < <(for ((c = 0; c < p; c++)); do loop_seconds "$WORK/mpi_copy$c.err"; done | slowest_and_mean)
+                    m1=$(mpirun -np 1 --bind-to core "$d/mpi" "$one" --threads 1 --output "$WORK/mpi_bench.out" 2>&1 | loop_stdin)
+                    mp=$(mpirun -np "$p" --bind-to core "$d/mpi" "$all" --threads 1 --output "$WORK/mpi_bench.out" 2>&1 | loop_stdin)
+                    echo "turns,omp$sfx,1,1,$PER_RANK,$STEPS,$alone,,,,,,,,,,"
+                    echo "turns,omp$sfx copies,$p,1,$PER_RANK,$STEPS,$worst,$mean,,,,,,,,,"
+                    echo "turns,mpi$sfx,1,1,$PER_RANK,$STEPS,$m1,,,,,,,,,,"
+                    echo "turns,mpi$sfx,$p,1,$((PER_RANK * p)),$STEPS,$mp,,,,,,,,,,"
+                    summary+=("turns round $k, $([ -n "$sfx" ] && echo base || echo this tree): omp alone $alone s, slowest of $p copies $worst s ($(awk -v a="$alone" -v b="$worst" 'BEGIN { printf "%.0f%%", 100 * a / b }')); mpi 1 rank $m1 s, $p ranks $mp s (weak $(awk -v a="$m1" -v b="$mp" 'BEGIN { printf "%.0f%%", 100 * a / b }'))")
+                done
             done
             ;;
         contention)
