@@ -11,8 +11,12 @@
  *    disks (live: neither disk decided); after each round the owners send their disks' smallest keys
  *    and decisions to the ranks that hold copies. That is SPEC.md 3.3's greedy walk for any number of
  *    ranks and threads, and an event between disks of two ranks is decided alike on both;
- * 5. each rank moves its own disks (pair_contact and finish_step for its side, from the state at the
- *    start of the step), and disks that left the strip go to the rank of their new strip.
+ * 5. each rank moves its own disks in place (a pair of own disks together, a disk and a copy through
+ *    pair_contact and finish_step for its side: copies keep the state at the start of the step), and
+ *    disks that left the strip go to the rank of their new strip.
+ * The choice and the move touch only the own disks with an event (nodes) and the halo's keys beyond
+ * the disks themselves: a rank's step then reads and writes little more than its state, which on a
+ * rank of 2.5e5 disks about fits a shared last-level cache's share.
  * The strips start with equal counts of disks (cuts placed as the input is shared out); with
  * --balance K the cuts move every K steps so that the ranks' measured work evens out (balance).
  * Input, output and the pressure's sum go through the ranks' own disks too (mpi_io.c): no rank ever
@@ -182,6 +186,23 @@ typedef struct {
     double t, kind, i, j, decided;
 } Key;
 
+/* An own disk with an event this step (a pair event with an own disk, or a wall event). */
+typedef struct {
+    Key key;          /* its smallest live key (rounds), decided once accepted */
+    real wall_t;      /* its wall event time, or -1 */
+    int32_t lo, cnt;  /* its pair events: adj[lo .. lo + cnt) */
+    int32_t slot, id; /* id: the original index */
+    int32_t pick;     /* the accepted event: an index into adj, -1 for the wall, -2 for none */
+    int32_t acc;      /* accepted in this round */
+} Node;
+
+/* One of a node's pair events (ev_shift's name) and its other disk: its node, or -1 - k for the
+ * halo's slot own + k. */
+typedef struct {
+    int64_t e;
+    int32_t other;
+} Adj;
+
 typedef struct {
     Params par;       /* the run's */
     Params lp;        /* the broad phase's: n = own + halo */
@@ -197,16 +218,17 @@ typedef struct {
     int64_t nsend;
     size_t send_cap;
     int *scount, *rcount;
-    /* the choice */
-    PairEvent *ev;    /* pair events with an own disk */
-    size_t n_ev, ev_cap;
-    int64_t *off;     /* own + 1: CSR of each own slot's events in adj */
-    int32_t *adj;
+    /* the choice, over the own disks with an event this step (nodes): a pass over every slot, or
+     * a key for each, would be read and written beyond a large rank's cache every step */
+    int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
+    Node *node;
+    size_t node_cap;
+    Adj *adj;         /* the nodes' lists of pair events */
     size_t adj_cap;
-    Key *key;         /* own + halo: smallest live key, decided */
-    int32_t *pick;    /* own: the accepted event (an index into ev), -1 for the wall, -2 for none */
-    unsigned char *acc;
-    int32_t *active;  /* own slots still undecided with a live event */
+    int32_t *active;  /* nodes still undecided with a live event */
+    size_t active_cap;
+    int32_t *node_of; /* cap, by own slot: its node this step, else -1 (all -1 between steps) */
+    const Key *hkey;  /* the halo's keys, as their owners last sent them (NULL: none yet) */
     int64_t cap;      /* per-slot buffers allocated */
     uint64_t events, rounds, bytes_steps;
     double busy;      /* seconds of the steps since the last balance, MPI calls left out */
@@ -219,11 +241,10 @@ static void run_reserve(Run *r, int64_t n)
     if (n > r->b.cap) broad_reserve(&r->b, n + n / 4);
     if (n <= r->cap) return;
     int64_t cap = n + n / 4;
-    r->off = sim_realloc(r->off, (size_t)cap + 1, sizeof *r->off);
-    r->key = sim_realloc(r->key, (size_t)cap, sizeof *r->key);
-    r->pick = sim_realloc(r->pick, (size_t)cap, sizeof *r->pick);
-    r->acc = sim_realloc(r->acc, (size_t)cap, sizeof *r->acc);
-    r->active = sim_realloc(r->active, (size_t)cap, sizeof *r->active);
+    /* all -1 between steps (this is called there, or before the choice): nothing to keep */
+    free(r->node_of);
+    r->node_of = sim_calloc((size_t)cap, sizeof *r->node_of);
+    for (int64_t q = 0; q < cap; q++) r->node_of[q] = -1;
     r->cap = cap;
 }
 
@@ -314,156 +335,221 @@ static int key_same(const Key *x, const Key *y)
     return x->t == y->t && x->kind == y->kind && x->i == y->i && x->j == y->j;
 }
 
-/* The pair events with an own disk, listed under each own disk (CSR). */
-static void list_events(Run *r)
+/* The pair event e (see ev_shift): the events stay where the threads found them. */
+static inline const PairEvent *event_at(const Run *r, int64_t e)
 {
-    int64_t own = r->own;
-    r->n_ev = 0;
+    return &r->b.th[e & ((1 << r->ev_shift) - 1)].found.ev[e >> r->ev_shift];
+}
+
+/* The node of own slot q, made if it has none. */
+static inline Node *node_for(Run *r, int32_t q, int64_t *nn)
+{
+    int32_t v = r->node_of[q];
+    if (v < 0) {
+        v = (int32_t)(*nn)++;
+        Node fresh = {{2, 0, 0, 0, 0}, -1, 0, 0, q, -1, -2, 0};
+        r->node[v] = fresh;
+        r->node_of[q] = v;
+    }
+    return &r->node[v];
+}
+
+/* The nodes of the own disks with an event, each with its wall event and the list of its pair events
+ * with an own disk (CSR in adj; two copies' events are their owners' to decide), from the threads'
+ * lists where they found them. Returns how many. */
+static int64_t build_nodes(Run *r)
+{
+    int64_t own = r->own, nn = 0;
+    size_t ends = 0;
+    for (int t = 0; t < r->b.nt; t++) ends += 2 * r->b.th[t].found.len + r->b.th[t].found.wall_len;
+    if (ends > INT32_MAX) sim_fail("%zu events in one step: too many", ends);
+    /* no more nodes or list entries than ends (the contents need not be kept) */
+    r->node = omp_scratch_grow(r->node, &r->node_cap, ends, sizeof *r->node);
+    r->adj = omp_scratch_grow(r->adj, &r->adj_cap, ends, sizeof *r->adj);
+    r->active = omp_scratch_grow(r->active, &r->active_cap, ends, sizeof *r->active);
     for (int t = 0; t < r->b.nt; t++) {
         const Found *f = &r->b.th[t].found;
         for (size_t k = 0; k < f->len; k++) {
             const PairEvent *e = &f->ev[k];
-            if (e->a >= own && e->b >= own) continue; /* two copies: their owners decide */
-            r->ev = omp_grow(r->ev, &r->ev_cap, r->n_ev + 1, sizeof *r->ev);
-            r->ev[r->n_ev++] = *e;
+            if (e->a < own) {
+                Node *nd = node_for(r, e->a, &nn);
+                nd->cnt++, nd->id = e->i;
+            }
+            if (e->b < own) {
+                Node *nd = node_for(r, e->b, &nn);
+                nd->cnt++, nd->id = e->j;
+            }
+        }
+        for (size_t k = 0; k < f->wall_len; k++)
+            if (f->wall[k].slot < own) node_for(r, f->wall[k].slot, &nn)->wall_t = f->wall[k].t;
+    }
+    int32_t pos = 0;
+    for (int64_t v = 0; v < nn; v++) {
+        Node *nd = &r->node[v];
+        nd->lo = pos;
+        pos += nd->cnt;
+        nd->cnt = 0;
+        if (nd->id < 0) nd->id = r->b.s.id[nd->slot]; /* a wall event alone: its key needs it */
+        r->active[v] = (int32_t)v;
+    }
+    for (int t = 0; t < r->b.nt; t++) {
+        const Found *f = &r->b.th[t].found;
+        for (size_t k = 0; k < f->len; k++) {
+            const PairEvent *e = &f->ev[k];
+            int64_t name = ((int64_t)k << r->ev_shift) + t;
+            int32_t ends2[2] = {e->a, e->b};
+            for (int u = 0; u < 2; u++) {
+                int32_t q = ends2[u], o = ends2[1 - u];
+                if (q >= own) continue;
+                Node *nd = &r->node[r->node_of[q]];
+                Adj x = {name, o < own ? r->node_of[o] : (int32_t)(-1 - (o - own))};
+                r->adj[nd->lo + nd->cnt++] = x;
+            }
         }
     }
-    /* off[q] counts slot q's events, then ends its list (an inclusive sum); filling each list from
-     * its end leaves off[q] at its start */
-    memset(r->off, 0, (size_t)(own + 1) * sizeof *r->off);
-    for (size_t e = 0; e < r->n_ev; e++) {
-        if (r->ev[e].a < own) r->off[r->ev[e].a]++;
-        if (r->ev[e].b < own) r->off[r->ev[e].b]++;
-    }
-    for (int64_t q = 1; q < own; q++) r->off[q] += r->off[q - 1];
-    r->off[own] = own ? r->off[own - 1] : 0;
-    r->adj = omp_grow(r->adj, &r->adj_cap, (size_t)r->off[own], sizeof *r->adj);
-    for (size_t e = 0; e < r->n_ev; e++) {
-        if (r->ev[e].a < own) r->adj[--r->off[r->ev[e].a]] = (int32_t)e;
-        if (r->ev[e].b < own) r->adj[--r->off[r->ev[e].b]] = (int32_t)e;
-    }
+    return nn;
 }
 
-/* 4: the rounds. pick[q] ends as the accepted event of own slot q: an index into ev, -1 for its wall
+/* The key of a pair event's other disk (adj's other): a node's, or a copy's as last received. */
+static inline const Key *other_key(const Run *r, int32_t o)
+{
+    static const Key none = {2, 0, 0, 0, 0};
+    if (o >= 0) return &r->node[o].key;
+    return r->hkey ? &r->hkey[-1 - o] : &none;
+}
+
+/* 4: the rounds. Each node's pick ends as its accepted event: an index into adj, -1 for its wall
  * event, -2 for none. */
 static void choose(Run *r)
 {
-    int64_t own = r->own, nl = own + r->halo, na = 0;
-    const Slots *s = &r->b.s;
-    const real *wt = r->b.wall_t;
-    list_events(r);
-    for (int64_t q = 0; q < nl; q++) {
-        Key none = {2, 0, 0, 0, 0};
-        r->key[q] = none;
-    }
-    for (int64_t q = 0; q < own; q++) {
-        r->pick[q] = -2;
-        if (wt[q] >= 0 || r->off[q + 1] > r->off[q]) r->active[na++] = (int32_t)q;
-    }
-    Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out);
+    int64_t na = build_nodes(r);
+    Node *node = r->node;
+    r->hkey = NULL;
+    Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out), *in = NULL;
     for (;;) {
         /* each undecided own disk's smallest live event (a copy's decision may be a round late:
          * that only delays, as an event is accepted only when it is both disks' smallest) */
 #pragma omp parallel for num_threads(r->nt) schedule(static)
         for (int64_t k = 0; k < na; k++) {
-            int32_t q = r->active[k];
+            Node *nd = &node[r->active[k]];
             Key best = {2, 0, 0, 0, 0};
             int32_t pick = -2;
-            if (wt[q] >= 0) {
-                Key w = {(double)wt[q], 0, s->id[q], s->id[q], 0};
+            if (nd->wall_t >= 0) {
+                Key w = {(double)nd->wall_t, 0, nd->id, nd->id, 0};
                 best = w, pick = -1;
             }
-            for (int64_t u = r->off[q]; u < r->off[q + 1]; u++) {
-                const PairEvent *e = &r->ev[r->adj[u]];
-                int32_t other = e->a == q ? e->b : e->a;
-                if (r->key[other].decided != 0) continue;
+            for (int32_t u = nd->lo; u < nd->lo + nd->cnt; u++) {
+                if (other_key(r, r->adj[u].other)->decided != 0) continue;
+                const PairEvent *e = event_at(r, r->adj[u].e);
                 Key c = {(double)e->t, 1, e->i, e->j, 0};
-                if (key_less(&c, &best)) best = c, pick = r->adj[u];
+                if (key_less(&c, &best)) best = c, pick = u;
             }
-            Key *kq = &r->key[q]; /* its decided flag, read by other threads, stays */
+            Key *kq = &nd->key; /* its decided flag, read by other threads, stays */
             kq->t = best.t, kq->kind = best.kind, kq->i = best.i, kq->j = best.j;
-            r->pick[q] = pick;
+            nd->pick = pick;
         }
         int64_t live = 0, all;
-        for (int64_t k = 0; k < na; k++) live += r->pick[r->active[k]] != -2;
+        for (int64_t k = 0; k < na; k++) live += node[r->active[k]].pick != -2;
         double t0 = MPI_Wtime();
         MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
         waited += MPI_Wtime() - t0;
         if (all == 0) break;
         r->rounds++;
         /* the owners' keys and decisions to the copies (as many as the halo's disks: known) */
-        for (int64_t k = 0; k < r->nsend; k++) out[k] = r->key[r->send[k]];
+        for (int64_t k = 0; k < r->nsend; k++) {
+            int32_t v = r->node_of[r->send[k]];
+            Key none = {2, 0, 0, 0, 0};
+            out[k] = v >= 0 ? node[v].key : none;
+        }
         int64_t got;
-        Key *in = (Key *)exchange_known((const double *)out, r->scount, 5, &got, r->rcount);
-        memcpy(r->key + own, in, (size_t)got * sizeof *in);
         free(in);
+        in = (Key *)exchange_known((const double *)out, r->scount, 5, &got, r->rcount);
+        r->hkey = in;
         /* accepted: the smallest live event of both its disks, decided alike by both owners */
 #pragma omp parallel for num_threads(r->nt) schedule(static)
         for (int64_t k = 0; k < na; k++) {
-            int32_t q = r->active[k], p = r->pick[q];
-            r->acc[q] = 0;
+            Node *nd = &node[r->active[k]];
+            int32_t p = nd->pick;
+            nd->acc = 0;
             if (p == -1) {
-                r->acc[q] = 1;
+                nd->acc = 1;
             } else if (p >= 0) {
-                int32_t other = r->ev[p].a == q ? r->ev[p].b : r->ev[p].a;
-                r->acc[q] = r->key[other].decided == 0 && key_same(&r->key[other], &r->key[q]);
+                const Key *ko = other_key(r, r->adj[p].other);
+                nd->acc = ko->decided == 0 && key_same(ko, &nd->key);
             }
         }
         int64_t kept = 0;
         for (int64_t k = 0; k < na; k++) {
-            int32_t q = r->active[k];
-            if (r->acc[q]) r->key[q].decided = 1;
-            else if (r->pick[q] != -2) r->active[kept++] = q;
+            Node *nd = &node[r->active[k]];
+            if (nd->acc) nd->key.decided = 1;
+            else if (nd->pick != -2) r->active[kept++] = r->active[k];
         }
         na = kept;
     }
     /* own disks left without a live event move freely */
-    for (int64_t k = 0; k < na; k++) r->pick[r->active[k]] = -2;
+    for (int64_t k = 0; k < na; k++) node[r->active[k]].pick = -2;
+    r->hkey = NULL;
+    free(in);
     free(out);
 }
 
-/* 5: the own disks moved, from the state at the start of the step (partners' too: read from b.s,
- * written into b.spare's positions and velocities, which then change places with b.s's). */
+/* 5: the own disks moved in place: a disk without a node moves freely; a pair of own disks both from
+ * the node of its lower original index (the other's is skipped), a disk and a copy from the copy's
+ * state at the start of the step (copies do not move). Every node_of entry is left -1. */
 static void move(Run *r)
 {
-    Slots *s = &r->b.s, *n = &r->b.spare;
+    Slots *s = &r->b.s;
+    const Node *node = r->node;
     real lo = r->par.lo, hi = r->par.hi;
     uint64_t events = 0;
 #pragma omp parallel for num_threads(r->nt) schedule(static) reduction(+ : events)
     for (int64_t q = 0; q < r->own; q++) {
+        int32_t v = r->node_of[q], p = -2;
+        const PairEvent *e = NULL;
+        if (v >= 0) {
+            r->node_of[q] = -1;
+            p = node[v].pick;
+        }
+        if (p >= 0) {
+            e = event_at(r, r->adj[p].e);
+            if (r->adj[p].other >= 0 && node[v].id != e->i) continue; /* moved with its partner */
+        }
         real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
-        int32_t p = r->pick[q];
         if (p == -2) {
             x = x + vx;
             y = y + vy;
         } else if (p == -1) {
-            real t = r->b.wall_t[q], vx0 = vx, vy0 = vy;
+            real t = node[v].wall_t, vx0 = vx, vy0 = vy;
             wall_bounce(&x, &y, &vx, &vy, t, lo, hi);
             if (s->wi) s->wi[q] += wall_impulse(vx0, vy0, vx, vy);
             finish_step(&x, &y, vx, vy, t, lo, hi);
             s->wc[q]++;
             events++;
         } else {
-            const PairEvent *e = &r->ev[p];
-            int32_t o = e->a == q ? e->b : e->a;
-            real ox = s->x[o], oy = s->y[o], ovx = s->vx[o], ovy = s->vy[o];
-            if (s->id[q] == e->i) {
+            int32_t o = r->adj[p].other;
+            if (o >= 0) { /* two own disks, from the lower index */
+                int64_t j = node[o].slot;
+                real ox = s->x[j], oy = s->y[j], ovx = s->vx[j], ovy = s->vy[j];
                 pair_contact(&x, &y, &vx, &vy, &ox, &oy, &ovx, &ovy, e->t);
-                events++; /* once a pair: from its lower index */
+                finish_step(&ox, &oy, ovx, ovy, e->t, lo, hi);
+                s->x[j] = clamp_coord(ox, lo, hi), s->y[j] = clamp_coord(oy, lo, hi), s->vx[j] = ovx, s->vy[j] = ovy;
+                s->pc[j]++;
+                events++;
             } else {
-                pair_contact(&ox, &oy, &ovx, &ovy, &x, &y, &vx, &vy, e->t);
+                int64_t j = r->own + (-1 - o);
+                real ox = s->x[j], oy = s->y[j], ovx = s->vx[j], ovy = s->vy[j];
+                if (node[v].id == e->i) {
+                    pair_contact(&x, &y, &vx, &vy, &ox, &oy, &ovx, &ovy, e->t);
+                    events++; /* once a pair: from its lower index */
+                } else {
+                    pair_contact(&ox, &oy, &ovx, &ovy, &x, &y, &vx, &vy, e->t);
+                }
             }
             finish_step(&x, &y, vx, vy, e->t, lo, hi);
             s->pc[q]++;
         }
-        n->x[q] = clamp_coord(x, lo, hi), n->y[q] = clamp_coord(y, lo, hi), n->vx[q] = vx, n->vy[q] = vy;
+        s->x[q] = clamp_coord(x, lo, hi), s->y[q] = clamp_coord(y, lo, hi), s->vx[q] = vx, s->vy[q] = vy;
     }
-    /* the new state becomes the disks' (the copies' old one is not needed any more) */
-    real *t;
-    t = s->x, s->x = n->x, n->x = t;
-    t = s->y, s->y = n->y, n->y = t;
-    t = s->vx, s->vx = n->vx, n->vx = t;
-    t = s->vy, s->vy = n->vy, n->vy = t;
     r->events += events;
 }
 
@@ -474,31 +560,33 @@ static void migrate(Run *r)
     int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count);
     int *rcount = sim_calloc((size_t)np, sizeof *rcount);
     int64_t moving = 0, keep;
-    int32_t *dest = r->b.cell_of; /* free between steps */
+    /* the leavers' slots, ascending, and their ranks (in cell_of, free between steps): few */
+    int32_t *leaver = r->b.cell_of, *dest = NULL;
     double vm = own_vmax(r); /* over all the moved disks, those about to leave too */
-    for (int64_t q = 0; q < r->own; q++) {
-        int o = mpi_owner(s->x[q]);
-        dest[q] = o;
-        if (o != mpi_me) count[o]++, moving++;
-    }
+    if (np > 1)
+        for (int64_t q = 0; q < r->own; q++) {
+            int o = mpi_owner(s->x[q]);
+            if (o != mpi_me) count[o]++, leaver[moving++] = (int32_t)q;
+        }
+    dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
+    for (int64_t k = 0; k < moving; k++) dest[k] = mpi_owner(s->x[leaver[k]]);
     double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
     int64_t *at = sim_calloc((size_t)np, sizeof *at);
     for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-    for (int64_t q = 0; q < r->own; q++)
-        if (dest[q] != mpi_me) pack(s, q, out + (at[dest[q]]++) * D_LEN);
-    /* the leavers' slots refilled from the end: the rest keep their places (and their cell order) */
+    for (int64_t k = 0; k < moving; k++) pack(s, leaver[k], out + (at[dest[k]]++) * D_LEN);
+    /* the leavers' slots refilled from the end, the lowest first with the last disk that stays: the
+     * rest keep their places (and their cell order) */
     keep = r->own;
-    for (int64_t q = 0; q < keep;) {
-        if (dest[q] == mpi_me) {
-            q++;
+    for (int64_t lo = 0, hi = moving; lo < hi;) {
+        int64_t q = leaver[lo], from = --keep;
+        if (leaver[hi - 1] == from) { /* the last slot leaves too */
+            hi--;
             continue;
         }
-        if (q != --keep) {
-            s->x[q] = s->x[keep], s->y[q] = s->y[keep], s->vx[q] = s->vx[keep], s->vy[q] = s->vy[keep];
-            s->id[q] = s->id[keep], s->pc[q] = s->pc[keep], s->wc[q] = s->wc[keep];
-            if (s->wi) s->wi[q] = s->wi[keep];
-            dest[q] = dest[keep];
-        }
+        s->x[q] = s->x[from], s->y[q] = s->y[from], s->vx[q] = s->vx[from], s->vy[q] = s->vy[from];
+        s->id[q] = s->id[from], s->pc[q] = s->pc[from], s->wc[q] = s->wc[from];
+        if (s->wi) s->wi[q] = s->wi[from];
+        lo++;
     }
     /* the counts, and with them the fastest velocity component of the moved disks (a maximum: the
      * same whichever rank holds a disk), which sets the next step's reach */
@@ -520,7 +608,7 @@ static void migrate(Run *r)
     for (int64_t k = 0; k < got; k++) unpack(s, keep + k, in + k * D_LEN);
     r->own = keep + got;
     r->halo = 0;
-    free(in), free(out), free(at), free(count), free(rcount);
+    free(in), free(out), free(at), free(count), free(rcount), free(dest);
 }
 
 /* Every few steps the own disks are put in the order of the last step's grid cells, as omp keeps its
@@ -683,6 +771,8 @@ int main(int argc, char **argv)
     /* the disks into the broad phase's slots, which hold them from here on */
     r.lp = r.par;
     broad_init(&r.b, &r.lp, &opt, l.own + 1024, r.nt, opt.pressure);
+    r.b.wall_lists = 1; /* the choice reads the lists of wall events, not wall_t */
+    while ((1 << r.ev_shift) < r.b.nt_max) r.ev_shift++;
     r.own = l.own;
     run_reserve(&r, l.own + 1024);
     for (int64_t q = 0; q < l.own; q++) {
@@ -748,8 +838,8 @@ int main(int argc, char **argv)
         io_output_close(r.out);
     }
     broad_free(&r.b);
-    free(r.send), free(r.scount), free(r.rcount), free(r.ev), free(r.off), free(r.adj);
-    free(r.key), free(r.pick), free(r.acc), free(r.active);
+    free(r.send), free(r.scount), free(r.rcount), free(r.node), free(r.adj), free(r.active);
+    free(r.node_of);
     MPI_Finalize();
     return 0;
 }

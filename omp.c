@@ -188,15 +188,6 @@ static void ends_count(Work *w, int t, int nown)
     for (size_t k = 0; k < f->wall_len; k++) row[owner_of(w, f->wall[k].slot)]++;
 }
 
-/* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
-static void *scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap) return ptr;
-    free(ptr);
-    *cap = 0;
-    return omp_grow(NULL, cap, need, size);
-}
-
 /* Where the ends go: each owner's in a segment [lo, hi) of w->end, each thread's part of it after
  * those of the threads before it (w->ends then holds where the next one goes). An owner's nodes,
  * lists and active nodes take the same segment of their arrays: there are no more of them than
@@ -218,10 +209,10 @@ static void ends_scan(Work *w, int nown)
     }
     if (acc > INT32_MAX) sim_fail("%lld events in one step: too many", (long long)acc);
     size_t need = (size_t)acc;
-    if (nown > 1) w->end = scratch_grow(w->end, &w->end_cap, need, sizeof *w->end);
-    w->node = scratch_grow(w->node, &w->node_cap, need, sizeof *w->node);
-    w->adj = scratch_grow(w->adj, &w->adj_cap, need, sizeof *w->adj);
-    w->active = scratch_grow(w->active, &w->active_cap, need, sizeof *w->active);
+    if (nown > 1) w->end = omp_scratch_grow(w->end, &w->end_cap, need, sizeof *w->end);
+    w->node = omp_scratch_grow(w->node, &w->node_cap, need, sizeof *w->node);
+    w->adj = omp_scratch_grow(w->adj, &w->adj_cap, need, sizeof *w->adj);
+    w->active = omp_scratch_grow(w->active, &w->active_cap, need, sizeof *w->active);
 }
 
 /* Thread t's ends to their owners' segments (every thread owns its range). */

@@ -9,6 +9,7 @@
 
 #include "io.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
@@ -44,6 +45,15 @@ typedef struct {
 
 /* Grows *ptr to hold need items of size bytes (geometrically); sim_fail when memory runs out. */
 void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size);
+
+/* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
+static inline void *omp_scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap) return ptr;
+    free(ptr);
+    *cap = 0;
+    return omp_grow(NULL, cap, need, size);
+}
 
 static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a, int32_t b)
 {

@@ -14,8 +14,8 @@
 #           one on each other core, which finds cores that are hardware threads of one physical core
 #           (not in the default; rows give the slowest copy's seconds as best_loop_s, the mean as
 #           median_loop_s);
-#   cachesim how much memory one rank's step reads from beyond its cache: omp on one thread, a gas of
-#           PER_RANK disks, under valgrind's cache simulator with a last-level cache of each size of
+#   cachesim how much memory one rank's step reads from beyond its cache: omp on one thread, then one
+#           rank of mpi (./mpi alone, one thread), a gas of PER_RANK disks, under valgrind's cache simulator with a last-level cache of each size of
 #           CACHE_MB (default "16 128": a sixteenth of a 300 MB L3, and most of it), run for 2 and for 6
 #           steps; the difference in last-level misses over the 4 steps, in bytes a disk a step, is what
 #           a step reads or writes beyond that cache (not in the default; needs valgrind; the rows give
@@ -231,18 +231,25 @@ for part in $PARTS; do
             for s in 2 6; do
                 tools/gen "$PER_RANK" --fraction 0.2 --speed 0.5 --steps "$s" --seed 3 > "$WORK/cachesim_$s.in"
             done
+            # omp, then one rank of mpi (./mpi run alone: one process, no mpirun, its strip the box)
             for mb in ${CACHE_MB:-16 128}; do
-                misses=()
-                for s in 2 6; do
-                    f=$WORK/cachesim_$s.in
-                    valgrind --tool=cachegrind --cache-sim=yes --LL=$((mb << 20)),16,64 \
-                        --cachegrind-out-file=/dev/null ./omp "$f" --threads 1 > /dev/null 2> "$WORK/cachesim.err" ||
-                        die "valgrind failed: $(tail -n 3 "$WORK/cachesim.err")"
-                    misses+=("$(sed -n 's/.*LL misses: *\([0-9,]*\).*/\1/p' "$WORK/cachesim.err" | tr -d ,)")
+                for prog in omp mpi; do
+                    misses=()
+                    for s in 2 6; do
+                        f=$WORK/cachesim_$s.in
+                        valgrind --tool=cachegrind --cache-sim=yes --LL=$((mb << 20)),16,64 \
+                            --cachegrind-out-file=/dev/null "./$prog" "$f" --threads 1 > /dev/null 2> "$WORK/cachesim.err" ||
+                            die "valgrind failed: $(tail -n 3 "$WORK/cachesim.err")"
+                        misses+=("$(sed -n 's/.*LL misses: *\([0-9,]*\).*/\1/p' "$WORK/cachesim.err" | tr -d ,)")
+                    done
+                    per=$(awk -v a="${misses[0]}" -v b="${misses[1]}" -v n="$PER_RANK" 'BEGIN { d = b > a ? b - a : 0; printf "%.1f", d * 64 / (4 * n) }')
+                    echo "cachesim,$prog,1,1,$PER_RANK,4,,,,,$per,,$mb,,,,"
+                    if [ "$prog" = omp ]; then
+                        summary+=("cachesim, a gas of $PER_RANK disks on one thread, a $mb MB last-level cache: ${misses[0]} misses over 2 steps, ${misses[1]} over 6: $per bytes a disk a step beyond it")
+                    else
+                        summary+=("cachesim, mpi, one rank of $PER_RANK disks on one thread, a $mb MB last-level cache: ${misses[0]} misses over 2 steps, ${misses[1]} over 6: $per bytes a disk a step beyond it")
+                    fi
                 done
-                per=$(awk -v a="${misses[0]}" -v b="${misses[1]}" -v n="$PER_RANK" 'BEGIN { d = b > a ? b - a : 0; printf "%.1f", d * 64 / (4 * n) }')
-                echo "cachesim,omp,1,1,$PER_RANK,4,,,,,$per,,$mb,,,,"
-                summary+=("cachesim, a gas of $PER_RANK disks on one thread, a $mb MB last-level cache: ${misses[0]} misses over 2 steps, ${misses[1]} over 6: $per bytes a disk a step beyond it")
             done
             ;;
         balance)
