@@ -186,6 +186,8 @@ typedef struct {
     double t, kind, i, j, decided;
 } Key;
 
+static const Key key_none = {2, 0, 0, 0, 0};
+
 /* An own disk with an event this step (a pair event with an own disk, or a wall event). */
 typedef struct {
     Key key;          /* its smallest live key (rounds), decided once accepted */
@@ -347,7 +349,7 @@ static inline Node *node_for(Run *r, int32_t q, int64_t *nn)
     int32_t v = r->node_of[q];
     if (v < 0) {
         v = (int32_t)(*nn)++;
-        Node fresh = {{2, 0, 0, 0, 0}, -1, 0, 0, q, -1, -2, 0};
+        Node fresh = {key_none, -1, 0, 0, q, -1, -2, 0};
         r->node[v] = fresh;
         r->node_of[q] = v;
     }
@@ -413,9 +415,8 @@ static int64_t build_nodes(Run *r)
 /* The key of a pair event's other disk (adj's other): a node's, or a copy's as last received. */
 static inline const Key *other_key(const Run *r, int32_t o)
 {
-    static const Key none = {2, 0, 0, 0, 0};
     if (o >= 0) return &r->node[o].key;
-    return r->hkey ? &r->hkey[-1 - o] : &none;
+    return r->hkey ? &r->hkey[-1 - o] : &key_none;
 }
 
 /* 4: the rounds. Each node's pick ends as its accepted event: an index into adj, -1 for its wall
@@ -432,7 +433,7 @@ static void choose(Run *r)
 #pragma omp parallel for num_threads(r->nt) schedule(static)
         for (int64_t k = 0; k < na; k++) {
             Node *nd = &node[r->active[k]];
-            Key best = {2, 0, 0, 0, 0};
+            Key best = key_none;
             int32_t pick = -2;
             if (nd->wall_t >= 0) {
                 Key w = {(double)nd->wall_t, 0, nd->id, nd->id, 0};
@@ -458,8 +459,7 @@ static void choose(Run *r)
         /* the owners' keys and decisions to the copies (as many as the halo's disks: known) */
         for (int64_t k = 0; k < r->nsend; k++) {
             int32_t v = r->node_of[r->send[k]];
-            Key none = {2, 0, 0, 0, 0};
-            out[k] = v >= 0 ? node[v].key : none;
+            out[k] = v >= 0 ? node[v].key : key_none;
         }
         int64_t got;
         free(in);

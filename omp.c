@@ -682,7 +682,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     {
         w.nt = w.b.nt = omp_get_num_threads();
         while (1 << w.ev_shift < w.nt) w.ev_shift++;
-        for (int t = 0; t <= w.nt; t++) w.bound[t] = n * t / w.nt;
+        for (int t = 0; t < w.nt; t++) range_of(n, t, w.nt, &w.bound[t], &w.bound[t + 1]); /* owner_of */
         w.owner_scale = (double)w.nt / (double)n;
     }
         int tid = omp_get_thread_num();
