@@ -266,7 +266,7 @@ for part in $PARTS; do
             kill "$hog"
             summary+=("balance, $p ranks, the last one's core shared with a busy loop: --balance 0 ${rates[0]}, --balance 4 ${rates[1]} particle-steps/s: $(awk -v a="${rates[1]}" -v b="${rates[0]}" 'BEGIN { printf "%.2f", a / b }')x")
             ;;
-        *) die "unknown part '$part' (strong, weak, memory, copies, contention, cachesim, balance)" ;;
+        *) die "unknown part '$part' (strong, weak, memory, copies, contention, cachesim, turns, balance)" ;;
     esac
 done
 for line in "${summary[@]}"; do echo "# $line"; done
