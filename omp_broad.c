@@ -603,7 +603,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
 #pragma omp single
     {
         b->plan = plan_step(b, b->nt);
-        if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, p->n, b->nt);
+        if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
         b->path_steps += b->plan.mode == MODE_PATHS;
         b->mixed_steps += b->plan.mode == MODE_MIXED;
     }

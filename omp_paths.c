@@ -14,10 +14,10 @@
  * [0, T], T = min(1, wall time), and it stays inside the box: the grid covers [lo, hi]^2 alone.
  *
  * The step, on every thread of the team, with one barrier:
- * A. over the disks (static ranges): the wall event, a body record, and the cells of the path, row by
- *    row: in each row of cells (grown by G) the interval of time the centre spends there gives the
- *    row's cells, and in each cell (grown by G) the interval the centre spends there. Each (cell,
- *    interval) goes to this thread's bucket of the cell's tile (a square of tc x tc cells).
+ * A. over the disks (static ranges): the wall event and the cells of the path, each (grown by G) with
+ *    the interval of time the centre spends there: the cells of the path's bounding box where that is
+ *    small, else row by row (the interval the centre spends in a row gives the row's cells). Each
+ *    (cell, interval) goes to this thread's bucket of the cell's tile (a square of tc x tc cells).
  * B. over the tiles (dynamic): the tile's entries are counted into their cells, each cell's entries
  *    sorted by entry time and swept: an entry meets the later ones that enter before it leaves. A pair
  *    is tested only in the cell holding the midpoint of its two centres at its time of closest
@@ -44,7 +44,7 @@
 #define CELL_FEW 16          /* cells of more visits than this are sorted by time, not paired all */
 
 /* Relative costs for the plan, in the units of omp.c's grid cost model (binning one disk = 1, about
- * 20 ns): a disk's fixed work (wall event, body record, the path's set-up), one visit of a cell
+ * 20 ns): a disk's fixed work (wall event, the path's set-up), one visit of a cell
  * (rasterised, stored, counted, placed, paired), one pair of visits that overlap in time (screened
  * in float, rarely tested further), one cell. Measured on the assignment's scenes, N = 1e3 to 1e5. */
 #define COST_DISK 2.5
@@ -54,8 +54,8 @@
 #define COST_SLOW 0.15 /* one slow disk's box tested against a fast disk's row of cells */
 #define COST_ROW 1.0   /* one row of cells of a fast disk's path across the slow grid */
 
-/* A disk as phase B reads it: its state, its wall event time (+inf when none within the step) and the
- * end of its path, min(1, wall time). */
+/* A disk as the exact tests read it: its state, its wall event time (+inf when none within the step)
+ * and the end of its path, min(1, wall time). */
 typedef struct {
     real x, y, vx, vy;
     real wt, cap;
@@ -63,16 +63,23 @@ typedef struct {
 } Body;
 
 /* A path's visit of one cell as phase A writes it: where phase B counts it (the cell's index within
- * its tile, row * tc + col, then its bin of entry time), the interval of time and the disk. */
+ * its tile, row * tc + col, then its bin of entry time), the interval of time, the disk, and its
+ * state in float for line4. The state travels with the visit so that phase B reads one stream of
+ * entries in order, rather than records of the disks at random that, on two or more threads, another
+ * core mostly wrote in phase A. */
 typedef struct {
     int32_t key;
     float t0, t1;
     int32_t slot;
+    float x, y, vx, vy;
 } Entry;
 
+/* A thread's entries of one tile. Padded to a cache line of its own: phase A bumps len entry by
+ * entry, and a line shared with another thread's bucket would travel between the cores. */
 typedef struct {
     Entry *e;
     size_t len, cap;
+    char pad[64 - sizeof(Entry *) - 2 * sizeof(size_t)];
 } Bucket;
 
 /* Per-thread scratch of phase B, padded so that threads never share a cache line. */
@@ -93,8 +100,6 @@ struct Paths {
     int32_t *tile_of;  /* g: tile coordinate of a cell coordinate */
     int32_t *in_tile;  /* g: the cell coordinate within its tile */
     size_t coord_cap;
-    Body *body;        /* n, by slot */
-    size_t body_cap;
     Bucket *bk;        /* nt_max * tiles: bk[tid * tiles + tile] */
     size_t bk_cap;
     int nt_max;
@@ -128,7 +133,6 @@ void paths_free(Paths *pp)
     free(pp->sc);
     free(pp->tile_of);
     free(pp->in_tile);
-    free(pp->body);
     free(pp);
 }
 
@@ -230,7 +234,7 @@ double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double v
     return cost + COST_ROW * rows + COST_SLOW * visits(nf, s1, h, slow_reach) * (double)n_slow / cells;
 }
 
-void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt)
+void paths_ready(Paths *pp, const PathsPlan *pl, int nt)
 {
     pp->pl = *pl;
     int64_t g = pp->pl.g;
@@ -251,11 +255,6 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt)
         if (!pp->bk) sim_fail("out of memory (%zu buckets)", need);
         memset(pp->bk + pp->bk_cap, 0, (need - pp->bk_cap) * sizeof *pp->bk);
         pp->bk_cap = need;
-    }
-    if ((size_t)n > pp->body_cap) {
-        free(pp->body);
-        pp->body = sim_calloc((size_t)n, sizeof *pp->body);
-        pp->body_cap = (size_t)n;
     }
 }
 
@@ -290,52 +289,76 @@ static inline void crossing(const Paths *pp, double c, double iv, double *ea, do
     *dt = pp->pl.h * iv;
 }
 
-/* The cells of one path, into this thread's buckets (bk: its row of tiles). The outer loop runs over
- * the lines of cells across the path's shorter axis, the inner one along each line: the fewer
- * lines, the fewer loop exits, which a processor mispredicts about once per line. The times at
- * which the centre crosses the grown edges of consecutive cells step by h / v: each entry is a few
- * additions, a minimum and a maximum. (The steps add rounding errors of about g units of the
- * box's, far inside the margin.) The grid's edge cells need no extension: a path never leaves
- * [lo, hi] by more than a few rounding units (it ends at the wall), and G exceeds r by far more. */
-static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
+/* The cells of a short path, whose grown bounding box spans cells [c0[k], c1[k]] on axis k, at most
+ * BOX_CELLS of them: each cell of the box with the intersection of the intervals the centre spends
+ * in its column and its row, kept where that is not empty. One loop and no branch on the geometry:
+ * the loops of path_lines end after one or two turns where cells are about as wide as the path is
+ * long, and a processor mispredicts each of those exits, which costs more than a few empty cells. */
+#define BOX_CELLS 16
+
+static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
+                     const double *ea, const double *eb, const double *dt, Bucket *bk)
 {
-    double G = pp->pl.grow, T = b->cap;
     float bins = (float)pp->pl.bins;
     int32_t last = pp->pl.bins - 1;
-    Entry x = {0, 0, 0, slot};
-    double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, iv[2];
-    for (int k = 0; k < 2; k++) {
-        iv[k] = inverse(v[k]);
-        if (iv[k] == 0) v[k] = 0;
+    int64_t tc = pp->pl.tc, gt = pp->pl.gt, m = (c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1);
+    int64_t i = c0[0], j = c0[1];
+    for (int64_t k = 0; k < m; k++) {
+        double a0 = ea[0] + (double)i * dt[0], a1 = eb[0] + (double)i * dt[0];
+        double b0 = ea[1] + (double)j * dt[1], b1 = eb[1] + (double)j * dt[1];
+        double t0 = a0 > b0 ? a0 : b0, t1 = a1 < b1 ? a1 : b1;
+        t0 = t0 > 0 ? t0 : 0;
+        t0 = t0 < 2 ? t0 : 2; /* an empty cell's: in range for its bin, still after t1 */
+        t1 = t1 < T ? t1 : T;
+        Bucket *q = bk + (size_t)pp->tile_of[j] * (size_t)gt + (size_t)pp->tile_of[i];
+        if (q->len == q->cap) q->e = omp_grow(q->e, &q->cap, q->len + 1, sizeof *q->e);
+        x.t0 = (float)t0 - T_PAD;
+        x.t1 = (float)t1 + T_PAD;
+        int32_t bin = (int32_t)(x.t0 * bins); /* t0 >= -T_PAD: truncates to 0 or more */
+        x.key = (pp->in_tile[j] * (int32_t)tc + pp->in_tile[i]) * pp->pl.bins + (bin < last ? bin : last);
+        q->e[q->len] = x;
+        q->len += t0 <= t1;
+        int wrap = i == c1[0];
+        i = wrap ? c0[0] : i + 1;
+        j += wrap;
     }
+}
+
+/* The cells of a longer path: the outer loop runs over the lines of cells across the path's shorter
+ * axis o, the inner one along each line: the fewer lines, the fewer loop exits, which a processor
+ * mispredicts about once per line. The times at which the centre crosses the grown edges of
+ * consecutive cells step by h / v: each entry is a few additions, a minimum and a maximum. (The
+ * steps add rounding errors of about g units of the box's, far inside the margin.) */
+static void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
+                       const int64_t *c0, const int64_t *c1, const double *ea, const double *eb,
+                       const double *dt, Bucket *bk)
+{
+    double G = pp->pl.grow;
+    float bins = (float)pp->pl.bins;
+    int32_t last = pp->pl.bins - 1;
     int o = fabs(v[1]) <= fabs(v[0]), in = 1 - o; /* outer axis: 1 (rows) or 0 (columns) */
     int64_t tc = pp->pl.tc;
     int32_t si = o ? 1 : (int32_t)tc;                 /* stride of the inner axis in a tile's cells */
     int64_t so = o ? tc : 1;
     int64_t to = o ? pp->pl.gt : 1, ti = o ? 1 : pp->pl.gt; /* strides of the tile index */
-    double oa = c[o], ob = c[o] + v[o] * T;
-    int64_t l0 = cell_of(pp, (oa < ob ? oa : ob) - G), l1 = cell_of(pp, (oa < ob ? ob : oa) + G);
-    double la, lb, ldt, ea, eb, dt;
-    crossing(pp, c[o], iv[o], &la, &lb, &ldt);
-    crossing(pp, c[in], iv[in], &ea, &eb, &dt);
-    for (int64_t l = l0; l <= l1; l++) {
-        double ta = la + (double)l * ldt, tb = lb + (double)l * ldt;
+    for (int64_t l = c0[o]; l <= c1[o]; l++) {
+        double ta = ea[o] + (double)l * dt[o], tb = eb[o] + (double)l * dt[o];
         ta = ta > 0 ? ta : 0;
         tb = tb < T ? tb : T;
         if (ta > tb) continue;
         double ia = c[in] + v[in] * ta, ib = c[in] + v[in] * tb;
-        int64_t c0 = cell_of(pp, (ia < ib ? ia : ib) - G), c1 = cell_of(pp, (ia < ib ? ib : ia) + G);
+        int64_t u0 = cell_of(pp, (ia < ib ? ia : ib) - G), u1 = cell_of(pp, (ia < ib ? ib : ia) + G);
         Bucket *line = bk + (size_t)pp->tile_of[l] * (size_t)to;
         int64_t lpart = (int64_t)pp->in_tile[l] * so;
-        double ua = ea + (double)c0 * dt, ub = eb + (double)c0 * dt;
-        while (c0 <= c1) { /* a piece of the line within one tile */
-            int64_t end = ((int64_t)pp->tile_of[c0] + 1) * tc - 1;
-            if (end > c1) end = c1;
-            Bucket *q = line + (size_t)pp->tile_of[c0] * (size_t)ti;
-            size_t cnt = (size_t)(end - c0 + 1);
+        double ua = ea[in] + (double)u0 * dt[in], ub = eb[in] + (double)u0 * dt[in];
+        while (u0 <= u1) { /* a piece of the line within one tile */
+            int64_t end = ((int64_t)pp->tile_of[u0] + 1) * tc - 1;
+            if (end > u1) end = u1;
+            Bucket *q = line + (size_t)pp->tile_of[u0] * (size_t)ti;
+            size_t cnt = (size_t)(end - u0 + 1);
             if (q->len + cnt > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + cnt, sizeof *q->e);
             Entry *e = q->e + q->len;
-            int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[c0] * si) * pp->pl.bins;
+            int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[u0] * si) * pp->pl.bins;
             for (size_t k = 0; k < cnt; k++) {
                 double sa = ua > ta ? ua : ta, sb = ub < tb ? ub : tb;
                 x.t0 = (float)sa - T_PAD;
@@ -344,16 +367,38 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
                 x.key = key + (bin < last ? bin : last);
                 e[k] = x;
                 key += si * pp->pl.bins;
-                ua += dt;
-                ub += dt;
+                ua += dt[in];
+                ub += dt[in];
             }
             q->len += cnt;
-            c0 = end + 1;
+            u0 = end + 1;
         }
     }
 }
 
-/* The record phase B reads of the disk in slot q, whose wall event time is wt (-1: none). */
+/* The cells of one path, each with the interval of time the centre spends in it (grown by G), into
+ * this thread's buckets (bk: its row of tiles). The grid's edge cells need no extension: a path
+ * never leaves [lo, hi] by more than a few rounding units (it ends at the wall), and G exceeds r by
+ * far more. */
+static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
+{
+    double G = pp->pl.grow, T = b->cap;
+    Entry x = {0, 0, 0, slot, (float)b->x, (float)b->y, (float)b->vx, (float)b->vy};
+    double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, ea[2], eb[2], dt[2];
+    int64_t c0[2], c1[2];
+    for (int k = 0; k < 2; k++) {
+        double iv = inverse(v[k]);
+        if (iv == 0) v[k] = 0;
+        double e = c[k] + v[k] * T;
+        c0[k] = cell_of(pp, (c[k] < e ? c[k] : e) - G);
+        c1[k] = cell_of(pp, (c[k] < e ? e : c[k]) + G);
+        crossing(pp, c[k], iv, &ea[k], &eb[k], &dt[k]);
+    }
+    if ((c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) <= BOX_CELLS) path_box(pp, x, T, c0, c1, ea, eb, dt, bk);
+    else path_lines(pp, x, T, c, v, c0, c1, ea, eb, dt, bk);
+}
+
+/* The record of the disk in slot q that the exact tests read, whose wall event time is wt (-1: none). */
 static inline void body_of(const Slots *s, int64_t q, real wt, Body *b)
 {
     b->x = s->x[q];
@@ -448,18 +493,18 @@ static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t
             real wt = slot_wall_time(s, p, q);
             wall_t[q] = wt;
             if (wt >= 0) found_wall(mine, wt, (int32_t)q);
-            Body *b = &pp->body[q];
-            body_of(s, q, wt, b);
-            if (b->cap > 0) path_cells(pp, b, (int32_t)q, bk);
+            Body b;
+            body_of(s, q, wt, &b);
+            if (b.cap > 0) path_cells(pp, &b, (int32_t)q, bk);
         }
     } else {
         for (int64_t k = 0; k < n_fast; k++) {
             int32_t q = fast[k];
-            Body *b = &pp->body[q];
-            body_of(s, q, wall_t[q], b);
-            if (b->cap > 0) {
-                fast_slow(pp, b, q, s, wall_t, slow, p, mine);
-                path_cells(pp, b, q, bk);
+            Body b;
+            body_of(s, q, wall_t[q], &b);
+            if (b.cap > 0) {
+                fast_slow(pp, &b, q, s, wall_t, slow, p, mine);
+                path_cells(pp, &b, q, bk);
             }
         }
     }
@@ -479,10 +524,13 @@ static const unsigned char low_ones[16] = {0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0
 static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
 static const unsigned first_bits[5] = {0, 1, 3, 7, 15};
 
-/* A tile's visits in cell order (Scratch), as the pairing reads them. */
+/* A tile's visits in cell order (Scratch), as the pairing reads them, and where the survivors of its
+ * screens find their disks in full. */
 typedef struct {
     const float *t0, *t1, *x, *y, *vx, *vy;
     const int32_t *slot;
+    const Slots *s;
+    const real *wall_t;
 } Visits;
 
 #ifdef __SSE2__
@@ -621,10 +669,15 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
 static void meet_mask(const Paths *pp, const Visits *v, int32_t i, int32_t j, unsigned m,
                       int64_t cx, int64_t cy, const Params *p, Found *mine)
 {
-    const Body *A = &pp->body[v->slot[i]];
-    for (int k = 0; k < 4; k++)
-        if (m >> k & 1)
-            meet(pp, A, &pp->body[v->slot[j + k]], v->slot[i], v->slot[j + k], cx, cy, p, mine);
+    Body A, B;
+    int32_t qa = v->slot[i];
+    body_of(v->s, qa, v->wall_t[qa], &A);
+    for (int k = 0; k < 4; k++) {
+        if (!(m >> k & 1)) continue;
+        int32_t qb = v->slot[j + k];
+        body_of(v->s, qb, v->wall_t[qb], &B);
+        meet(pp, &A, &B, qa, qb, cx, cy, p, mine);
+    }
 }
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy), few: each visit against the later ones, four
@@ -729,7 +782,8 @@ static void scratch_grow(Scratch *sc, size_t need)
 /* Phase B for one tile: its entries (from every thread's bucket) counted into its cells and, within
  * a cell, into bins of entry time, placed in that order with their disks' states in float; then the
  * pairs of each cell. */
-static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch *sc, Found *mine)
+static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const real *wall_t,
+                       const Params *p, Scratch *sc, Found *mine)
 {
     int64_t tc = pp->pl.tc, cells = tc * tc, keys = cells * pp->pl.bins;
     sc->start = omp_grow(sc->start, &sc->start_cap, (size_t)keys + 1, sizeof *sc->start);
@@ -748,24 +802,22 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Params *p, Scratch
         sc->t0[k] = sc->t1[k] = sc->x[k] = sc->y[k] = sc->vx[k] = sc->vy[k] = 0;
         sc->slot[k] = 0;
     }
-    const Body *body = pp->body;
     for (int t = 0; t < nt; t++) {
         const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->pl.tiles + (size_t)tile];
         for (size_t k = 0; k < q->len; k++) {
             const Entry *e = &q->e[k];
-            const Body *b = &body[e->slot];
             int32_t pos = start[e->key]++;
             sc->t0[pos] = e->t0;
             sc->t1[pos] = e->t1;
             sc->slot[pos] = e->slot;
-            sc->x[pos] = (float)b->x;
-            sc->y[pos] = (float)b->y;
-            sc->vx[pos] = (float)b->vx;
-            sc->vy[pos] = (float)b->vy;
+            sc->x[pos] = e->x;
+            sc->y[pos] = e->y;
+            sc->vx[pos] = e->vx;
+            sc->vy[pos] = e->vy;
         }
     }
     /* start[key] is now the end of key, which is the start of key + 1 */
-    Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot};
+    Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot, s, wall_t};
     int64_t ty = tile / pp->pl.gt, tx = tile % pp->pl.gt;
     int32_t lo = 0;
     for (int64_t c = 0; c < cells; c++) {
@@ -809,5 +861,5 @@ void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const 
     const int64_t *order = tile_order(pp, &pp->sc[tid], nt);
 #pragma omp for schedule(dynamic, 1)
     for (int64_t k = 0; k < pp->pl.tiles; k++)
-        tile_sweep(pp, order[k], nt, p, &pp->sc[tid], mine);
+        tile_sweep(pp, order[k], nt, s, wall_t, p, &pp->sc[tid], mine);
 }

@@ -149,7 +149,7 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
 double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double vm, double s1,
                        double slow_reach, double h, int64_t g, int nt, PathsPlan *pl);
 /* Adopts a plan and makes the buffers ready for it. */
-void paths_ready(Paths *pp, const PathsPlan *pl, int64_t n, int nt);
+void paths_ready(Paths *pp, const PathsPlan *pl, int nt);
 /* Finds every pair event of the step that before_walls admits into mine. Called by every thread of
  * the team (tid of nt) after paths_ready, with slow = NULL: the paths of all disks, wall_t (by slot:
  * the wall event time, or -1) filled here; or in a mixed step with the slow disks' grid and this
