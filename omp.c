@@ -502,7 +502,17 @@ static void choose_events(Work *w, int tid)
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
 
-/* Moves the disks of this thread's range (a pair from its lower original index, both disks) and
+/* Which disk of an accepted pair moves both, of original indices self and other: the lower index
+ * where their sum is even, else the higher. Both threads decide alike, and each thread moves about
+ * half of the pairs it has disks of, whichever thread's range holds the lower indices (they are
+ * unbalanced where slots keep the original order: the lower index of a random pair lies in the
+ * first half of the slots three times in four). */
+static inline int pair_mover(int32_t self, int32_t other)
+{
+    return (self ^ other) & 1 ? self > other : self < other;
+}
+
+/* Moves the disks of this thread's range (a pair from the disk pair_mover names, both disks) and
  * notes the largest velocity component it leaves and the disks' next steps, for the next step's
  * plan. A slot without a node has no event; node_of is left all -1 for the next step. */
 static void move_range(Work *w, int tid)
@@ -535,12 +545,16 @@ static void move_range(Work *w, int tid)
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
             events++;
-        } else if (node[v].id < node[p].id) {
-            int64_t j = node[p].slot;
+        } else if (pair_mover(node[v].id, node[p].id)) {
+            int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
+            if (node[p].id < node[v].id) {
+                a = j;
+                b = i;
+            }
             note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
             note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
-            pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
-                         &s->vy[j], t, lo, hi);
+            pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
+                         &s->vy[b], t, lo, hi);
             s->pc[i]++;
             s->pc[j]++;
             events++;
