@@ -1562,6 +1562,7 @@ void io_parse_args(int argc, char **argv, Options *opt)
     opt->seed = DEFAULT_SEED;
     opt->substeps = 1;
     opt->balance = SIM_BALANCE_EVERY;
+    opt->keep = -1;
     opt->path = NULL;
     /* omp and mpi (its ranks' threads) share the broad phase: its threads, --check and --broad */
     int is_mpi = strcmp(backend_name, "mpi" SIM_SUFFIX) == 0;
@@ -1611,6 +1612,8 @@ void io_parse_args(int argc, char **argv, Options *opt)
             else if (strcmp(val, "mixed") == 0) opt->broad = SIM_BROAD_MIXED;
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
             else sim_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
+        } else if (strcmp(backend_name, "omp" SIM_SUFFIX) == 0 && strcmp(a, "--keep") == 0) {
+            opt->keep = (int)option_value(argc, argv, &k, 0, SIM_KEEP_MOST);
         } else if (is_mpi && strcmp(a, "--balance") == 0) {
             opt->balance = option_value(argc, argv, &k, 0, SIM_MAX_STEPS);
         } else if (strcmp(a, "--checkpoint") == 0) {

@@ -32,6 +32,8 @@ typedef struct {
     int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
     int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
                           _PATHS, _MIXED */
+    int keep;          /* omp --keep K: a fast disk's events with slow disks kept in a mixed step
+                          (0: all; -1: the backend's default) */
     const char *checkpoint;   /* --checkpoint FILE: the state written there every checkpoint_every steps */
     int64_t checkpoint_every; /* --checkpoint-every K (default 1000) */
     const char *resume;       /* --resume FILE: go on from that checkpoint instead of reading an input */
@@ -40,6 +42,8 @@ typedef struct {
 } Options;
 
 #define SIM_BALANCE_EVERY 0 /* mpi's default --balance: by count at the start only */
+
+#define SIM_KEEP_MOST 64 /* the largest omp --keep */
 
 #define SIM_BROAD_AUTO 0
 #define SIM_BROAD_GRID 1

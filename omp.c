@@ -37,7 +37,10 @@ const char backend_options[] =
     "               stop with a message if the broad phase missed an event; for testing\n"
     "  --broad B    the broad phase: grid (cells as wide as the fastest disk's step), paths (each\n"
     "               disk's path through the cells it crosses), mixed (slow disks in a grid, the\n"
-    "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n";
+    "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n"
+    "  --keep K     in a mixed step, keep only a fast disk's first K events with slow disks\n"
+    "               (1 to 64, 0: all; default 8); a step where that would change the outcome\n"
+    "               is found again keeping twice as many\n";
 const unsigned backend_features =
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT;
 
@@ -56,6 +59,8 @@ typedef struct {
 /* Per-thread state of the choice and the moves, padded so that threads never share a cache line. */
 typedef struct {
     int64_t lo, hi;   /* this owner's segment of end, node, adj and active */
+    int64_t nodes;    /* this owner's nodes, at node + lo */
+    int trims_hold;   /* 1: the choice took the disk of each of this thread's trims in time */
     int64_t n_active; /* undecided nodes of this owner, at active + lo */
     uint64_t events;
     char pad[64];
@@ -116,6 +121,7 @@ typedef struct {
     size_t fin_cap;
     SeqEvent *fin_tmp; /* sort_events' buffer */
     size_t fin_tmp_cap;
+    int64_t refound;  /* mixed steps found again with a larger keep */
 } Work;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -206,6 +212,7 @@ static void ends_scan(Work *w, int nown)
         }
         w->th[u].hi = acc;
         w->th[u].n_active = 0;
+        w->th[u].nodes = 0;
     }
     if (acc > INT32_MAX) sim_fail("%lld events in one step: too many", (long long)acc);
     size_t need = (size_t)acc;
@@ -317,6 +324,7 @@ static void nodes_build(Work *w, int u)
         nd->cnt = 0;
     }
     th->n_active = na;
+    th->nodes = nn - lo;
     nodes_pass(w, u, 1, &nn);
 }
 
@@ -590,18 +598,10 @@ static void print_state(Work *w, int tid, int64_t step)
     io_text_end(&w->text);
 }
 
-static void step_run(Work *w, int tid, int64_t step)
+/* The greedy choice (3.3) of the step's events: on one thread when there are few pair events, else
+ * in rounds (every thread counts the events itself, so all take the same branch). */
+static void choose(Work *w, int tid)
 {
-    const Params *p = w->p;
-
-    /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
-     * narrow phase; reordered every few steps, and on a run's first step too (a resumed run starts
-     * from the original order) */
-    int first = step == p->first_step * p->substeps + 1;
-    broad_find(&w->b, tid, step, step % REORDER_EVERY == 1 || first);
-
-    /* the greedy choice (3.3): on one thread when there are few pair events, else in rounds (every
-     * thread counts the events itself, so all take the same branch) */
     size_t total = 0;
     for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
     if (total <= SMALL_CHOICE) {
@@ -611,6 +611,65 @@ static void step_run(Work *w, int tid, int64_t step)
         build_nodes(w, tid);
         choose_events(w, tid);
 #pragma omp barrier
+    }
+}
+
+/* Whether the choice took the fast disk of each of this thread's trims (SlowGrid's keep) at a key
+ * smaller than the smallest it left out: then the greedy walk rejects every event left out, and so
+ * takes the same events as with them. A trimmed disk has pair events, so it has a node, and so has
+ * each partner, with its original index. */
+static int trims_hold(const Work *w, int tid)
+{
+    const Found *f = &w->b.th[tid].found;
+    for (size_t k = 0; k < f->trim_len; k++) {
+        const PairEvent *c = &f->trim[k];
+        const Node *nd = &w->node[w->node_of[c->a]];
+        if (!nd->taken) return 0;
+        int32_t i = nd->id, j = nd->id, kind = nd->p != w->node_of[c->a];
+        if (kind) {
+            int32_t o = w->node[nd->p].id;
+            i = o < i ? o : i;
+            j = o < j ? j : o;
+        }
+        if (!event_before(nd->t, kind, i, j, c->t, 1, c->i, c->j)) return 0;
+    }
+    return 1;
+}
+
+/* Every slot of owner u's nodes back to having none, for the step to be found again. */
+static void nodes_clear(Work *w, int u)
+{
+    for (int64_t v = w->th[u].lo; v < w->th[u].lo + w->th[u].nodes; v++) w->node_of[w->node[v].slot] = -1;
+}
+
+static void step_run(Work *w, int tid, int64_t step)
+{
+    const Params *p = w->p;
+
+    /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
+     * narrow phase; reordered every few steps, and on a run's first step too (a resumed run starts
+     * from the original order); then the choice. A mixed step whose trims do not hold is found and
+     * chosen again keeping twice as many events (rare: the first partners of a fast disk must all
+     * have been taken by earlier events). */
+    int first = step == p->first_step * p->substeps + 1, reorder = step % REORDER_EVERY == 1 || first;
+    for (;;) {
+        broad_find(&w->b, tid, step, reorder);
+        choose(w, tid);
+        if (w->b.plan.mode != MODE_MIXED || w->b.keep == 0) break;
+        w->th[tid].trims_hold = trims_hold(w, tid);
+#pragma omp barrier
+        int hold = 1;
+        for (int t = 0; t < w->nt; t++) hold &= w->th[t].trims_hold;
+        if (hold) break;
+        nodes_clear(w, tid);
+#pragma omp barrier
+#pragma omp single
+        {
+            w->b.keep = 2 * w->b.keep > SIM_KEEP_MOST ? 0 : 2 * w->b.keep;
+            w->refound++;
+            w->b.mixed_steps--; /* the next broad_find counts the step again */
+        }
+        reorder = 0;
     }
 
     /* the moves (3.4, 3.5) */
@@ -684,6 +743,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.out = out;
     broad_init(&w.b, par, opt, n, nt_max, sim->wi != NULL);
     w.b.wall_lists = 1;
+    w.b.keep = opt->keep < 0 ? KEEP_FIRST : opt->keep;
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
@@ -709,10 +769,11 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     st->seconds = sim_clock() - t0;
 
-    uint64_t visits = 0, overlaps = 0;
+    uint64_t visits = 0, overlaps = 0, trimmed = 0;
     for (int t = 0; t < nt_max; t++) {
         visits += w.b.th[t].found.visits;
         overlaps += w.b.th[t].found.overlaps;
+        trimmed += w.b.th[t].found.trimmed;
         st->pair_tests += w.b.th[t].found.tests;
         st->events += w.th[t].events;
     }
@@ -725,6 +786,11 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                 backend_name, (long long)(steps - w.b.path_steps - w.b.mixed_steps),
                 (long long)w.b.path_steps, (long long)w.b.mixed_steps, (long long)steps,
                 ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
+        if (w.b.mixed_steps)
+            fprintf(stderr,
+                    "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
+                    "its first %d (0: all, by the end); %lld steps found again keeping more\n",
+                    backend_name, (unsigned long long)trimmed, w.b.keep, (long long)w.refound);
     }
     broad_free(&w.b);
     free(w.th);

@@ -478,6 +478,35 @@ static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s
     }
 }
 
+/* Keeps the k smallest by key of the pair events mine->ev[from ..] (all of the fast disk in slot q,
+ * more than k of them) and notes the smallest left out as q's trim (SlowGrid's keep). The keys are
+ * distinct (the pairs are); the k + 1 smallest are kept sorted on the way, so that most events cost
+ * one comparison. */
+static void keep_first(Found *mine, size_t from, int k, int32_t q)
+{
+    PairEvent best[SIM_KEEP_MOST + 1];
+    int nb = 0;
+    for (size_t e = from; e < mine->len; e++) {
+        const PairEvent *x = &mine->ev[e];
+        if (nb == k + 1 && !event_before(x->t, 1, x->i, x->j, best[k].t, 1, best[k].i, best[k].j))
+            continue;
+        int u = nb < k + 1 ? nb++ : k;
+        while (u > 0 && event_before(x->t, 1, x->i, x->j, best[u - 1].t, 1, best[u - 1].i, best[u - 1].j)) {
+            best[u] = best[u - 1];
+            u--;
+        }
+        best[u] = *x;
+    }
+    memcpy(mine->ev + from, best, (size_t)k * sizeof *best);
+    mine->len = from + (size_t)k;
+    if (mine->trim_len == mine->trim_cap)
+        mine->trim = omp_grow(mine->trim, &mine->trim_cap, mine->trim_len + 1, sizeof *mine->trim);
+    PairEvent c = best[k];
+    c.a = q;
+    mine->trim[mine->trim_len++] = c;
+    mine->trimmed++;
+}
+
 /* Phase A for this thread's disks: those of its range of slots (slow = NULL), their wall events
  * found on the way, or those of its list of fast slots, each first against the slow disks. A disk
  * whose wall event is at t = 0 has no pair event that can be accepted: no path. */
@@ -503,7 +532,10 @@ static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t
             Body b;
             body_of(s, q, wall_t[q], &b);
             if (b.cap > 0) {
+                size_t from = mine->len;
                 fast_slow(pp, &b, q, s, wall_t, slow, p, mine);
+                if (slow->keep > 0 && mine->len - from > (size_t)slow->keep)
+                    keep_first(mine, from, slow->keep, q);
                 path_cells(pp, &b, q, bk);
             }
         }

@@ -33,14 +33,16 @@ typedef struct {
 } WallEvent;
 
 /* What one thread's broad phase finds in a step: pair events, wall events (so that the choice need
- * not look at every slot), the exact tests (pair_time) done, and for the paths (--stats) the cells
- * visited and the pairs of visits that overlap in time. */
+ * not look at every slot), the trims (see SlowGrid's keep), the exact tests (pair_time) done, and
+ * for the paths (--stats) the cells visited and the pairs of visits that overlap in time. */
 typedef struct {
     PairEvent *ev;
     size_t len, cap;
     WallEvent *wall;
     size_t wall_len, wall_cap;
-    uint64_t tests, visits, overlaps;
+    PairEvent *trim; /* a: a fast disk's slot; t, i, j: the smallest key of its events left out */
+    size_t trim_len, trim_cap;
+    uint64_t tests, visits, overlaps, trimmed; /* trimmed: the disks with a trim, all steps */
 } Found;
 
 /* Grows *ptr to hold need items of size bytes (geometrically); sim_fail when memory runs out. */
@@ -110,7 +112,16 @@ static inline int boxes_overlap(const Box *a, const Box *b)
 }
 
 /* The slow disks of a mixed step, binned by the centres of their boxes into g x g square cells of
- * side 1 / inv_h from (x0, x0). Fast disks are binned with empty boxes. */
+ * side 1 / inv_h from (x0, x0). Fast disks are binned with empty boxes.
+ *
+ * keep (0: all): of a fast disk's pair events with slow disks only the keep smallest by the key of
+ * SPEC.md 3.3 are kept, and the smallest key left out is noted (Found's trim). A fast disk crossing
+ * a gas has an event with every disk on its path, dozens, and only its first few can matter: the
+ * events left out are all rejected by the greedy walk (and change nothing) if the choice takes the
+ * disk at a smaller key, which the caller must check; where it does not, the step is found again
+ * keeping more. */
+#define KEEP_FIRST 8 /* omp's default --keep */
+
 typedef struct {
     const Box *boxes;          /* in cell order */
     const int32_t *cell_start; /* g * g + 1: first box of each cell */
@@ -118,6 +129,7 @@ typedef struct {
     int64_t g;
     double x0, inv_h;
     double reach; /* how far from a fast centre the centre of a box it can meet may lie (per axis) */
+    int keep;
 } SlowGrid;
 
 /* ---- omp_paths.c: the broad phase of fast disks --------------------------------------------------- */
@@ -229,6 +241,7 @@ typedef struct {
     int with_wi;
     int wall_lists;   /* 1: the caller reads the Found lists of wall events, and wall_t need hold
                        * every slot's time only where the paths or --check read it */
+    int keep;         /* MODE_MIXED: SlowGrid's (the caller's; 0: all) */
     Plan plan;
     BroadThread *th;
     Paths *paths;     /* the broad phase of fast scenes */

@@ -44,3 +44,5 @@ for prog in $(backend_list); do
 done
 expect_error "omp --threads 0" "^omp: .*--threads" ./omp tests/hard/corners.in --threads 0
 expect_error "seq has no --threads" "^seq: .*--threads" ./seq tests/hard/corners.in --threads 2
+expect_error "omp --keep 65" "^omp: .*--keep" ./omp tests/hard/corners.in --keep 65
+expect_error "seq has no --keep" "^seq: .*--keep" ./seq tests/hard/corners.in --keep 8

@@ -17,8 +17,8 @@ else
     [ -f "$archer" ] || tsan_skip="no Archer library at $archer"
 fi
 
-# tsan_run NAME INPUT BROAD [OPTIONS]: omp_tsan at 3 threads with --broad BROAD and OPTIONS must
-# print seq's bytes (seq with OPTIONS) and report nothing
+# tsan_run NAME INPUT BROAD [OPTIONS]: omp_tsan at 3 threads with --broad BROAD and OPTIONS (and
+# $OMP_ONLY, options seq has not) must print seq's bytes (seq with OPTIONS) and report nothing
 tsan_run() {
     local name=$1 in=$2 broad=$3
     shift 3
@@ -26,8 +26,9 @@ tsan_run() {
         fail "tsan/$name seq" "$(head -c 200 "$T/err")"
         return
     fi
+    # shellcheck disable=SC2086
     OMP_TOOL_LIBRARIES=$archer TSAN_OPTIONS="ignore_noninstrumented_modules=1 halt_on_error=1 exitcode=66" \
-        ./omp_tsan "$in" --quiet --threads 3 --broad "$broad" "$@" > "$T/out" 2> "$T/err"
+        ./omp_tsan "$in" --quiet --threads 3 --broad "$broad" ${OMP_ONLY:-} "$@" > "$T/out" 2> "$T/err"
     local rc=$?
     if grep -q "ThreadSanitizer" "$T/err"; then
         fail "tsan/$name" "$(grep -m1 -A3 "WARNING: ThreadSanitizer" "$T/err" | tr '\n' ' ' | head -c 300)"
@@ -53,6 +54,7 @@ else
     tsan_run mixed "$T/mixed.in" auto
     tsan_run "mixed --broad paths" "$T/mixed.in" paths
     tsan_run "dense --broad mixed" "$T/dense.in" mixed
+    OMP_ONLY="--keep 1" tsan_run "mixed --keep 1 (steps found again)" "$T/mixed.in" auto
     tsan_run dense "$T/dense.in" auto
     tsan_run print "$T/print.in" auto
     tsan_run "print --substeps 4" "$T/print.in" auto --substeps 4

@@ -56,7 +56,30 @@ printf '120\n2400\n1\n25\nprint\n' > "$B/random.in"
 broad_compare random "$B/random.in" --seed 11
 broad_compare "random --substeps 4" "$B/random.in" --seed 11 --substeps 4
 
-# --check: every step against all pairs, each broad phase
+# --keep: a mixed step keeps a fast disk's first K events with slow disks only, and finds the step
+# again keeping twice as many where the choice would have needed one left out. Every K must give
+# seq's bytes; at K = 1 the stats must show disks trimmed and steps found again (that path run).
+tools/gen 2000 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 8 > "$B/keep.in"
+./seq "$B/keep.in" --quiet > "$B/keep.ref"
+for k in 0 1 2; do
+    m=$(threads_mismatch "1 2 3 7" "$B/keep.ref" ./omp "$B/keep.in" --quiet --keep $k)
+    if [ -z "$m" ]; then
+        pass "broad --keep $k at 1 2 3 7 threads: seq's bytes"
+    else
+        fail "broad --keep $k" "$m"
+    fi
+done
+keep_stats=$(./omp "$B/keep.in" --quiet --stats --threads 3 --keep 1 2>&1 > /dev/null | grep "mixed steps:")
+trimmed=$(echo "$keep_stats" | sed -n 's/.*mixed steps: \([0-9]*\) times.*/\1/p')
+refound=$(echo "$keep_stats" | sed -n 's/.*; \([0-9]*\) steps found again.*/\1/p')
+if [ "${trimmed:-0}" -gt 0 ] && [ "${refound:-0}" -gt 0 ]; then
+    pass "broad --keep 1: $trimmed trims, $refound steps found again"
+else
+    fail "broad --keep 1: trims and steps found again expected" "$keep_stats"
+fi
+
+# --check: every step against all pairs, each broad phase (mixed also keeping one event a fast disk:
+# the events a trim leaves out are the only ones allowed to be missing)
 for args in "3000 --assignment --L 6000 --steps 4" \
             "3000 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 4" \
             "2000 --fraction 0.05 --speed 3 --fast 0.2 --fast-speed 0.1 --steps 4" \
@@ -65,12 +88,13 @@ for args in "3000 --assignment --L 6000 --steps 4" \
     tools/gen $args > "$B/check.in"
     for prog in omp omp_f32; do
         bad=""
-        for mode in auto paths mixed; do
-            ./$prog "$B/check.in" --quiet --check --threads 3 --broad "$mode" > /dev/null 2> "$B/err" ||
+        for mode in auto paths mixed "mixed --keep 1"; do
+            # shellcheck disable=SC2086
+            ./$prog "$B/check.in" --quiet --check --threads 3 --broad $mode > /dev/null 2> "$B/err" ||
                 bad="$bad $mode: $(head -c 200 "$B/err")"
         done
         if [ -z "$bad" ]; then
-            pass "broad $prog --check (auto, paths, mixed): $args"
+            pass "broad $prog --check (auto, paths, mixed, mixed --keep 1): $args"
         else
             fail "broad $prog --check: $args" "$bad"
         fi
