@@ -53,7 +53,7 @@ HEADERS = common.h io.h exact.h
 seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c $(BASE_F32) -o $@ $(LDLIBS)
 
-omp_f32: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE_F32) $(HEADERS) omp_step.h Makefile
+omp_f32: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE_F32) $(HEADERS) omp_step.h omp_lanes.h Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE_F32) -o $@ $(LDLIBS)
 
 cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
@@ -62,13 +62,13 @@ cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
 seq: seq.c $(BASE) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) seq.c $(BASE) -o $@ $(LDLIBS)
 
-omp: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE) $(HEADERS) omp_step.h Makefile
+omp: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE) $(HEADERS) omp_step.h omp_lanes.h Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE) -o $@ $(LDLIBS)
 
 # the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler);
 # omp's broad phase inside each rank
 MPI_SRC = mpi.c mpi_io.c omp_broad.c omp_paths.c io.c state.c
-mpi: $(MPI_SRC) $(HEADERS) omp_step.h mpi.h Makefile
+mpi: $(MPI_SRC) $(HEADERS) omp_step.h omp_lanes.h mpi.h Makefile
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) $(MPI_SRC) -o $@ $(LDLIBS)
 
 cuda: cuda.cu $(BASE) common.h io.h Makefile
@@ -82,7 +82,7 @@ seq_san: seq.c io.c state.c $(HEADERS) Makefile
 # whose Archer tool tells the sanitizer about OpenMP's own synchronisation (gcc's libgomp would give
 # false reports); needs clang and libomp-dev
 TSAN_CC ?= clang
-omp_tsan: omp.c omp_broad.c omp_paths.c omp_exact.c io.c state.c $(HEADERS) omp_step.h Makefile
+omp_tsan: omp.c omp_broad.c omp_paths.c omp_exact.c io.c state.c $(HEADERS) omp_step.h omp_lanes.h Makefile
 	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp omp.c omp_broad.c omp_paths.c \
 	    omp_exact.c io.c state.c -o $@ $(LDLIBS)
 

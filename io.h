@@ -32,6 +32,8 @@ typedef struct {
     int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
     int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
                           _PATHS, _MIXED */
+    int lanes;         /* omp --lanes W: pairs a SIMD screen of the paths takes at a time (0: the
+                          widest the processor runs) */
     int keep;          /* omp --keep K: a fast disk's events with slow disks kept in a mixed step
                           (0: all; -1: the backend's default) */
     const char *checkpoint;   /* --checkpoint FILE: the state written there every checkpoint_every steps */

@@ -38,6 +38,8 @@ const char backend_options[] =
     "  --broad B    the broad phase: grid (cells as wide as the fastest disk's step), paths (each\n"
     "               disk's path through the cells it crosses), mixed (slow disks in a grid, the\n"
     "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n"
+    "  --lanes W    pairs of visits the paths' SIMD screens take at a time: 1, 4 (SSE2) or 8\n"
+    "               (AVX2); default: the widest this processor runs\n"
     "  --keep K     in a mixed step, keep only a fast disk's first K events with slow disks\n"
     "               (1 to 64, 0: all; default 8); a step where that would change the outcome\n"
     "               is found again keeping twice as many\n";
@@ -786,6 +788,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                 backend_name, (long long)(steps - w.b.path_steps - w.b.mixed_steps),
                 (long long)w.b.path_steps, (long long)w.b.mixed_steps, (long long)steps,
                 ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
+        if (ps > 0)
+            fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", backend_name,
+                    paths_lanes(w.b.paths));
         if (w.b.mixed_steps)
             fprintf(stderr,
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "

@@ -19,7 +19,8 @@
  *    small, else row by row (the interval the centre spends in a row gives the row's cells). Each
  *    (cell, interval) goes to this thread's bucket of the cell's tile (a square of tc x tc cells).
  * B. over the tiles (dynamic): the tile's entries are counted into their cells, each cell's entries
- *    sorted by entry time and swept: an entry meets the later ones that enter before it leaves. A pair
+ *    sorted by entry time and swept: an entry meets the later ones that enter before it leaves, 8, 4
+ *    or 1 at a time (omp_lanes.h: the widest SIMD screen the processor runs, or --lanes). A pair
  *    is tested only in the cell holding the midpoint of its two centres at its time of closest
  *    approach within [0, min(T_a, T_b)] (symmetric in the two disks, bit for bit), so it is tested at
  *    most once, whatever the number of cells the two paths share.
@@ -37,6 +38,10 @@
 #include <string.h>
 #ifdef __SSE2__
 #include <emmintrin.h>
+#endif
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define LANES_AVX2 1 /* the compiler builds AVX2 functions, run where the processor has AVX2 */
 #endif
 
 #define T_PAD 1e-6f          /* widening of a float time interval, both ends */
@@ -64,7 +69,7 @@ typedef struct {
 
 /* A path's visit of one cell as phase A writes it: where phase B counts it (the cell's index within
  * its tile, row * tc + col, then its bin of entry time), the interval of time, the disk, and its
- * state in float for line4. The state travels with the visit so that phase B reads one stream of
+ * state in float for the screens. The state travels with the visit so that phase B reads one stream of
  * entries in order, rather than records of the disks at random that, on two or more threads, another
  * core mostly wrote in phase A. */
 typedef struct {
@@ -86,9 +91,9 @@ typedef struct {
 typedef struct {
     int32_t *start;      /* tc * tc + 1: first visit of each cell of the tile */
     size_t start_cap;
-    float *t0, *t1;      /* the tile's visits in cell order, 4 spare entries: the interval, */
+    float *t0, *t1;      /* the tile's visits in cell order, LANES_MAX spare entries: the interval, */
     int32_t *slot;       /* the disk, */
-    float *x, *y, *vx, *vy; /* and its state in float for line_filter4 */
+    float *x, *y, *vx, *vy; /* and its state in float for the screens */
     size_t v_cap;
     int64_t *order;      /* the tiles in the order phase B takes them (tile_order) */
     size_t order_cap;
@@ -104,14 +109,37 @@ struct Paths {
     size_t bk_cap;
     int nt_max;
     Scratch *sc;       /* nt_max */
+    int lanes;         /* phase B's screens: pairs at a time */
 };
 
-Paths *paths_new(int nt_max)
+/* The width of phase B's screens: want (1, 4 or 8), or 0: the widest this build and processor run. */
+static int lanes_of(int want)
+{
+    int widest = 1;
+#ifdef __SSE2__
+    widest = 4;
+#endif
+#ifdef LANES_AVX2
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt")) widest = 8;
+#endif
+    if (want > widest)
+        sim_fail("--lanes %d needs %s, which this processor or build lacks (at most %d here)", want,
+                 want == 8 ? "AVX2" : "SSE2", widest);
+    return want ? want : widest;
+}
+
+Paths *paths_new(int nt_max, int lanes)
 {
     Paths *pp = sim_calloc(1, sizeof *pp);
     pp->nt_max = nt_max;
+    pp->lanes = lanes_of(lanes);
     pp->sc = sim_calloc((size_t)nt_max, sizeof *pp->sc);
     return pp;
+}
+
+int paths_lanes(const Paths *pp)
+{
+    return pp->lanes;
 }
 
 void paths_free(Paths *pp)
@@ -138,8 +166,8 @@ void paths_free(Paths *pp)
 
 /* ==== the plan ======================================================================================= */
 
-/* The margins of a step whose fastest velocity component is vm, and line4's float bounds (see there:
- * positions within X, velocity components within vm). */
+/* The margins of a step whose fastest velocity component is vm, and the float bounds of the screens
+ * (omp_lanes.h's line: positions within X, velocity components within vm). */
 static void plan_margins(const Params *p, double vm, PathsPlan *pl)
 {
     double r = p->r, span = p->hi - p->lo;
@@ -545,17 +573,6 @@ static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t
 
 /* ==== phase B: the tiles ============================================================================= */
 
-/* ---- four pairs at a time ---------------------------------------------------------------------- *
- * Phase B screens the pairs of a cell's visits four at a time, with SSE2 where the compiler has it
- * (every x86-64 compiler does; else one pair at a time): no branch per pair, whose outcome would be a
- * coin toss to a processor. A pair survives if its intervals overlap and, in float, the lines its
- * two disks move on come close enough (line_filter4); the few survivors go through meet in double. */
-
-/* How many of the low bits of a 4-bit mask are set in a row, and the first k bits (k = 0..4). */
-static const unsigned char low_ones[16] = {0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0, 1, 0, 4};
-static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
-static const unsigned first_bits[5] = {0, 1, 3, 7, 15};
-
 /* A tile's visits in cell order (Scratch), as the pairing reads them, and where the survivors of its
  * screens find their disks in full. */
 typedef struct {
@@ -564,88 +581,6 @@ typedef struct {
     const Slots *s;
     const real *wall_t;
 } Visits;
-
-#ifdef __SSE2__
-typedef __m128 F4;
-#define F4_LOAD(a) _mm_loadu_ps(a)
-#define F4_SET(a) _mm_set1_ps(a)
-#define F4_LE(a, b) ((unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b)))
-#else
-typedef float F4; /* one lane: the scalar code reads the arrays itself */
-#define F4_SET(a) (a)
-#endif
-
-/* Visit i as its pairs with four others at a time need it, each value in every lane. */
-typedef struct {
-    F4 t0, t1, x, y, vx, vy;
-    F4 s, c, sign; /* line4's bound, and the sign bit */
-    float s0, s1;  /* scalar t0, t1 */
-} Probe;
-
-static inline void probe_of(const Paths *pp, const Visits *v, int32_t i, Probe *q)
-{
-    q->s0 = v->t0[i];
-    q->s1 = v->t1[i];
-    q->t0 = F4_SET(v->t0[i]);
-    q->t1 = F4_SET(v->t1[i]);
-    q->x = F4_SET(v->x[i]);
-    q->y = F4_SET(v->y[i]);
-    q->vx = F4_SET(v->vx[i]);
-    q->vy = F4_SET(v->vy[i]);
-    q->s = F4_SET(pp->pl.flt_s);
-    q->c = F4_SET(pp->pl.flt_c);
-    q->sign = F4_SET(-0.0f);
-}
-
-/* The bits k of visits j + k whose intervals overlap the probe's. */
-static inline unsigned overlap4(const Visits *v, const Probe *q, int32_t j)
-{
-#ifdef __SSE2__
-    return F4_LE(F4_LOAD(v->t0 + j), q->t1) & F4_LE(q->t0, F4_LOAD(v->t1 + j));
-#else
-    unsigned m = 0;
-    for (int k = 0; k < 4; k++) m |= (unsigned)((v->t0[j + k] <= q->s1) & (q->s0 <= v->t1[j + k])) << k;
-    return m;
-#endif
-}
-
-/* The bits k of visits j + k that enter no later than the probe leaves. */
-static inline unsigned enter4(const Visits *v, const Probe *q, int32_t j)
-{
-#ifdef __SSE2__
-    return F4_LE(F4_LOAD(v->t0 + j), q->t1);
-#else
-    unsigned m = 0;
-    for (int k = 0; k < 4; k++) m |= (unsigned)(v->t0[j + k] <= q->s1) << k;
-    return m;
-#endif
-}
-
-/* The bits k of visits j + k whose disk's line of motion may come within 2 G_TEST of the probe's:
- * the distance of closest approach of two lines is |cr| / sqrt(a), cr = dx dvy - dy dvx, a = |dv|^2,
- * and in float, with positions rounded (at most u X off, X the largest coordinate) and velocity
- * components (u vm), |cr| stays within 64 u X vm of its exact value and sqrt(a) within 6 u vm: the
- * bound |cr| <= s sqrt(a) + c (plan: s = 2 G_TEST, c those terms, both rounded up) lets through every
- * pair that meets. Where coordinates or speeds are too large for float, every pair goes through. */
-static inline unsigned line4(const Visits *v, const Probe *q, int32_t j)
-{
-#ifdef __SSE2__
-    F4 dx = _mm_sub_ps(F4_LOAD(v->x + j), q->x), dy = _mm_sub_ps(F4_LOAD(v->y + j), q->y);
-    F4 dvx = _mm_sub_ps(F4_LOAD(v->vx + j), q->vx), dvy = _mm_sub_ps(F4_LOAD(v->vy + j), q->vy);
-    F4 cr = _mm_sub_ps(_mm_mul_ps(dx, dvy), _mm_mul_ps(dy, dvx));
-    F4 a = _mm_add_ps(_mm_mul_ps(dvx, dvx), _mm_mul_ps(dvy, dvy));
-    return F4_LE(_mm_andnot_ps(q->sign, cr), _mm_add_ps(_mm_mul_ps(q->s, _mm_sqrt_ps(a)), q->c));
-#else
-    unsigned m = 0;
-    for (int k = 0; k < 4; k++) {
-        float dx = v->x[j + k] - q->x, dy = v->y[j + k] - q->y;
-        float dvx = v->vx[j + k] - q->vx, dvy = v->vy[j + k] - q->vy;
-        float cr = dx * dvy - dy * dvx, a = dvx * dvx + dvy * dvy;
-        m |= (unsigned)(fabsf(cr) <= q->s * sqrtf(a) + q->c) << k;
-    }
-    return m;
-#endif
-}
 
 /* A pair that passed the filter: its time of closest approach within [0, tm] and the cell of its
  * midpoint then, and in that cell alone the exact test with the lower original index first. */
@@ -697,49 +632,6 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
     if ((b < 0) & (cr * cr <= pp->pl.reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
 }
 
-/* The survivors among the pairs (i, j + k) of mask m, through meet. */
-static void meet_mask(const Paths *pp, const Visits *v, int32_t i, int32_t j, unsigned m,
-                      int64_t cx, int64_t cy, const Params *p, Found *mine)
-{
-    Body A, B;
-    int32_t qa = v->slot[i];
-    body_of(v->s, qa, v->wall_t[qa], &A);
-    for (int k = 0; k < 4; k++) {
-        if (!(m >> k & 1)) continue;
-        int32_t qb = v->slot[j + k];
-        body_of(v->s, qb, v->wall_t[qb], &B);
-        meet(pp, &A, &B, qa, qb, cx, cy, p, mine);
-    }
-}
-
-/* The pairs of the visits [lo, hi) of cell (cx, cy), few: each visit against the later ones, four
- * at a time; line4 screens them where flt (a constant where inlined). v holds 4 spare entries past
- * hi. */
-static inline void cell_pairs_of(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
-                                 int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
-{
-    uint64_t overlaps = 0;
-    Probe q;
-    for (int32_t i = lo; i + 1 < hi; i++) {
-        probe_of(pp, v, i, &q);
-        for (int32_t j = i + 1; j < hi; j += 4) {
-            unsigned ov = overlap4(v, &q, j);
-            if (hi - j < 4) ov &= first_bits[hi - j];
-            unsigned m = flt ? ov & line4(v, &q, j) : ov;
-            overlaps += bits_count[ov];
-            if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
-        }
-    }
-    mine->overlaps += overlaps;
-}
-
-static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
-                       int64_t cy, const Params *p, Found *mine)
-{
-    if (pp->pl.flt) cell_pairs_of(pp, v, lo, hi, cx, cy, p, mine, 1);
-    else cell_pairs_of(pp, v, lo, hi, cx, cy, p, mine, 0);
-}
-
 /* Sorts the visits [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
  * entry time), so insertion moves few of them, by a place or two. */
 static void sort_cell(Scratch *sc, int32_t lo, int32_t hi)
@@ -769,35 +661,88 @@ static void sort_cell(Scratch *sc, int32_t lo, int32_t hi)
     }
 }
 
-/* The pairs of the visits [lo, hi) of cell (cx, cy), many: sorted by entry time, visit i overlaps
- * exactly the run of later visits that enter before it leaves, taken four at a time; line4 screens
- * them where flt (a constant where inlined). */
-static inline void cell_sweep_of(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
-                                 int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
-{
-    uint64_t overlaps = 0;
-    Probe q;
-    for (int32_t i = lo; i + 1 < hi; i++) {
-        probe_of(pp, v, i, &q);
-        for (int32_t j = i + 1; j < hi; j += 4) {
-            unsigned e = enter4(v, &q, j);
-            if (hi - j < 4) e &= first_bits[hi - j];
-            int run = low_ones[e];
-            unsigned m = flt ? first_bits[run] & line4(v, &q, j) : first_bits[run];
-            overlaps += (uint64_t)run;
-            if (m) meet_mask(pp, v, i, j, m, cx, cy, p, mine);
-            if (run < 4) break;
-        }
-    }
-    mine->overlaps += overlaps;
-}
+/* ---- the widths of phase B's screens (omp_lanes.h) -------------------------------------------- */
 
-static void cell_sweep(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
+#define LANES_MAX 8 /* the widest screen: the spare entries past a tile's visits that it reads */
+
+#define LW 1
+#define LN(name) name##_1
+#define LATTR
+#define LV float
+#define LV_LOAD(p) (*(p))
+#define LV_SET(x) (x)
+#define LV_SUB(a, b) ((a) - (b))
+#define LV_MUL(a, b) ((a) * (b))
+#define LV_ADD(a, b) ((a) + (b))
+#define LV_SQRT(a) sqrtf(a)
+#define LV_ABS(a) fabsf(a)
+#define LV_LE(a, b) ((unsigned)((a) <= (b)))
+#define LRUN(m) (m)
+#define LCOUNT(m) (m)
+#include "omp_lanes.h"
+
+#ifdef __SSE2__
+/* How many of the low bits of a 4-bit mask are set in a row, and how many are set. */
+static const unsigned char low_ones[16] = {0, 1, 0, 2, 0, 1, 0, 3, 0, 1, 0, 2, 0, 1, 0, 4};
+static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+#define LW 4
+#define LN(name) name##_4
+#define LATTR
+#define LV __m128
+#define LV_LOAD(p) _mm_loadu_ps(p)
+#define LV_SET(x) _mm_set1_ps(x)
+#define LV_SUB(a, b) _mm_sub_ps(a, b)
+#define LV_MUL(a, b) _mm_mul_ps(a, b)
+#define LV_ADD(a, b) _mm_add_ps(a, b)
+#define LV_SQRT(a) _mm_sqrt_ps(a)
+#define LV_ABS(a) _mm_andnot_ps(_mm_set1_ps(-0.0f), a)
+#define LV_LE(a, b) ((unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b)))
+#define LRUN(m) low_ones[m]
+#define LCOUNT(m) bits_count[m]
+#include "omp_lanes.h"
+#endif
+
+#ifdef LANES_AVX2
+#define LW 8
+#define LN(name) name##_8
+#define LATTR __attribute__((target("avx2,popcnt")))
+#define LV __m256
+#define LV_LOAD(p) _mm256_loadu_ps(p)
+#define LV_SET(x) _mm256_set1_ps(x)
+#define LV_SUB(a, b) _mm256_sub_ps(a, b)
+#define LV_MUL(a, b) _mm256_mul_ps(a, b)
+#define LV_ADD(a, b) _mm256_add_ps(a, b)
+#define LV_SQRT(a) _mm256_sqrt_ps(a)
+#define LV_ABS(a) _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a)
+#define LV_LE(a, b) ((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)))
+#define LRUN(m) ((unsigned)__builtin_ctz(~(m)))
+#define LCOUNT(m) ((unsigned)__builtin_popcount(m))
+#include "omp_lanes.h"
+#endif
+
+/* The pairs of the visits [lo, hi) of cell (cx, cy): few, each against every later one; many (sorted
+ * first), each against the run of later ones that enter before it leaves; at the plan's width. */
+static void cell_pairs(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
                        int64_t cx, int64_t cy, const Params *p, Found *mine)
 {
-    sort_cell(sc, lo, hi);
-    if (pp->pl.flt) cell_sweep_of(pp, v, lo, hi, cx, cy, p, mine, 1);
-    else cell_sweep_of(pp, v, lo, hi, cx, cy, p, mine, 0);
+    int sweep = hi - lo > CELL_FEW;
+    if (sweep) sort_cell(sc, lo, hi);
+#ifdef LANES_AVX2
+    if (pp->lanes == 8) {
+        if (sweep) cell_sweep_8(pp, v, lo, hi, cx, cy, p, mine);
+        else cell_pairs_8(pp, v, lo, hi, cx, cy, p, mine);
+        return;
+    }
+#endif
+#ifdef __SSE2__
+    if (pp->lanes == 4) {
+        if (sweep) cell_sweep_4(pp, v, lo, hi, cx, cy, p, mine);
+        else cell_pairs_4(pp, v, lo, hi, cx, cy, p, mine);
+        return;
+    }
+#endif
+    if (sweep) cell_sweep_1(pp, v, lo, hi, cx, cy, p, mine);
+    else cell_pairs_1(pp, v, lo, hi, cx, cy, p, mine);
 }
 
 static void scratch_grow(Scratch *sc, size_t need)
@@ -829,8 +774,8 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const re
     }
     if (total < 2) return;
     for (int64_t c = 0; c < keys; c++) start[c + 1] += start[c];
-    scratch_grow(sc, total + 4);
-    for (size_t k = total; k < total + 4; k++) { /* spare entries: read four at a time, never paired */
+    scratch_grow(sc, total + LANES_MAX);
+    for (size_t k = total; k < total + LANES_MAX; k++) { /* spare entries: read, never paired */
         sc->t0[k] = sc->t1[k] = sc->x[k] = sc->y[k] = sc->vx[k] = sc->vy[k] = 0;
         sc->slot[k] = 0;
     }
@@ -855,8 +800,7 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const re
     for (int64_t c = 0; c < cells; c++) {
         int32_t hi = start[(c + 1) * pp->pl.bins - 1];
         int64_t cx = tx * tc + c % tc, cy = ty * tc + c / tc;
-        if (hi - lo > CELL_FEW) cell_sweep(pp, sc, &v, lo, hi, cx, cy, p, mine);
-        else if (hi - lo >= 2) cell_pairs(pp, &v, lo, hi, cx, cy, p, mine);
+        if (hi - lo >= 2) cell_pairs(pp, sc, &v, lo, hi, cx, cy, p, mine);
         lo = hi;
     }
 }

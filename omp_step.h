@@ -149,7 +149,9 @@ typedef struct {
     int32_t bins;    /* bins of entry time per cell in phase B's counting sort: a power of 2 */
 } PathsPlan;
 
-Paths *paths_new(int nt_max);
+/* lanes: phase B's screens, pairs at a time (1, 4 or 8; 0: the widest the processor runs) */
+Paths *paths_new(int nt_max, int lanes);
+int paths_lanes(const Paths *pp);
 void paths_free(Paths *pp);
 /* Plans the paths of all n disks of a step (fastest velocity component vm, the steps' axis lengths
  * adding up to about s1) on cells of their own, nt threads; returns the estimated cost in the units

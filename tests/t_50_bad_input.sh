@@ -45,4 +45,5 @@ done
 expect_error "omp --threads 0" "^omp: .*--threads" ./omp tests/hard/corners.in --threads 0
 expect_error "seq has no --threads" "^seq: .*--threads" ./seq tests/hard/corners.in --threads 2
 expect_error "omp --keep 65" "^omp: .*--keep" ./omp tests/hard/corners.in --keep 65
+expect_error "omp --lanes 2" "^omp: .*--lanes" ./omp tests/hard/corners.in --lanes 2
 expect_error "seq has no --keep" "^seq: .*--keep" ./seq tests/hard/corners.in --keep 8

@@ -51,6 +51,30 @@ while read -r name args; do
     SUF=_f32 broad_compare "$name" "$B/$name.in"
 done < <(broad_scenes)
 
+# --lanes: the paths' SIMD screens at each width pass the same pairs (8 lanes: where the processor
+# has AVX2; a SKIP elsewhere)
+for lanes in 1 4 8; do
+    if ! ./omp "$B/fast_walls.in" --quiet --lanes $lanes > /dev/null 2> "$B/err"; then
+        if [ "$lanes" = 8 ] && grep -q "lacks" "$B/err"; then
+            skip "broad --lanes 8" "$(head -c 200 "$B/err")"
+        else
+            fail "broad --lanes $lanes" "$(head -c 200 "$B/err")"
+        fi
+        continue
+    fi
+    bad=""
+    for name in fast_walls fast_mid fast_seed9 mixed_gas; do
+        ./seq "$B/$name.in" --quiet > "$B/lanes.ref"
+        m=$(threads_mismatch "1 3" "$B/lanes.ref" ./omp "$B/$name.in" --quiet --lanes $lanes)
+        [ -z "$m" ] || bad="$bad $name:$m"
+    done
+    if [ -z "$bad" ]; then
+        pass "broad --lanes $lanes at 1 and 3 threads: seq's bytes"
+    else
+        fail "broad --lanes $lanes" "$bad"
+    fi
+done
+
 # the assignment's own random scene (no particle lines) at the sample's density, small N and print
 printf '120\n2400\n1\n25\nprint\n' > "$B/random.in"
 broad_compare random "$B/random.in" --seed 11

@@ -1,0 +1,151 @@
+/* omp_lanes.h: phase B's screens of a cell's pairs of visits, LW pairs at a time. omp_paths.c
+ * includes it once for each width it builds (1: plain C; 4: SSE2; 8: AVX2, chosen at run time
+ * where the processor has it), after defining:
+ *   LW            the lanes: 1, 4 or 8
+ *   LN(name)      the instance's name of a function (name_4, ...)
+ *   LATTR         attributes of its functions (the instruction set they may use)
+ *   LV            a vector of LW floats, with LV_LOAD(p), LV_SET(x), LV_SUB, LV_MUL, LV_ADD,
+ *                 LV_SQRT, LV_ABS and LV_LE(a, b): the bit mask of the lanes where a <= b
+ *   LRUN(m)       how many of the low bits of mask m are set in a row
+ *   LCOUNT(m)     how many bits of m are set
+ * and it undefines them all at its end.
+ * The widths screen the same pairs with the same float operations, so they pass the same ones: the
+ * width changes how fast, never what is found. No branch per pair, whose outcome would be a coin
+ * toss to a processor. A pair survives if its intervals overlap and, in float, the lines its two
+ * disks move on come close enough (line); the few survivors go through meet in double. */
+
+#define LFIRST(k) ((1u << (k)) - 1u) /* the first k bits */
+
+/* Visit i as its pairs with LW others at a time need it, each value in every lane. */
+typedef struct {
+    LV t0, t1, x, y, vx, vy;
+    LV s, c; /* line's bound */
+} LN(Probe);
+
+LATTR static inline void LN(probe_of)(const Paths *pp, const Visits *v, int32_t i, LN(Probe) *q)
+{
+    q->t0 = LV_SET(v->t0[i]);
+    q->t1 = LV_SET(v->t1[i]);
+    q->x = LV_SET(v->x[i]);
+    q->y = LV_SET(v->y[i]);
+    q->vx = LV_SET(v->vx[i]);
+    q->vy = LV_SET(v->vy[i]);
+    q->s = LV_SET(pp->pl.flt_s);
+    q->c = LV_SET(pp->pl.flt_c);
+}
+
+/* The bits k of visits j + k whose intervals overlap the probe's. */
+LATTR static inline unsigned LN(overlap)(const Visits *v, const LN(Probe) *q, int32_t j)
+{
+    return LV_LE(LV_LOAD(v->t0 + j), q->t1) & LV_LE(q->t0, LV_LOAD(v->t1 + j));
+}
+
+/* The bits k of visits j + k that enter no later than the probe leaves. */
+LATTR static inline unsigned LN(enter)(const Visits *v, const LN(Probe) *q, int32_t j)
+{
+    return LV_LE(LV_LOAD(v->t0 + j), q->t1);
+}
+
+/* The bits k of visits j + k whose disk's line of motion may come within 2 G_TEST of the probe's:
+ * the distance of closest approach of two lines is |cr| / sqrt(a), cr = dx dvy - dy dvx, a = |dv|^2,
+ * and in float, with positions rounded (at most u X off, X the largest coordinate) and velocity
+ * components (u vm), |cr| stays within 64 u X vm of its exact value and sqrt(a) within 6 u vm: the
+ * bound |cr| <= s sqrt(a) + c (plan: s = 2 G_TEST, c those terms, both rounded up) lets through every
+ * pair that meets. Where coordinates or speeds are too large for float, every pair goes through. */
+LATTR static inline unsigned LN(line)(const Visits *v, const LN(Probe) *q, int32_t j)
+{
+    LV dx = LV_SUB(LV_LOAD(v->x + j), q->x), dy = LV_SUB(LV_LOAD(v->y + j), q->y);
+    LV dvx = LV_SUB(LV_LOAD(v->vx + j), q->vx), dvy = LV_SUB(LV_LOAD(v->vy + j), q->vy);
+    LV cr = LV_SUB(LV_MUL(dx, dvy), LV_MUL(dy, dvx));
+    LV a = LV_ADD(LV_MUL(dvx, dvx), LV_MUL(dvy, dvy));
+    return LV_LE(LV_ABS(cr), LV_ADD(LV_MUL(q->s, LV_SQRT(a)), q->c));
+}
+
+/* The survivors among the pairs (i, j + k) of mask m, through meet. */
+LATTR static void LN(meet_mask)(const Paths *pp, const Visits *v, int32_t i, int32_t j, unsigned m,
+                                int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    Body A, B;
+    int32_t qa = v->slot[i];
+    body_of(v->s, qa, v->wall_t[qa], &A);
+    for (int k = 0; k < LW; k++) {
+        if (!(m >> k & 1)) continue;
+        int32_t qb = v->slot[j + k];
+        body_of(v->s, qb, v->wall_t[qb], &B);
+        meet(pp, &A, &B, qa, qb, cx, cy, p, mine);
+    }
+}
+
+/* The pairs of the visits [lo, hi) of cell (cx, cy), few: each visit against the later ones, LW at
+ * a time; line screens them where flt (a constant where inlined). v holds LANES_MAX spare entries
+ * past hi. */
+LATTR static inline void LN(pairs_of)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                      int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
+{
+    uint64_t overlaps = 0;
+    LN(Probe) q;
+    for (int32_t i = lo; i + 1 < hi; i++) {
+        LN(probe_of)(pp, v, i, &q);
+        for (int32_t j = i + 1; j < hi; j += LW) {
+            unsigned ov = LN(overlap)(v, &q, j);
+            if (hi - j < LW) ov &= LFIRST(hi - j);
+            unsigned m = flt ? ov & LN(line)(v, &q, j) : ov;
+            overlaps += LCOUNT(ov);
+            if (m) LN(meet_mask)(pp, v, i, j, m, cx, cy, p, mine);
+        }
+    }
+    mine->overlaps += overlaps;
+}
+
+LATTR static void LN(cell_pairs)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                 int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    if (pp->pl.flt) LN(pairs_of)(pp, v, lo, hi, cx, cy, p, mine, 1);
+    else LN(pairs_of)(pp, v, lo, hi, cx, cy, p, mine, 0);
+}
+
+/* The pairs of the visits [lo, hi) of cell (cx, cy), many, sorted by entry time: visit i overlaps
+ * exactly the run of later visits that enter before it leaves, taken LW at a time; line screens
+ * them where flt (a constant where inlined). */
+LATTR static inline void LN(sweep_of)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                      int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
+{
+    uint64_t overlaps = 0;
+    LN(Probe) q;
+    for (int32_t i = lo; i + 1 < hi; i++) {
+        LN(probe_of)(pp, v, i, &q);
+        for (int32_t j = i + 1; j < hi; j += LW) {
+            unsigned e = LN(enter)(v, &q, j);
+            if (hi - j < LW) e &= LFIRST(hi - j);
+            unsigned run = LRUN(e);
+            unsigned m = flt ? LFIRST(run) & LN(line)(v, &q, j) : LFIRST(run);
+            overlaps += run;
+            if (m) LN(meet_mask)(pp, v, i, j, m, cx, cy, p, mine);
+            if (run < LW) break;
+        }
+    }
+    mine->overlaps += overlaps;
+}
+
+LATTR static void LN(cell_sweep)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                 int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    if (pp->pl.flt) LN(sweep_of)(pp, v, lo, hi, cx, cy, p, mine, 1);
+    else LN(sweep_of)(pp, v, lo, hi, cx, cy, p, mine, 0);
+}
+
+#undef LFIRST
+#undef LW
+#undef LN
+#undef LATTR
+#undef LV
+#undef LV_LOAD
+#undef LV_SET
+#undef LV_SUB
+#undef LV_MUL
+#undef LV_ADD
+#undef LV_SQRT
+#undef LV_ABS
+#undef LV_LE
+#undef LRUN
+#undef LCOUNT
