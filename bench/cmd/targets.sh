@@ -84,6 +84,8 @@ random() {
         measure "$name" omp "$t" "$n" "$steps" "$in"
         [ "$with_seq" = 1 ] && same_output "$WORK/$name.ref"
         eval "${name}_$t=\$BEST_WALL ${name}_loop_$t=\$BEST_LOOP"
+        # the paths' screens 4 pairs at a time (SSE2) beside the default (8 where the processor has AVX2)
+        measure "${name}_lanes4" omp "$t" "$n" "$steps" "$in" --lanes 4
     done
 }
 
@@ -130,6 +132,8 @@ for c in $CASES; do
                 "($BEST_WALL s against $base s; step loop $(ratio "$BEST_LOOP" "$base_loop")x) (goal <= 2x)"
             # what the cost model's choice (mixed, on these steps) saves over the paths of every disk
             measure mixed_paths omp "$t" 100000 5 "$WORK/mixed_0.01.in" --broad paths
+            # what keeping a fast disk's first 8 events with slow disks saves over keeping them all
+            measure mixed_keep_all omp "$t" 100000 5 "$WORK/mixed_0.01.in" --keep 0
         done
         # how the fast disks heat the gas: disks faster than 10 r per step (20x the gas's fastest)
         sed 's/^perf$/print/' "$WORK/mixed_0.01.in" > "$WORK/mixed_print.in"
