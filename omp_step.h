@@ -143,7 +143,7 @@ typedef struct {
     double inv_h, last; /* 1 / h and g - 1 */
     double grow;     /* G: how far the cells are grown for the paths */
     double reach2;   /* (2 G_TEST)^2: meet's filter */
-    int flt;         /* 1: line4 screens pairs in float (the coordinates and speeds allow) */
+    int flt;         /* 1: the screens test the lines in float (the coordinates and speeds allow) */
     float flt_s, flt_c; /* its bound |cr| <= flt_s sqrt(a) + flt_c */
     int64_t tc, gt, tiles; /* tile side in cells, tiles per side, tiles */
     int32_t bins;    /* bins of entry time per cell in phase B's counting sort: a power of 2 */
