@@ -559,6 +559,24 @@ static int beyond_trim(const PairEvent *trims, size_t n_trims, int32_t q, real t
     return c && !event_before(t, 1, i, j, c->t, 1, c->i, c->j);
 }
 
+/* The threads' pair events (trims = 0) or trims (1) in one array sorted by cmp, *len of them. */
+static PairEvent *gathered(const Broad *w, int trims, int (*cmp)(const void *, const void *), size_t *len)
+{
+    size_t n = 0;
+    for (int t = 0; t < w->nt; t++) n += trims ? w->th[t].found.trim_len : w->th[t].found.len;
+    PairEvent *all = sim_calloc(n + 1, sizeof *all);
+    n = 0;
+    for (int t = 0; t < w->nt; t++) {
+        const Found *f = &w->th[t].found;
+        size_t k = trims ? f->trim_len : f->len;
+        if (k) memcpy(all + n, trims ? f->trim : f->ev, k * sizeof *all);
+        n += k;
+    }
+    if (n) qsort(all, n, sizeof *all, cmp);
+    *len = n;
+    return all;
+}
+
 /* Every pair event that the choice can accept (before_walls), found by testing all pairs, must be
  * among the broad phase's events, but for those beyond a trim, and nothing else. */
 static void check_broad_phase(Broad *w, int64_t step)
@@ -570,26 +588,8 @@ static void check_broad_phase(Broad *w, int64_t step)
             sim_fail("--check: step %lld: disk %d has the wall event time %.17g, not %.17g",
                     (long long)step, s->id[q], (double)w->wall_t[q],
                     (double)check_wall_time(s, w->p, q));
-    size_t n_ev = 0;
-    for (int t = 0; t < w->nt; t++) n_ev += w->th[t].found.len;
-    PairEvent *mine = sim_calloc(n_ev, sizeof *mine);
-    n_ev = 0;
-    for (int t = 0; t < w->nt; t++) {
-        const Found *f = &w->th[t].found;
-        if (f->len) memcpy(mine + n_ev, f->ev, f->len * sizeof *mine);
-        n_ev += f->len;
-    }
-    if (n_ev) qsort(mine, n_ev, sizeof *mine, pair_cmp);
-    size_t n_trims = 0;
-    for (int t = 0; t < w->nt; t++) n_trims += w->th[t].found.trim_len;
-    PairEvent *trims = sim_calloc(n_trims + 1, sizeof *trims);
-    n_trims = 0;
-    for (int t = 0; t < w->nt; t++) {
-        const Found *f = &w->th[t].found;
-        if (f->trim_len) memcpy(trims + n_trims, f->trim, f->trim_len * sizeof *trims);
-        n_trims += f->trim_len;
-    }
-    if (n_trims) qsort(trims, n_trims, sizeof *trims, trim_cmp);
+    size_t n_ev, n_trims;
+    PairEvent *mine = gathered(w, 0, pair_cmp, &n_ev), *trims = gathered(w, 1, trim_cmp, &n_trims);
     size_t uniq = 0;
     for (size_t e = 0; e < n_ev; e++)
         if (uniq == 0 || pair_cmp(&mine[uniq - 1], &mine[e]) != 0) mine[uniq++] = mine[e];
