@@ -198,7 +198,7 @@ typedef struct {
     int32_t acc;      /* accepted in this round */
 } Node;
 
-/* One of a node's pair events (ev_shift's name) and its other disk: its node, or -1 - k for the
+/* One of a node's pair events (found_name's name) and its other disk: its node, or -1 - k for the
  * halo's slot own + k. */
 typedef struct {
     int64_t e;
@@ -222,7 +222,6 @@ typedef struct {
     int *scount, *rcount;
     /* the choice, over the own disks with an event this step (nodes): a pass over every slot, or
      * a key for each, would be read and written beyond a large rank's cache every step */
-    int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
     Node *node;
     size_t node_cap;
     Adj *adj;         /* the nodes' lists of pair events */
@@ -337,10 +336,10 @@ static int key_same(const Key *x, const Key *y)
     return x->t == y->t && x->kind == y->kind && x->i == y->i && x->j == y->j;
 }
 
-/* The pair event e (see ev_shift): the events stay where the threads found them. */
+/* The pair event named e (found_name). */
 static inline const PairEvent *event_at(const Run *r, int64_t e)
 {
-    return &r->b.th[e & ((1 << r->ev_shift) - 1)].found.ev[e >> r->ev_shift];
+    return &found_of_name(&r->b, e)->ev[found_index(&r->b, e)];
 }
 
 /* The node of own slot q, made if it has none. */
@@ -398,7 +397,7 @@ static int64_t build_nodes(Run *r)
         const Found *f = &r->b.th[t].found;
         for (size_t k = 0; k < f->len; k++) {
             const PairEvent *e = &f->ev[k];
-            int64_t name = ((int64_t)k << r->ev_shift) + t;
+            int64_t name = found_name(&r->b, k, t);
             int32_t ends2[2] = {e->a, e->b};
             for (int u = 0; u < 2; u++) {
                 int32_t q = ends2[u], o = ends2[1 - u];
@@ -772,7 +771,6 @@ int main(int argc, char **argv)
     r.lp = r.par;
     broad_init(&r.b, &r.lp, &opt, l.own + 1024, r.nt, opt.pressure);
     r.b.wall_lists = 1; /* the choice reads the lists of wall events, not wall_t */
-    while ((1 << r.ev_shift) < r.b.nt_max) r.ev_shift++;
     r.own = l.own;
     run_reserve(&r, l.own + 1024);
     for (int64_t q = 0; q < l.own; q++) {

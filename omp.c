@@ -105,7 +105,6 @@ typedef struct {
     int nt;           /* threads in the parallel region */
     Thread *th;
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
-    int ev_shift;     /* an event is named (k << ev_shift) + t: event k of thread t's Found */
     int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
     int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
     double owner_scale; /* nt / n */
@@ -155,16 +154,15 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
-/* The pair event e (see ev_shift): the events stay where the threads found them. */
+/* The pair event and the wall event named e (found_name). */
 static inline const PairEvent *event_at(const Work *w, int64_t e)
 {
-    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.ev[e >> w->ev_shift];
+    return &found_of_name(&w->b, e)->ev[found_index(&w->b, e)];
 }
 
-/* The wall event e, named alike. */
 static inline const WallEvent *wall_at(const Work *w, int64_t e)
 {
-    return &w->b.th[e & ((1 << w->ev_shift) - 1)].found.wall[e >> w->ev_shift];
+    return &found_of_name(&w->b, e)->wall[found_index(&w->b, e)];
 }
 
 /* Which thread's range (range_of) holds slot q: a guess in floating point, set right against the
@@ -232,12 +230,12 @@ static void ends_scatter(Work *w, int t)
     for (size_t k = 0; k < f->len; k++) {
         int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
         for (int u = 0; u < 2; u++) {
-            End x = {2 * (((int64_t)k << w->ev_shift) + t) + u, ends[u], ends[1 - u]};
+            End x = {2 * found_name(&w->b, k, t) + u, ends[u], ends[1 - u]};
             w->end[row[owner_of(w, ends[u])]++] = x;
         }
     }
     for (size_t k = 0; k < f->wall_len; k++) {
-        End x = {-1 - (((int64_t)k << w->ev_shift) + t), f->wall[k].slot, -1};
+        End x = {-1 - found_name(&w->b, k, t), f->wall[k].slot, -1};
         w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
     }
 }
@@ -292,12 +290,12 @@ static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
         const Found *f = &w->b.th[t].found;
         for (size_t k = 0; k < f->len; k++) {
             const PairEvent *e = &f->ev[k];
-            int64_t name = ((int64_t)k << w->ev_shift) + t;
+            int64_t name = found_name(&w->b, k, t);
             node_end(w, e->a, 2 * name, e->i, e->b, fill, nn);
             node_end(w, e->b, 2 * name + 1, e->j, e->a, fill, nn);
         }
         for (size_t k = 0; k < f->wall_len && !fill; k++)
-            node_end(w, f->wall[k].slot, -1 - (((int64_t)k << w->ev_shift) + t), -1, -1, fill, nn);
+            node_end(w, f->wall[k].slot, -1 - found_name(&w->b, k, t), -1, -1, fill, nn);
     }
 }
 
@@ -757,7 +755,6 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 #pragma omp single
     {
         w.nt = w.b.nt = omp_get_num_threads();
-        while (1 << w.ev_shift < w.nt) w.ev_shift++;
         for (int t = 0; t < w.nt; t++) range_of(n, t, w.nt, &w.bound[t], &w.bound[t + 1]); /* owner_of */
         w.owner_scale = (double)w.nt / (double)n;
     }

@@ -240,6 +240,7 @@ typedef struct {
     const Options *opt;
     double rx0, rx1, ry0, ry1; /* where the centres lie (the box unless the caller narrows it) */
     int nt, nt_max;   /* threads in the parallel region; BroadThreads allocated */
+    int name_shift;   /* bits of a thread in the events' names (found_name) */
     int with_wi;
     int wall_lists;   /* 1: the caller reads the Found lists of wall events, and wall_t need hold
                        * every slot's time only where the paths or --check read it */
@@ -261,6 +262,23 @@ typedef struct {
     int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
     int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
 } Broad;
+
+/* Names of the events in the threads' Found lists, so that a choice refers to them where the threads
+ * found them, without a copy: event k of thread t is (k << name_shift) + t. */
+static inline int64_t found_name(const Broad *b, size_t k, int t)
+{
+    return ((int64_t)k << b->name_shift) + t;
+}
+
+static inline const Found *found_of_name(const Broad *b, int64_t e)
+{
+    return &b->th[e & ((1 << b->name_shift) - 1)].found;
+}
+
+static inline size_t found_index(const Broad *b, int64_t e)
+{
+    return (size_t)(e >> b->name_shift);
+}
 
 /* Slots for cap disks (grown by broad_reserve, outside a parallel region, contents of s kept), the
  * buffers of nt_max threads, the region the box. */
