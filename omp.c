@@ -623,9 +623,10 @@ static int trims_hold(const Work *w, int tid)
     const Found *f = &w->b.th[tid].found;
     for (size_t k = 0; k < f->trim_len; k++) {
         const PairEvent *c = &f->trim[k];
-        const Node *nd = &w->node[w->node_of[c->a]];
+        int32_t v = w->node_of[c->a];
+        const Node *nd = &w->node[v];
         if (!nd->taken) return 0;
-        int32_t i = nd->id, j = nd->id, kind = nd->p != w->node_of[c->a];
+        int32_t i = nd->id, j = nd->id, kind = nd->p != v;
         if (kind) {
             int32_t o = w->node[nd->p].id;
             i = o < i ? o : i;
