@@ -123,6 +123,7 @@ typedef struct {
     SeqEvent *fin_tmp; /* sort_events' buffer */
     size_t fin_tmp_cap;
     int64_t refound;  /* mixed steps found again with a larger keep */
+    int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
 } Work;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -668,9 +669,12 @@ static void step_run(Work *w, int tid, int64_t step)
         {
             w->b.keep = 2 * w->b.keep > SIM_KEEP_MOST ? 0 : 2 * w->b.keep;
             w->refound++;
-            w->b.mixed_steps--; /* the next broad_find counts the step again */
         }
         reorder = 0;
+    }
+    if (tid == 0) { /* read at the end of the run only */
+        w->path_steps += w->b.plan.mode == MODE_PATHS;
+        w->mixed_steps += w->b.plan.mode == MODE_MIXED;
     }
 
     /* the moves (3.4, 3.5) */
@@ -779,17 +783,17 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     }
     int64_t steps = par->steps * par->substeps;
     if (opt->stats) {
-        double ps = (double)(w.b.path_steps + w.b.mixed_steps) * (double)n;
+        double ps = (double)(w.path_steps + w.mixed_steps) * (double)n;
         fprintf(stderr,
                 "%s: broad phase: grid in %lld, paths in %lld, mixed in %lld of %lld steps; paths: "
                 "%.4g cells visited and %.4g pairs of visits overlapping in time per particle-step\n",
-                backend_name, (long long)(steps - w.b.path_steps - w.b.mixed_steps),
-                (long long)w.b.path_steps, (long long)w.b.mixed_steps, (long long)steps,
+                backend_name, (long long)(steps - w.path_steps - w.mixed_steps),
+                (long long)w.path_steps, (long long)w.mixed_steps, (long long)steps,
                 ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
         if (ps > 0)
             fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", backend_name,
                     paths_lanes(w.b.paths));
-        if (w.b.mixed_steps)
+        if (w.mixed_steps)
             fprintf(stderr,
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
                     "its first %d (0: all, by the end); %lld steps found again keeping more\n",

@@ -635,8 +635,6 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
     {
         b->plan = plan_step(b, b->nt);
         if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
-        b->path_steps += b->plan.mode == MODE_PATHS;
-        b->mixed_steps += b->plan.mode == MODE_MIXED;
     }
     if (b->plan.mode == MODE_PATHS) {
         paths_find(b->paths, &b->s, p, b->wall_t, NULL, NULL, 0, &th->found, tid, b->nt);

@@ -260,7 +260,6 @@ typedef struct {
      * most the box) in units of the box / 2^20; kept up to date through the threads' changes, as
      * only pair collisions change the size of a velocity component */
     int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
-    int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
 } Broad;
 
 /* Names of the events in the threads' Found lists, so that a choice refers to them where the threads
