@@ -64,7 +64,7 @@
 typedef struct {
     real x, y, vx, vy;
     real wt, cap;
-    int32_t id, pad;
+    int32_t id;
 } Body;
 
 /* A path's visit of one cell as phase A writes it: where phase B counts it (the cell's index within
