@@ -87,10 +87,20 @@ typedef struct {
     char pad[64 - sizeof(Entry *) - 2 * sizeof(size_t)];
 } Bucket;
 
+/* A visit as phase B places it: its entry time (the sort's key) and where the entry lies. Placing
+ * 16 bytes per visit writes one cache line where the visit's seven fields, placed at once, would write
+ * seven lines at random; the fields are then copied in order, their entries read at random. */
+typedef struct {
+    float t0;
+    const Entry *e;
+} Item;
+
 /* Per-thread scratch of phase B, padded so that threads never share a cache line. */
 typedef struct {
     int32_t *start;      /* tc * tc + 1: first visit of each cell of the tile */
     size_t start_cap;
+    Item *item;          /* the tile's visits as counted, then sorted within each cell */
+    size_t item_cap;
     float *t0, *t1;      /* the tile's visits in cell order, LANES_MAX spare entries: the interval, */
     int32_t *slot;       /* the disk, */
     float *x, *y, *vx, *vy; /* and its state in float for the screens */
@@ -148,6 +158,7 @@ void paths_free(Paths *pp)
     for (size_t k = 0; k < pp->bk_cap; k++) free(pp->bk[k].e);
     for (int t = 0; t < pp->nt_max; t++) {
         free(pp->sc[t].start);
+        free(pp->sc[t].item);
         free(pp->sc[t].t0);
         free(pp->sc[t].t1);
         free(pp->sc[t].slot);
@@ -324,28 +335,58 @@ static inline void crossing(const Paths *pp, double c, double iv, double *ea, do
  * long, and a processor mispredicts each of those exits, which costs more than a few empty cells. */
 #define BOX_CELLS 16
 
+/* Cell (i, j) of a box as path_box stores it in *x: the intersection of the intervals the centre
+ * spends in its column and its row, cut to [0, T], and its key; whether that is not empty. */
+static inline int box_cell(const Paths *pp, Entry *x, double T, int64_t i, int64_t j, const double *ea,
+                           const double *eb, const double *dt)
+{
+    double zero = 0 * T; /* 0 (T is finite); a constant 0 would make the compiler branch on t0 > 0 */
+    int32_t last = pp->pl.bins - 1;
+    double a0 = ea[0] + (double)i * dt[0], a1 = eb[0] + (double)i * dt[0];
+    double b0 = ea[1] + (double)j * dt[1], b1 = eb[1] + (double)j * dt[1];
+    double t0 = a0 > b0 ? a0 : b0, t1 = a1 < b1 ? a1 : b1;
+    t0 = t0 > zero ? t0 : zero;
+    t1 = t1 < T ? t1 : T;
+    /* where t0 > t1 the cell is empty and its entry is written over: its stored t0 only has to be
+     * in range for its bin */
+    double s0 = t0 < T ? t0 : T;
+    x->t0 = (float)s0 - T_PAD;
+    x->t1 = (float)t1 + T_PAD;
+    int32_t bin = (int32_t)(x->t0 * (float)pp->pl.bins); /* t0 >= -T_PAD: truncates to 0 or more */
+    x->key = (pp->in_tile[j] * (int32_t)pp->pl.tc + pp->in_tile[i]) * pp->pl.bins + (bin < last ? bin : last);
+    return t0 <= t1;
+}
+
+/* Every entry is stored and the bucket's length grows by whether it counts: no branch. Where the box
+ * lies in one tile (most boxes), that length stays in a register; else it goes through each cell's
+ * bucket in memory, and each cell waits for the previous one's store. */
 static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
                      const double *ea, const double *eb, const double *dt, Bucket *bk)
 {
-    float bins = (float)pp->pl.bins;
-    int32_t last = pp->pl.bins - 1;
-    int64_t tc = pp->pl.tc, gt = pp->pl.gt, m = (c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1);
+    int64_t gt = pp->pl.gt, m = (c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1);
     int64_t i = c0[0], j = c0[1];
+    if (pp->tile_of[c0[0]] == pp->tile_of[c1[0]] && pp->tile_of[c0[1]] == pp->tile_of[c1[1]]) {
+        Bucket *q = bk + (size_t)pp->tile_of[j] * (size_t)gt + (size_t)pp->tile_of[i];
+        if (q->len + (size_t)m > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + (size_t)m, sizeof *q->e);
+        Entry *e = q->e;
+        size_t len = q->len;
+        for (int64_t k = 0; k < m; k++) {
+            int in = box_cell(pp, &x, T, i, j, ea, eb, dt);
+            e[len] = x;
+            len += in;
+            int wrap = i == c1[0];
+            i = wrap ? c0[0] : i + 1;
+            j += wrap;
+        }
+        q->len = len;
+        return;
+    }
     for (int64_t k = 0; k < m; k++) {
-        double a0 = ea[0] + (double)i * dt[0], a1 = eb[0] + (double)i * dt[0];
-        double b0 = ea[1] + (double)j * dt[1], b1 = eb[1] + (double)j * dt[1];
-        double t0 = a0 > b0 ? a0 : b0, t1 = a1 < b1 ? a1 : b1;
-        t0 = t0 > 0 ? t0 : 0;
-        t0 = t0 < 2 ? t0 : 2; /* an empty cell's: in range for its bin, still after t1 */
-        t1 = t1 < T ? t1 : T;
+        int in = box_cell(pp, &x, T, i, j, ea, eb, dt);
         Bucket *q = bk + (size_t)pp->tile_of[j] * (size_t)gt + (size_t)pp->tile_of[i];
         if (q->len == q->cap) q->e = omp_grow(q->e, &q->cap, q->len + 1, sizeof *q->e);
-        x.t0 = (float)t0 - T_PAD;
-        x.t1 = (float)t1 + T_PAD;
-        int32_t bin = (int32_t)(x.t0 * bins); /* t0 >= -T_PAD: truncates to 0 or more */
-        x.key = (pp->in_tile[j] * (int32_t)tc + pp->in_tile[i]) * pp->pl.bins + (bin < last ? bin : last);
         q->e[q->len] = x;
-        q->len += t0 <= t1;
+        q->len += in;
         int wrap = i == c1[0];
         i = wrap ? c0[0] : i + 1;
         j += wrap;
@@ -632,32 +673,19 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
     if ((b < 0) & (cr * cr <= pp->pl.reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
 }
 
-/* Sorts the visits [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
+/* Sorts the items [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
  * entry time), so insertion moves few of them, by a place or two. */
-static void sort_cell(Scratch *sc, int32_t lo, int32_t hi)
+static void sort_cell(Item *it, int32_t lo, int32_t hi)
 {
     for (int32_t k = lo + 1; k < hi; k++) {
-        float a0 = sc->t0[k];
-        if (!(a0 < sc->t0[k - 1])) continue;
-        float a1 = sc->t1[k], x = sc->x[k], y = sc->y[k], vx = sc->vx[k], vy = sc->vy[k];
-        int32_t s = sc->slot[k], u = k;
+        Item x = it[k];
+        if (!(x.t0 < it[k - 1].t0)) continue;
+        int32_t u = k;
         do {
-            sc->t0[u] = sc->t0[u - 1];
-            sc->t1[u] = sc->t1[u - 1];
-            sc->slot[u] = sc->slot[u - 1];
-            sc->x[u] = sc->x[u - 1];
-            sc->y[u] = sc->y[u - 1];
-            sc->vx[u] = sc->vx[u - 1];
-            sc->vy[u] = sc->vy[u - 1];
+            it[u] = it[u - 1];
             u--;
-        } while (u > lo && a0 < sc->t0[u - 1]);
-        sc->t0[u] = a0;
-        sc->t1[u] = a1;
-        sc->slot[u] = s;
-        sc->x[u] = x;
-        sc->y[u] = y;
-        sc->vx[u] = vx;
-        sc->vy[u] = vy;
+        } while (u > lo && x.t0 < it[u - 1].t0);
+        it[u] = x;
     }
 }
 
@@ -722,11 +750,10 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy): few, each against every later one; many (sorted
  * first), each against the run of later ones that enter before it leaves; at the plan's width. */
-static void cell_pairs(const Paths *pp, Scratch *sc, const Visits *v, int32_t lo, int32_t hi,
-                       int64_t cx, int64_t cy, const Params *p, Found *mine)
+static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
+                       int64_t cy, const Params *p, Found *mine)
 {
     int sweep = hi - lo > CELL_FEW;
-    if (sweep) sort_cell(sc, lo, hi);
 #ifdef LANES_AVX2
     if (pp->lanes == 8) {
         if (sweep) cell_sweep_8(pp, v, lo, hi, cx, cy, p, mine);
@@ -754,6 +781,7 @@ static void scratch_grow(Scratch *sc, size_t need)
         *f[k] = omp_grow(*f[k], &cap, need, sizeof **f[k]);
     }
     sc->slot = omp_grow(sc->slot, &sc->v_cap, need, sizeof *sc->slot);
+    sc->item = omp_grow(sc->item, &sc->item_cap, need, sizeof *sc->item);
 }
 
 /* Phase B for one tile: its entries (from every thread's bucket) counted into its cells and, within
@@ -779,28 +807,40 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const re
         sc->t0[k] = sc->t1[k] = sc->x[k] = sc->y[k] = sc->vx[k] = sc->vy[k] = 0;
         sc->slot[k] = 0;
     }
+    Item *it = sc->item;
     for (int t = 0; t < nt; t++) {
         const Bucket *q = &pp->bk[(size_t)t * (size_t)pp->pl.tiles + (size_t)tile];
         for (size_t k = 0; k < q->len; k++) {
             const Entry *e = &q->e[k];
-            int32_t pos = start[e->key]++;
-            sc->t0[pos] = e->t0;
-            sc->t1[pos] = e->t1;
-            sc->slot[pos] = e->slot;
-            sc->x[pos] = e->x;
-            sc->y[pos] = e->y;
-            sc->vx[pos] = e->vx;
-            sc->vy[pos] = e->vy;
+            Item *x = &it[start[e->key]++];
+            x->t0 = e->t0;
+            x->e = e;
         }
     }
     /* start[key] is now the end of key, which is the start of key + 1 */
-    Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot, s, wall_t};
-    int64_t ty = tile / pp->pl.gt, tx = tile % pp->pl.gt;
     int32_t lo = 0;
     for (int64_t c = 0; c < cells; c++) {
         int32_t hi = start[(c + 1) * pp->pl.bins - 1];
+        if (hi - lo > CELL_FEW) sort_cell(it, lo, hi);
+        lo = hi;
+    }
+    for (size_t k = 0; k < total; k++) {
+        const Entry *e = it[k].e;
+        sc->t0[k] = e->t0;
+        sc->t1[k] = e->t1;
+        sc->slot[k] = e->slot;
+        sc->x[k] = e->x;
+        sc->y[k] = e->y;
+        sc->vx[k] = e->vx;
+        sc->vy[k] = e->vy;
+    }
+    Visits v = {sc->t0, sc->t1, sc->x, sc->y, sc->vx, sc->vy, sc->slot, s, wall_t};
+    int64_t ty = tile / pp->pl.gt, tx = tile % pp->pl.gt;
+    lo = 0;
+    for (int64_t c = 0; c < cells; c++) {
+        int32_t hi = start[(c + 1) * pp->pl.bins - 1];
         int64_t cx = tx * tc + c % tc, cy = ty * tc + c / tc;
-        if (hi - lo >= 2) cell_pairs(pp, sc, &v, lo, hi, cx, cy, p, mine);
+        if (hi - lo >= 2) cell_pairs(pp, &v, lo, hi, cx, cy, p, mine);
         lo = hi;
     }
 }
