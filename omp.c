@@ -70,7 +70,10 @@ typedef struct {
 
 /* A disk with an event this step (a pair event, or a wall event): the choice works on these alone,
  * so that its passes touch a few bytes per event rather than arrays over all slots, which on large
- * gases are read from beyond the cache every step. */
+ * gases are read from beyond the cache every step. Where the broad phase leaves every disk's wall
+ * event time in wall_t (the paths' and mixed steps: see walls_in_nodes), a disk with a wall event
+ * and no pair event has no node: it takes its wall event whatever the others do, and the move reads
+ * it there (on the fast scenes, most of a step's events). */
 typedef struct {
     real wall_t;      /* its wall event time, or -1 */
     real t;           /* the time of its smallest remaining event (rounds), then of the accepted one */
@@ -166,6 +169,13 @@ static inline const WallEvent *wall_at(const Work *w, int64_t e)
     return &found_of_name(&w->b, e)->wall[found_index(&w->b, e)];
 }
 
+/* Whether this step's wall events go through the nodes: only on grid steps, whose broad phase writes
+ * wall_t for the rare disks near a wall alone and lists their events (wall_lists). */
+static inline int walls_in_nodes(const Work *w)
+{
+    return w->b.plan.mode == MODE_GRID;
+}
+
 /* Which thread's range (range_of) holds slot q: a guess in floating point, set right against the
  * ranges' bounds (no division per event: a step of a fast scene has tens of thousands). */
 static inline int owner_of(const Work *w, int64_t q)
@@ -177,22 +187,24 @@ static inline int owner_of(const Work *w, int64_t q)
     return u;
 }
 
-/* Counts the ends that thread t's broad phase found (two a pair event, one a wall event) for each of
- * nown owners (every thread its range, or thread 0 all), into row t of w->ends. */
+/* Counts the ends that thread t's broad phase found (two a pair event, one a wall event where
+ * walls_in_nodes) for each of nown owners (every thread its range, or thread 0 all), into row t of
+ * w->ends. */
 static void ends_count(Work *w, int t, int nown)
 {
     const Found *f = &w->b.th[t].found;
     int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    size_t walls = walls_in_nodes(w) ? f->wall_len : 0;
     for (int u = 0; u < nown; u++) row[u] = 0;
     if (nown == 1) {
-        row[0] = (int64_t)(2 * f->len + f->wall_len);
+        row[0] = (int64_t)(2 * f->len + walls);
         return;
     }
     for (size_t k = 0; k < f->len; k++) {
         row[owner_of(w, f->ev[k].a)]++;
         row[owner_of(w, f->ev[k].b)]++;
     }
-    for (size_t k = 0; k < f->wall_len; k++) row[owner_of(w, f->wall[k].slot)]++;
+    for (size_t k = 0; k < walls; k++) row[owner_of(w, f->wall[k].slot)]++;
 }
 
 /* Where the ends go: each owner's in a segment [lo, hi) of w->end, each thread's part of it after
@@ -235,15 +247,16 @@ static void ends_scatter(Work *w, int t)
             w->end[row[owner_of(w, ends[u])]++] = x;
         }
     }
-    for (size_t k = 0; k < f->wall_len; k++) {
+    for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0); k++) {
         End x = {-1 - found_name(&w->b, k, t), f->wall[k].slot, -1};
         w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
     }
 }
 
-/* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none,
- * its wall event or one more pair event (of the disk of original index id); in its second, the pair
- * event into the node's list with the other disk's slot (nodes_link makes it its node). */
+/* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none
+ * (with the disk's wall event unless walls_in_nodes), its wall event or one more pair event (of the
+ * disk of original index id); in its second, the pair event into the node's list with the other
+ * disk's slot (nodes_link makes it its node). */
 static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int32_t other, int fill,
                             int64_t *nn)
 {
@@ -258,7 +271,7 @@ static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int3
     int32_t v = w->node_of[slot];
     if (v < 0) {
         v = (int32_t)(*nn)++;
-        Node fresh = {-1, 0, 0, 0, slot, -1, -1, 0};
+        Node fresh = {walls_in_nodes(w) ? -1 : w->b.wall_t[slot], 0, 0, 0, slot, -1, -1, 0};
         w->node[v] = fresh;
         w->node_of[slot] = v;
     }
@@ -295,7 +308,7 @@ static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
             node_end(w, e->a, 2 * name, e->i, e->b, fill, nn);
             node_end(w, e->b, 2 * name + 1, e->j, e->a, fill, nn);
         }
-        for (size_t k = 0; k < f->wall_len && !fill; k++)
+        for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0) && !fill; k++)
             node_end(w, f->wall[k].slot, -1 - found_name(&w->b, k, t), -1, -1, fill, nn);
     }
 }
@@ -523,7 +536,8 @@ static inline int pair_mover(int32_t self, int32_t other)
 
 /* Moves the disks of this thread's range (a pair from the disk pair_mover names, both disks) and
  * notes the largest velocity component it leaves and the disks' next steps, for the next step's
- * plan. A slot without a node has no event; node_of is left all -1 for the next step. */
+ * plan. A slot without a node has no pair event, and no event at all where walls_in_nodes, else its
+ * wall event if wall_t holds one. node_of is left all -1 for the next step. */
 static void move_range(Work *w, int tid)
 {
     Slots *s = &w->b.s;
@@ -533,27 +547,33 @@ static void move_range(Work *w, int tid)
     BroadThread *th = &w->b.th[tid];
     uint64_t events = 0;
     int64_t from, to;
+    const real *wall_t = walls_in_nodes(w) ? NULL : w->b.wall_t;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
         int32_t v = w->node_of[i], p = -1;
+        int wall = 0;
         real t = 0;
         if (v >= 0) {
             w->node_of[i] = -1;
             if (node[v].taken) {
                 p = node[v].p;
                 t = node[v].t;
+                wall = p == v;
             }
+        } else if (wall_t && wall_t[i] >= 0) {
+            wall = 1;
+            t = wall_t[i];
         }
-        if (p < 0) {
-            s->x[i] = s->x[i] + s->vx[i];
-            s->y[i] = s->y[i] + s->vy[i];
-        } else if (p == v) {
+        if (wall) {
             real vx0 = s->vx[i], vy0 = s->vy[i];
             wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
             if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
             s->wc[i]++;
             events++;
+        } else if (p < 0) {
+            s->x[i] = s->x[i] + s->vx[i];
+            s->y[i] = s->y[i] + s->vy[i];
         } else if (pair_mover(node[v].id, node[p].id)) {
             int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
             if (node[p].id < node[v].id) {
