@@ -674,9 +674,11 @@ static void step_run(Work *w, int tid, int64_t step)
      * chosen again keeping twice as many events (rare: the first partners of a fast disk must all
      * have been taken by earlier events). */
     int first = step == p->first_step * p->substeps + 1, reorder = step % REORDER_EVERY == 1 || first;
+    phase_mark(&w->b, tid, PHASE_OTHER);
     for (;;) {
         broad_find(&w->b, tid, step, reorder);
         choose(w, tid);
+        phase_mark(&w->b, tid, PHASE_CHOICE);
         if (w->b.plan.mode != MODE_MIXED || w->b.keep == 0) break;
         w->th[tid].trims_hold = trims_hold(w, tid);
 #pragma omp barrier
@@ -692,6 +694,7 @@ static void step_run(Work *w, int tid, int64_t step)
         }
         reorder = 0;
     }
+    phase_mark(&w->b, tid, PHASE_CHOICE);
     if (tid == 0) { /* read at the end of the run only */
         w->path_steps += w->b.plan.mode == MODE_PATHS;
         w->mixed_steps += w->b.plan.mode == MODE_MIXED;
@@ -699,7 +702,9 @@ static void step_run(Work *w, int tid, int64_t step)
 
     /* the moves (3.4, 3.5) */
     move_range(w, tid);
+    phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier
+    phase_mark(&w->b, tid, PHASE_WAIT);
     int64_t k = p->substeps;
     if (step % k) return;
     if (p->print && step < p->steps * k) print_state(w, tid, step / k);
@@ -711,6 +716,22 @@ static void step_run(Work *w, int tid, int64_t step)
     }
 #pragma omp single
     io_progress(w->out, step / k);
+}
+
+/* --stats: where the step loop went, each phase's mean over the threads (phase_mark). */
+static void print_phases(const Broad *b, int nt)
+{
+    static const char *name[PHASES] = {"plan", "binning", "pairs", "choice", "move",
+                                       "waiting at barriers", "output and the final order"};
+    double all = 0;
+    fprintf(stderr, "%s: the step loop's phases, mean of %d threads:", backend_name, nt);
+    for (int k = 0; k < PHASES; k++) {
+        double mean = 0;
+        for (int t = 0; t < nt; t++) mean += b->th[t].phase_s[k] / nt;
+        all += mean;
+        fprintf(stderr, "%s %s %.4f s", k ? "," : "", name[k], mean);
+    }
+    fprintf(stderr, " (%.4f s in all)\n", all);
 }
 
 /* The caller's state into this thread's range of slots, in original order (the first step sorts them),
@@ -768,6 +789,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.out = out;
     broad_init(&w.b, par, opt, n, nt_max, sim->wi != NULL);
     w.b.wall_lists = 1;
+    w.b.timing = opt->stats;
     w.b.keep = opt->keep < 0 ? KEEP_FIRST : opt->keep;
     w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
@@ -787,9 +809,11 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         slots_fill(&w, tid);
 #pragma omp single
         t0 = sim_clock(); /* the step loop from here */
+        w.b.th[tid].phase_at = sim_clock();
         for (int64_t step = par->first_step * par->substeps + 1; step <= par->steps * par->substeps; step++)
             step_run(&w, tid, step);
         slots_unpermute(&w, tid);
+        phase_mark(&w.b, tid, PHASE_OTHER);
     }
     st->seconds = sim_clock() - t0;
 
@@ -818,6 +842,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
                     "its first %d (0: all, by the end); %lld steps found again keeping more\n",
                     backend_name, (unsigned long long)trimmed, w.b.keep, (long long)w.refound);
+        print_phases(&w.b, w.nt);
     }
     broad_free(&w.b);
     free(w.th);

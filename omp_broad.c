@@ -624,9 +624,23 @@ static void check_broad_phase(Broad *w, int64_t step)
 
 /* ==== the step's broad phase =========================================================================== */
 
+/* The paths' broad phase (slow: a mixed step's slow grid, else NULL), its phases timed. */
+static void paths_find(Broad *b, int tid, const SlowGrid *slow)
+{
+    BroadThread *th = &b->th[tid];
+    paths_bin(b->paths, &b->s, b->p, b->wall_t, slow, slow ? th->fast : NULL,
+              slow ? (int64_t)th->fast_len : 0, &th->found, tid, b->nt);
+    phase_mark(b, tid, PHASE_BIN);
+#pragma omp barrier
+    phase_mark(b, tid, PHASE_WAIT);
+    paths_pairs(b->paths, &b->s, b->p, b->wall_t, &th->found, tid, b->nt);
+    phase_mark(b, tid, PHASE_PAIRS);
+#pragma omp barrier
+    phase_mark(b, tid, PHASE_WAIT);
+}
+
 void broad_find(Broad *b, int tid, int64_t step, int reorder)
 {
-    const Params *p = b->p;
     BroadThread *th = &b->th[tid];
 
     /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
@@ -636,21 +650,24 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
         b->plan = plan_step(b, b->nt);
         if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
     }
+    phase_mark(b, tid, PHASE_PLAN);
     if (b->plan.mode == MODE_PATHS) {
-        paths_find(b->paths, &b->s, p, b->wall_t, NULL, NULL, 0, &th->found, tid, b->nt);
+        paths_find(b, tid, NULL);
     } else {
         bin_grid(b, tid, reorder);
+        phase_mark(b, tid, PHASE_BIN);
         scan_grid(b, tid);
+        phase_mark(b, tid, PHASE_PAIRS);
         if (b->plan.mode == MODE_MIXED) {
             const Plan *pl = &b->plan;
             SlowGrid slow = {b->boxes, b->cell_start, b->box_slot, pl->g,   pl->x0,
                              pl->inv_h, pl->reach,      b->keep};
-            paths_find(b->paths, &b->s, p, b->wall_t, &slow, th->fast, (int64_t)th->fast_len,
-                       &th->found, tid, b->nt);
+            paths_find(b, tid, &slow);
         }
     }
     if (b->opt->check) {
 #pragma omp single
         check_broad_phase(b, step);
+        phase_mark(b, tid, PHASE_PAIRS);
     }
 }

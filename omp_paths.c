@@ -872,13 +872,17 @@ static const int64_t *tile_order(Paths *pp, Scratch *sc, int nt)
     return o;
 }
 
-void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
-                const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt)
+void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
+               const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt)
 {
     phase_paths(pp, s, p, wall_t, slow, fast, n_fast, mine, tid, nt);
-#pragma omp barrier
+}
+
+void paths_pairs(Paths *pp, const Slots *s, const Params *p, const real *wall_t, Found *mine, int tid,
+                 int nt)
+{
     const int64_t *order = tile_order(pp, &pp->sc[tid], nt);
-#pragma omp for schedule(dynamic, 1)
+#pragma omp for schedule(dynamic, 1) nowait
     for (int64_t k = 0; k < pp->pl.tiles; k++)
         tile_sweep(pp, order[k], nt, s, wall_t, p, &pp->sc[tid], mine);
 }

@@ -164,13 +164,16 @@ double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double v
                        double slow_reach, double h, int64_t g, int nt, PathsPlan *pl);
 /* Adopts a plan and makes the buffers ready for it. */
 void paths_ready(Paths *pp, const PathsPlan *pl, int nt);
-/* Finds every pair event of the step that before_walls admits into mine. Called by every thread of
- * the team (tid of nt) after paths_ready, with slow = NULL: the paths of all disks, wall_t (by slot:
- * the wall event time, or -1) filled here; or in a mixed step with the slow disks' grid and this
- * thread's list of fast slots, wall_t filled already: the fast disks' pairs, with each other and
- * with the slow disks. */
-void paths_find(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
-                const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
+/* Finds every pair event of the step that before_walls admits into mine, in two calls by every
+ * thread of the team (tid of nt) after paths_ready, with a barrier between them and one after:
+ * paths_bin bins the paths, paths_pairs pairs their visits, tile by tile. With slow = NULL: the paths
+ * of all disks, wall_t (by slot: the wall event time, or -1) filled by paths_bin; or in a mixed step
+ * with the slow disks' grid and this thread's list of fast slots, wall_t filled already: the fast
+ * disks' pairs, with each other (paths_pairs) and with the slow disks (paths_bin). */
+void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
+               const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
+void paths_pairs(Paths *pp, const Slots *s, const Params *p, const real *wall_t, Found *mine, int tid,
+                 int nt);
 
 /* ---- omp_broad.c: the broad phase of a step over a set of slots (omp.c: all disks; mpi.c: a rank's
  * own disks and halo) ------------------------------------------------------------------------------ */
@@ -222,9 +225,18 @@ typedef struct {
     PathsPlan paths;
 } Plan;
 
+/* Where a thread's step loop spends its time (--stats): the plan; binning (the paths' phase A, the
+ * grid's count and placement); the pairs (the paths' tiles, the grid's scan); the choice (its rounds'
+ * barriers included); the move; waiting at the barriers after binning, the pairs and the move, for
+ * the slowest thread; and the rest (printing, checkpoints, the disks back in original order at the
+ * end). */
+enum { PHASE_PLAN, PHASE_BIN, PHASE_PAIRS, PHASE_CHOICE, PHASE_MOVE, PHASE_WAIT, PHASE_OTHER, PHASES };
+
 /* Per-thread state of the broad phase, padded so that threads never share a cache line. */
 typedef struct {
     Found found;     /* pair events found by this thread this step */
+    double phase_s[PHASES]; /* seconds in each phase (Broad's timing) */
+    double phase_at;        /* when the last phase_mark was */
     int64_t partial; /* this thread's part of a prefix sum */
     real vmax;       /* the fastest velocity component of its disks (its last move) */
     /* the changes since the last plan to Broad's speed_n and speed_s1 */
@@ -245,6 +257,7 @@ typedef struct {
     int wall_lists;   /* 1: the caller reads the Found lists of wall events, and wall_t need hold
                        * every slot's time only where the paths or --check read it */
     int keep;         /* MODE_MIXED: SlowGrid's (the caller's; 0: all) */
+    int timing;       /* 1: phase_mark adds up the phases' times (--stats) */
     Plan plan;
     BroadThread *th;
     Paths *paths;     /* the broad phase of fast scenes */
@@ -261,6 +274,16 @@ typedef struct {
      * only pair collisions change the size of a velocity component */
     int64_t speed_n[SPEED_BINS], speed_s1[SPEED_BINS];
 } Broad;
+
+/* The time since thread tid's last mark, to phase k (where b->timing). */
+static inline void phase_mark(Broad *b, int tid, int k)
+{
+    if (!b->timing) return;
+    BroadThread *th = &b->th[tid];
+    double now = sim_clock();
+    th->phase_s[k] += now - th->phase_at;
+    th->phase_at = now;
+}
 
 /* Names of the events in the threads' Found lists, so that a choice refers to them where the threads
  * found them, without a copy: event k of thread t is (k << name_shift) + t. */

@@ -102,6 +102,23 @@ else
     fail "broad --keep 1: trims and steps found again expected" "$keep_stats"
 fi
 
+# --stats times the step loop's phases on every thread: each broad phase's run names all seven, and
+# their means add up to the step loop (the same clock over the same steps; the end of the parallel
+# region is the only time outside them)
+for mode in paths grid mixed; do
+    err=$(./omp "$B/keep.in" --quiet --stats --threads 3 --broad $mode 2>&1 > /dev/null)
+    phases=$(echo "$err" | grep "the step loop's phases, mean of 3 threads:")
+    loop=$(echo "$err" | sed -n 's/.*its step loop \([0-9.]*\) s.*/\1/p')
+    all=$(echo "$phases" | sed -n 's/.*(\([0-9.]*\) s in all)$/\1/p')
+    named=$(echo "$phases" | grep -o -E "(plan|binning|pairs|choice|move|waiting at barriers|output and the final order) [0-9.]+ s" | wc -l)
+    if [ "$named" = 7 ] && [ -n "$loop" ] && [ -n "$all" ] &&
+        awk -v a="$all" -v l="$loop" 'BEGIN { d = a - l; exit !(d < 0.005 + 0.05 * l && -d < 0.005 + 0.05 * l) }'; then
+        pass "broad --stats --broad $mode: seven phases adding up to the step loop ($all against $loop s)"
+    else
+        fail "broad --stats --broad $mode: phases" "$phases / step loop $loop"
+    fi
+done
+
 # --check: every step against all pairs, each broad phase (mixed also keeping one event a fast disk:
 # the events a trim leaves out are the only ones allowed to be missing)
 for args in "3000 --assignment --L 6000 --steps 4" \
