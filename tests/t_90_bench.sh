@@ -65,3 +65,20 @@ if [ "$steps_rc" -eq 0 ] && [ "$steps_rows" -eq 6 ]; then
 else
     fail "bench.sh --steps 7: 6 runs of 7 steps" "exit $steps_rc, $steps_rows rows with 7 steps: $(tail -n 2 "$TMP/steps.log")"
 fi
+
+# targets with BASE_REV: an earlier revision's omp (here HEAD's, built from git) timed in turn with
+# this tree's, a row of each per measurement, and the same bytes
+if git rev-parse --verify -q HEAD > /dev/null 2>&1; then
+    CASES=mixed THREADS=1 REPEATS=1 BASE_REV=HEAD WORK="$TMP/targets" ./bench.sh targets \
+        > "$TMP/targets.log" 2>&1
+    targets_rc=$?
+    ours=$(grep -c '^mixed[a-z_]*,omp,1,' "$TMP/targets.log")
+    base=$(grep -c '^mixed[a-z_]*,omp_base,1,' "$TMP/targets.log")
+    if [ "$targets_rc" -eq 0 ] && [ "$ours" -eq 4 ] && [ "$base" -eq 4 ]; then
+        pass "bench.sh targets BASE_REV=HEAD: 4 rows of each build, same bytes"
+    else
+        fail "bench.sh targets BASE_REV=HEAD" "exit $targets_rc, rows $ours and $base: $(tail -n 2 "$TMP/targets.log")"
+    fi
+else
+    skip "bench.sh targets BASE_REV" "not a git checkout"
+fi

@@ -7,6 +7,10 @@
 #   ./bench.sh targets                     all cases below
 #   CASES="random1e3 mixed" ./bench.sh targets
 #   BIG=1 ./bench.sh targets               also a gas of N = 1e7 (generates a 600 MB input; minutes)
+#   BASE_REV=REV ./bench.sh targets        also revision REV's omp (built from git beside this tree), each
+#                                          of its runs right after this tree's on the same input (rows
+#                                          program omp_base): the two builds meet the same load of the
+#                                          machine, which on a shared host drifts by a third in minutes
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 die() { echo "bench_omp.sh: $*" >&2; exit 1; }
@@ -17,10 +21,20 @@ THREADS=${THREADS:-"1 2"}
 CASES=${CASES:-"random1e3 random1e4 random1e5 mixed dense fixed print"}
 WORK=${WORK:-bench/tmp}
 BIG=${BIG:-0}
+BASE_REV=${BASE_REV:-}
 
 make -s seq omp tools/gen >/dev/null
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
+BASE_OMP=""
+if [ -n "$BASE_REV" ]; then
+    base_dir=$WORK/base
+    rm -rf "$base_dir" && mkdir -p "$base_dir"
+    git archive "$BASE_REV" | tar -x -C "$base_dir" || die "no revision $BASE_REV"
+    make -s -C "$base_dir" omp > /dev/null || die "$BASE_REV's omp did not build"
+    BASE_OMP=$base_dir/omp
+    echo "# base: $BASE_REV ($(git rev-parse --short "$BASE_REV")), its omp timed in turn with this tree's (rows omp_base)"
+fi
 echo "# OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset} REPEATS=$REPEATS"
 echo "case,program,threads,n,steps,best_wall_s,median_wall_s,best_loop_s,median_loop_s,wall_particle_steps_per_s,loop_particle_steps_per_s,pair_tests"
 
@@ -31,33 +45,60 @@ pair_tests() { sed -n 's/.*: \([0-9]*\) pair tests.*/\1/p' "$1"; }
 best_of() { printf '%s\n' "$@" | sort -g | head -1; }
 median_of() { printf '%s\n' "$@" | sort -g | sed -n "$((($# + 1) / 2))p"; }
 
-# measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row; leaves the
-# output in $WORK/last.out and the best times in BEST_WALL and BEST_LOOP
-measure() {
-    local name=$1 prog=$2 threads=$3 n=$4 steps=$5 input=$6
-    shift 6
-    local cmd=(./"$prog" "$input" --stats "$@")
-    [ "${prog%_f32}" = omp ] && cmd+=(--threads "$threads")
-    echo "# ${cmd[*]}"
-    local walls=() loops=() k reps=$REPEATS s e
-    [ "$prog" = seq ] && reps=1
-    for ((k = 0; k <= reps; k++)); do
-        [ "$k" -eq 0 ] && [ "$prog" = seq ] && continue
-        s=${EPOCHREALTIME/[.,]/}
-        "${cmd[@]}" > "$WORK/last.out" 2> "$WORK/last.err"
-        e=${EPOCHREALTIME/[.,]/}
-        [ "$k" -eq 0 ] && continue
-        walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')")
-        loops+=("$(loop_seconds "$WORK/last.err")")
-    done
-    BEST_WALL=$(best_of "${walls[@]}")
-    BEST_LOOP=$(best_of "${loops[@]}")
-    awk -v c="$name" -v p="$prog" -v t="$threads" -v n="$n" -v s="$steps" -v bw="$BEST_WALL" \
-        -v mw="$(median_of "${walls[@]}")" -v bl="$BEST_LOOP" -v ml="$(median_of "${loops[@]}")" \
+# row CASE LABEL THREADS N STEPS WALLS LOOPS: the CSV row of one build's runs (WALLS and LOOPS: their
+# seconds, space-separated)
+row() {
+    local w l
+    read -r -a w <<< "$6"
+    read -r -a l <<< "$7"
+    awk -v c="$1" -v p="$2" -v t="$3" -v n="$4" -v s="$5" -v bw="$(best_of "${w[@]}")" \
+        -v mw="$(median_of "${w[@]}")" -v bl="$(best_of "${l[@]}")" -v ml="$(median_of "${l[@]}")" \
         -v pt="$(pair_tests "$WORK/last.err")" 'BEGIN {
             ps = n * s
             printf "%s,%s,%s,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4g,%.4g,%s\n", c, p, t, n, s, bw, mw, bl, ml,
                    ps / bw, ps / bl, pt }'
+}
+
+# measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row (and, where
+# PROGRAM is omp and BASE_REV is given, one for its omp, each of its runs right after this tree's);
+# leaves this tree's output in $WORK/last.out and its best times in BEST_WALL and BEST_LOOP
+measure() {
+    local name=$1 prog=$2 threads=$3 n=$4 steps=$5 input=$6
+    shift 6
+    local args=("$input" --stats "$@")
+    [ "${prog%_f32}" = omp ] && args+=(--threads "$threads")
+    echo "# ./$prog ${args[*]}"
+    local base=0 k reps=$REPEATS s e walls="" loops="" bwalls="" bloops=""
+    [ -n "$BASE_OMP" ] && [ "$prog" = omp ] && base=1
+    [ "$prog" = seq ] && reps=1
+    for ((k = 0; k <= reps; k++)); do
+        [ "$k" -eq 0 ] && [ "$prog" = seq ] && continue
+        s=${EPOCHREALTIME/[.,]/}
+        "./$prog" "${args[@]}" > "$WORK/last.out" 2> "$WORK/last.err"
+        e=${EPOCHREALTIME/[.,]/}
+        if [ "$k" -gt 0 ]; then
+            walls+=" $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')"
+            loops+=" $(loop_seconds "$WORK/last.err")"
+        fi
+        [ "$base" = 1 ] || continue
+        s=${EPOCHREALTIME/[.,]/}
+        "$BASE_OMP" "${args[@]}" > "$WORK/base.out" 2> "$WORK/base.err"
+        e=${EPOCHREALTIME/[.,]/}
+        if [ "$k" -gt 0 ]; then
+            bwalls+=" $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')"
+            bloops+=" $(loop_seconds "$WORK/base.err")"
+        fi
+    done
+    local w l
+    read -r -a w <<< "$walls"
+    read -r -a l <<< "$loops"
+    BEST_WALL=$(best_of "${w[@]}")
+    BEST_LOOP=$(best_of "${l[@]}")
+    row "$name" "$prog" "$threads" "$n" "$steps" "$walls" "$loops"
+    if [ "$base" = 1 ]; then
+        row "$name" omp_base "$threads" "$n" "$steps" "$bwalls" "$bloops"
+        cmp -s "$WORK/last.out" "$WORK/base.out" || die "$BASE_REV's omp printed other bytes"
+    fi
 }
 
 same_output() { # REFERENCE: the last output must equal it
