@@ -95,6 +95,7 @@ measure() {
     BEST_WALL=$(best_of "${w[@]}")
     BEST_LOOP=$(best_of "${l[@]}")
     row "$name" "$prog" "$threads" "$n" "$steps" "$walls" "$loops"
+    sed -n "s/^omp: the step loop's phases, /# the last run's phases, /p" "$WORK/last.err"
     if [ "$base" = 1 ]; then
         row "$name" omp_base "$threads" "$n" "$steps" "$bwalls" "$bloops"
         cmp -s "$WORK/last.out" "$WORK/base.out" || die "$BASE_REV's omp printed other bytes"
