@@ -83,19 +83,20 @@ typedef struct {
     int32_t taken;    /* 1 once it has an accepted event: p and t are that event */
 } Node;
 
-/* One of a node's pair events and its other disk: its slot, then (nodes_link) its node. */
+/* One of a node's pair events: its time and its other disk (its slot, then (nodes_link) its node;
+ * its original index). The rounds read a node's events in one stream, never the found lists. */
 typedef struct {
-    int64_t e; /* the event (event_at) */
-    int32_t other;
+    real t;
+    int32_t other, other_id;
 } Adj;
 
-/* An end of an event, on its way to the thread whose range of slots holds its disk: ref is 2 e for
- * disk a of pair event e, 2 e + 1 for disk b, -1 - e for wall event e (event_at's and wall_at's
- * names). */
+/* An end of an event, on its way to the thread whose range of slots holds its disk, with what the
+ * choice needs of it: the time, the disk (slot, original index) and a pair event's other disk
+ * (slot, original index; other = -1: a wall event). */
 typedef struct {
-    int64_t ref;
-    int32_t slot;
-    int32_t other; /* a pair event's other disk's slot */
+    real t;
+    int32_t slot, id;
+    int32_t other, other_id;
 } End;
 
 typedef struct {
@@ -157,17 +158,6 @@ static void slots_unpermute(Work *w, int tid)
 }
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
-
-/* The pair event and the wall event named e (found_name). */
-static inline const PairEvent *event_at(const Work *w, int64_t e)
-{
-    return &found_of_name(&w->b, e)->ev[found_index(&w->b, e)];
-}
-
-static inline const WallEvent *wall_at(const Work *w, int64_t e)
-{
-    return &found_of_name(&w->b, e)->wall[found_index(&w->b, e)];
-}
 
 /* Whether this step's wall events go through the nodes: only on grid steps, whose broad phase writes
  * wall_t for the rare disks near a wall alone and lists their events (wall_lists). */
@@ -241,45 +231,42 @@ static void ends_scatter(Work *w, int t)
     const Found *f = &w->b.th[t].found;
     int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
     for (size_t k = 0; k < f->len; k++) {
-        int32_t ends[2] = {f->ev[k].a, f->ev[k].b};
-        for (int u = 0; u < 2; u++) {
-            End x = {2 * found_name(&w->b, k, t) + u, ends[u], ends[1 - u]};
-            w->end[row[owner_of(w, ends[u])]++] = x;
-        }
+        const PairEvent *e = &f->ev[k];
+        End xa = {e->t, e->a, e->i, e->b, e->j}, xb = {e->t, e->b, e->j, e->a, e->i};
+        w->end[row[owner_of(w, e->a)]++] = xa;
+        w->end[row[owner_of(w, e->b)]++] = xb;
     }
     for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0); k++) {
-        End x = {-1 - found_name(&w->b, k, t), f->wall[k].slot, -1};
+        End x = {f->wall[k].t, f->wall[k].slot, -1, -1, -1};
         w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
     }
 }
 
 /* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none
- * (with the disk's wall event unless walls_in_nodes), its wall event or one more pair event (of the
- * disk of original index id); in its second, the pair event into the node's list with the other
- * disk's slot (nodes_link makes it its node). */
-static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int32_t other, int fill,
-                            int64_t *nn)
+ * (with the disk's wall event unless walls_in_nodes), its wall event or one more pair event; in its
+ * second, the pair event into the node's list (nodes_link makes its other disk's slot a node). */
+static inline void node_end(Work *w, const End *x, int fill, int64_t *nn)
 {
     if (fill) {
-        if (ref >= 0) {
-            Node *nd = &w->node[w->node_of[slot]];
-            Adj x = {ref >> 1, other};
-            w->adj[nd->lo + nd->cnt++] = x;
+        if (x->other >= 0) {
+            Node *nd = &w->node[w->node_of[x->slot]];
+            Adj a = {x->t, x->other, x->other_id};
+            w->adj[nd->lo + nd->cnt++] = a;
         }
         return;
     }
-    int32_t v = w->node_of[slot];
+    int32_t v = w->node_of[x->slot];
     if (v < 0) {
         v = (int32_t)(*nn)++;
-        Node fresh = {walls_in_nodes(w) ? -1 : w->b.wall_t[slot], 0, 0, 0, slot, -1, -1, 0};
+        Node fresh = {walls_in_nodes(w) ? -1 : w->b.wall_t[x->slot], 0, 0, 0, x->slot, -1, -1, 0};
         w->node[v] = fresh;
-        w->node_of[slot] = v;
+        w->node_of[x->slot] = v;
     }
     Node *nd = &w->node[v];
-    if (ref < 0) {
-        nd->wall_t = wall_at(w, -1 - ref)->t;
+    if (x->other < 0) {
+        nd->wall_t = x->t;
     } else {
-        nd->id = id;
+        nd->id = x->id;
         nd->cnt++;
     }
 }
@@ -289,27 +276,21 @@ static inline void node_end(Work *w, int32_t slot, int64_t ref, int32_t id, int3
 static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
 {
     if (w->owners > 1) {
-        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++) {
-            const End *x = &w->end[k];
-            int32_t id = -1;
-            if (x->ref >= 0 && !fill) {
-                const PairEvent *e = event_at(w, x->ref >> 1);
-                id = x->ref & 1 ? e->j : e->i;
-            }
-            node_end(w, x->slot, x->ref, id, x->other, fill, nn);
-        }
+        for (int64_t k = w->th[u].lo; k < w->th[u].hi; k++) node_end(w, &w->end[k], fill, nn);
         return;
     }
     for (int t = 0; t < w->nt; t++) {
         const Found *f = &w->b.th[t].found;
         for (size_t k = 0; k < f->len; k++) {
             const PairEvent *e = &f->ev[k];
-            int64_t name = found_name(&w->b, k, t);
-            node_end(w, e->a, 2 * name, e->i, e->b, fill, nn);
-            node_end(w, e->b, 2 * name + 1, e->j, e->a, fill, nn);
+            End xa = {e->t, e->a, e->i, e->b, e->j}, xb = {e->t, e->b, e->j, e->a, e->i};
+            node_end(w, &xa, fill, nn);
+            node_end(w, &xb, fill, nn);
         }
-        for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0) && !fill; k++)
-            node_end(w, f->wall[k].slot, -1 - found_name(&w->b, k, t), -1, -1, fill, nn);
+        for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0) && !fill; k++) {
+            End x = {f->wall[k].t, f->wall[k].slot, -1, -1, -1};
+            node_end(w, &x, fill, nn);
+        }
     }
 }
 
@@ -437,11 +418,11 @@ static void finish_sequential(Work *w)
                 SeqEvent e = {nd->wall_t, 0, nd->id, nd->id, v, v};
                 w->fin[len++] = e;
             }
-            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-                const PairEvent *pe = event_at(w, w->adj[a].e);
-                if (pe->a != nd->slot || w->node[w->adj[a].other].taken) continue;
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) { /* each pair once, from its lower index */
+                const Adj *ad = &w->adj[a];
+                if (ad->other_id < nd->id || w->node[ad->other].taken) continue;
                 w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
-                SeqEvent e = {pe->t, 1, pe->i, pe->j, v, w->adj[a].other};
+                SeqEvent e = {ad->t, 1, nd->id, ad->other_id, v, ad->other};
                 w->fin[len++] = e;
             }
         }
@@ -480,15 +461,16 @@ static void choose_events(Work *w, int tid)
                 bt = nd->wall_t;
             }
             for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-                int32_t other = w->adj[a].other;
-                if (node[other].taken) continue;
-                const PairEvent *e = event_at(w, w->adj[a].e);
-                if (bp < 0 || event_before(e->t, 1, e->i, e->j, bt, bk, bi, bj)) {
-                    bp = other;
-                    bt = e->t;
+                const Adj *ad = &w->adj[a];
+                if (node[ad->other].taken) continue;
+                int32_t i = nd->id < ad->other_id ? nd->id : ad->other_id;
+                int32_t j = nd->id < ad->other_id ? ad->other_id : nd->id;
+                if (bp < 0 || event_before(ad->t, 1, i, j, bt, bk, bi, bj)) {
+                    bp = ad->other;
+                    bt = ad->t;
                     bk = 1;
-                    bi = e->i;
-                    bj = e->j;
+                    bi = i;
+                    bj = j;
                 }
             }
             nd->p = bp;
