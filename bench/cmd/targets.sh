@@ -98,6 +98,7 @@ measure() {
     sed -n "s/^omp: the step loop's phases, /# the last run's phases, /p" "$WORK/last.err"
     if [ "$base" = 1 ]; then
         row "$name" omp_base "$threads" "$n" "$steps" "$bwalls" "$bloops"
+        sed -n "s/^omp: the step loop's phases, /# the base's last run's phases, /p" "$WORK/base.err"
         cmp -s "$WORK/last.out" "$WORK/base.out" || die "$BASE_REV's omp printed other bytes"
     fi
 }
