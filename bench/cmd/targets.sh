@@ -59,6 +59,16 @@ row() {
                    ps / bw, ps / bl, pt }'
 }
 
+# timed PROGRAM OUT ARGS...: runs it, stdout into OUT.out and stderr into OUT.err; WALL: its seconds
+timed() {
+    local prog=$1 out=$2 s e
+    shift 2
+    s=${EPOCHREALTIME/[.,]/}
+    "$prog" "$@" > "$out.out" 2> "$out.err"
+    e=${EPOCHREALTIME/[.,]/}
+    WALL=$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')
+}
+
 # measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row (and, where
 # PROGRAM is omp and BASE_REV is given, one for its omp, each of its runs right after this tree's);
 # leaves this tree's output in $WORK/last.out and its best times in BEST_WALL and BEST_LOOP
@@ -68,24 +78,20 @@ measure() {
     local args=("$input" --stats "$@")
     [ "${prog%_f32}" = omp ] && args+=(--threads "$threads")
     echo "# ./$prog ${args[*]}"
-    local base=0 k reps=$REPEATS s e walls="" loops="" bwalls="" bloops=""
+    local base=0 k reps=$REPEATS walls="" loops="" bwalls="" bloops=""
     [ -n "$BASE_OMP" ] && [ "$prog" = omp ] && base=1
     [ "$prog" = seq ] && reps=1
     for ((k = 0; k <= reps; k++)); do
         [ "$k" -eq 0 ] && [ "$prog" = seq ] && continue
-        s=${EPOCHREALTIME/[.,]/}
-        "./$prog" "${args[@]}" > "$WORK/last.out" 2> "$WORK/last.err"
-        e=${EPOCHREALTIME/[.,]/}
+        timed "./$prog" "$WORK/last" "${args[@]}"
         if [ "$k" -gt 0 ]; then
-            walls+=" $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')"
+            walls+=" $WALL"
             loops+=" $(loop_seconds "$WORK/last.err")"
         fi
         [ "$base" = 1 ] || continue
-        s=${EPOCHREALTIME/[.,]/}
-        "$BASE_OMP" "${args[@]}" > "$WORK/base.out" 2> "$WORK/base.err"
-        e=${EPOCHREALTIME/[.,]/}
+        timed "$BASE_OMP" "$WORK/base" "${args[@]}"
         if [ "$k" -gt 0 ]; then
-            bwalls+=" $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')"
+            bwalls+=" $WALL"
             bloops+=" $(loop_seconds "$WORK/base.err")"
         fi
     done
