@@ -418,7 +418,8 @@ static void finish_sequential(Work *w)
                 SeqEvent e = {nd->wall_t, 0, nd->id, nd->id, v, v};
                 w->fin[len++] = e;
             }
-            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) { /* each pair once, from its lower index */
+            /* each pair event once, from its disk of lower original index */
+            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
                 const Adj *ad = &w->adj[a];
                 if (ad->other_id < nd->id || w->node[ad->other].taken) continue;
                 w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
