@@ -82,7 +82,8 @@ ck_tail "resume: float, --pressure" omp_f32 --pressure --threads 2
 # ---- kill trials ----
 # ck_start SEGMENT MAXDELAY COMMAND...: runs COMMAND (stdout $C/seg.SEGMENT, stderr .err) in the
 # background, waits for its first checkpoint (a resumed run: for its "resuming" line), sleeps a random
-# time up to MAXDELAY seconds and kills it with SIGKILL. KILLED=1 if the kill found it running.
+# time up to MAXDELAY seconds and kills it with SIGKILL. KILLED=1 if the kill found it running;
+# CK_STATUS: its exit status (137 where the kill found it; 128 + N: another signal N ended it).
 ck_start() {
     local seg=$1 max=$2 pid delay
     shift 2
@@ -97,6 +98,7 @@ ck_start() {
     sleep "$delay"
     if kill -9 "$pid" 2> /dev/null; then KILLED=1; else KILLED=0; fi
     wait "$pid" 2> /dev/null
+    CK_STATUS=$?
 }
 
 # ck_trial NAME REFERENCE N MODE EVERY MAXDELAY "RUN" "RESUME1" ["RESUME2" ...]: RUN (with --quiet,
@@ -130,10 +132,11 @@ ck_trial() {
         else
             # shellcheck disable=SC2086
             $cmd --resume "$C/run.ck" > "$C/seg.$seg" 2> "$C/seg.$seg.err"
+            CK_STATUS=$?
         fi
         k=$(sed -n 's/.*resuming .* at step \([0-9]*\) of .*/\1/p' "$C/seg.$seg.err")
         if [ -z "$k" ]; then
-            problems="resume $seg ($cmd): $(head -c 200 "$C/seg.$seg.err")"
+            problems="resume $seg ($cmd, exit status $CK_STATUS): $(head -c 200 "$C/seg.$seg.err")"
             break
         fi
         # the previous piece: its lines up to step k
