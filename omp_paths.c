@@ -200,8 +200,8 @@ static void plan_margins(const Params *p, double vm, PathsPlan *pl)
  * scheduling over the threads, small enough for a core's cache; and up to two bins of entry time per
  * visit, so that a cell's visits come out of phase B's count nearly sorted: the insertion sort's
  * test of each item against the one before it is then mostly false, and a processor predicts it
- * (at one visit per bin it was a coin toss; at 1e4 random disks the sort took 20 ms of the run at 64
- * bins a cell, 7.5 at 256, and the count, which clears and sums the bins, 2 to 3 ms more). */
+ * (at one visit per bin it was a coin toss). More bins would cost more in the count, which clears
+ * and sums them for every tile. */
 static void plan_cells(PathsPlan *pl, int64_t g, double x0, double h, double entries, int nt)
 {
     pl->g = g;
@@ -676,6 +676,13 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
     if ((b < 0) & (cr * cr <= pp->pl.reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
 }
 
+/* Whether the visits [lo, hi) of a cell are sorted by entry time and swept (cell_pairs), rather than
+ * paired all: tile_sweep sorts exactly these cells. */
+static inline int cell_swept(int32_t lo, int32_t hi)
+{
+    return hi - lo > CELL_FEW;
+}
+
 /* Sorts the items [lo, hi) of a cell by entry time. They arrive nearly sorted (counted into bins of
  * entry time), so insertion moves few of them, by a place or two. */
 static void sort_cell(Item *it, int32_t lo, int32_t hi)
@@ -756,7 +763,7 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
                        int64_t cy, const Params *p, Found *mine)
 {
-    int sweep = hi - lo > CELL_FEW;
+    int sweep = cell_swept(lo, hi);
 #ifdef LANES_AVX2
     if (pp->lanes == 8) {
         if (sweep) cell_sweep_8(pp, v, lo, hi, cx, cy, p, mine);
@@ -824,7 +831,7 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const re
     int32_t lo = 0;
     for (int64_t c = 0; c < cells; c++) {
         int32_t hi = start[(c + 1) * pp->pl.bins - 1];
-        if (hi - lo > CELL_FEW) sort_cell(it, lo, hi);
+        if (cell_swept(lo, hi)) sort_cell(it, lo, hi);
         lo = hi;
     }
     for (size_t k = 0; k < total; k++) {
