@@ -159,6 +159,20 @@ static void slots_unpermute(Work *w, int tid)
 
 /* ==== choosing the events (SPEC.md 3.3) ========================================================== */
 
+/* The two ends of pair event e (x[0] its disk a's, x[1] its disk b's) and the end of wall event e. */
+static inline void pair_ends(const PairEvent *e, End *x)
+{
+    End a = {e->t, e->a, e->i, e->b, e->j}, b = {e->t, e->b, e->j, e->a, e->i};
+    x[0] = a;
+    x[1] = b;
+}
+
+static inline End wall_end(const WallEvent *e)
+{
+    End x = {e->t, e->slot, -1, -1, -1};
+    return x;
+}
+
 /* Whether this step's wall events go through the nodes: only on grid steps, whose broad phase writes
  * wall_t for the rare disks near a wall alone and lists their events (wall_lists). */
 static inline int walls_in_nodes(const Work *w)
@@ -230,16 +244,14 @@ static void ends_scatter(Work *w, int t)
 {
     const Found *f = &w->b.th[t].found;
     int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    size_t walls = walls_in_nodes(w) ? f->wall_len : 0;
     for (size_t k = 0; k < f->len; k++) {
-        const PairEvent *e = &f->ev[k];
-        End xa = {e->t, e->a, e->i, e->b, e->j}, xb = {e->t, e->b, e->j, e->a, e->i};
-        w->end[row[owner_of(w, e->a)]++] = xa;
-        w->end[row[owner_of(w, e->b)]++] = xb;
+        End x[2];
+        pair_ends(&f->ev[k], x);
+        w->end[row[owner_of(w, x[0].slot)]++] = x[0];
+        w->end[row[owner_of(w, x[1].slot)]++] = x[1];
     }
-    for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0); k++) {
-        End x = {f->wall[k].t, f->wall[k].slot, -1, -1, -1};
-        w->end[row[owner_of(w, f->wall[k].slot)]++] = x;
-    }
+    for (size_t k = 0; k < walls; k++) w->end[row[owner_of(w, f->wall[k].slot)]++] = wall_end(&f->wall[k]);
 }
 
 /* One end for nodes_build: in its first pass a node for the slot (node_of finds it) if it has none
@@ -281,14 +293,15 @@ static void nodes_pass(Work *w, int u, int fill, int64_t *nn)
     }
     for (int t = 0; t < w->nt; t++) {
         const Found *f = &w->b.th[t].found;
+        size_t walls = walls_in_nodes(w) && !fill ? f->wall_len : 0;
         for (size_t k = 0; k < f->len; k++) {
-            const PairEvent *e = &f->ev[k];
-            End xa = {e->t, e->a, e->i, e->b, e->j}, xb = {e->t, e->b, e->j, e->a, e->i};
-            node_end(w, &xa, fill, nn);
-            node_end(w, &xb, fill, nn);
+            End x[2];
+            pair_ends(&f->ev[k], x);
+            node_end(w, &x[0], fill, nn);
+            node_end(w, &x[1], fill, nn);
         }
-        for (size_t k = 0; k < (walls_in_nodes(w) ? f->wall_len : 0) && !fill; k++) {
-            End x = {f->wall[k].t, f->wall[k].slot, -1, -1, -1};
+        for (size_t k = 0; k < walls; k++) {
+            End x = wall_end(&f->wall[k]);
             node_end(w, &x, fill, nn);
         }
     }
