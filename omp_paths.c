@@ -579,12 +579,11 @@ static void keep_first(Found *mine, size_t from, int k, int32_t q)
     mine->trimmed++;
 }
 
-/* Phase A for this thread's disks: those of its range of slots (slow = NULL), their wall events
- * found on the way, or those of its list of fast slots, each first against the slow disks. A disk
- * whose wall event is at t = 0 has no pair event that can be accepted: no path. */
-static void phase_paths(Paths *pp, const Slots *s, const Params *p, real *wall_t,
-                        const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine,
-                        int tid, int nt)
+/* Phase A (paths_bin) for this thread's disks: those of its range of slots (slow = NULL), their wall
+ * events found on the way, or those of its list of fast slots, each first against the slow disks. A
+ * disk whose wall event is at t = 0 has no pair event that can be accepted: no path. */
+void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
+               const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt)
 {
     Bucket *bk = pp->bk + (size_t)tid * (size_t)pp->pl.tiles;
     for (int64_t k = 0; k < pp->pl.tiles; k++) bk[k].len = 0;
@@ -877,12 +876,6 @@ static const int64_t *tile_order(Paths *pp, Scratch *sc, int nt)
     qsort(o, (size_t)pp->pl.tiles, 2 * sizeof *o, load_cmp);
     for (int64_t k = 0; k < pp->pl.tiles; k++) o[k] = o[2 * k + 1];
     return o;
-}
-
-void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const SlowGrid *slow,
-               const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt)
-{
-    phase_paths(pp, s, p, wall_t, slow, fast, n_fast, mine, tid, nt);
 }
 
 void paths_pairs(Paths *pp, const Slots *s, const Params *p, const real *wall_t, Found *mine, int tid,
