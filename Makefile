@@ -49,12 +49,14 @@ state_f32.o: state.c common.h Makefile
 BASE = io.o state.o
 BASE_F32 = io_f32.o state_f32.o
 HEADERS = common.h io.h exact.h
+OMP_SRC = omp.c omp_broad.c omp_paths.c omp_exact.c omp_team.c
+OMP_H = omp_step.h omp_lanes.h omp_team.h
 
 seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c $(BASE_F32) -o $@ $(LDLIBS)
 
-omp_f32: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE_F32) $(HEADERS) omp_step.h omp_lanes.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE_F32) -o $@ $(LDLIBS)
+omp_f32: $(OMP_SRC) $(BASE_F32) $(HEADERS) $(OMP_H) Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT $(OMP_SRC) $(BASE_F32) -o $@ $(LDLIBS)
 
 cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
 	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu $(BASE_F32) -o $@ $(LDLIBS)
@@ -62,8 +64,8 @@ cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
 seq: seq.c $(BASE) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) seq.c $(BASE) -o $@ $(LDLIBS)
 
-omp: omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE) $(HEADERS) omp_step.h omp_lanes.h Makefile
-	$(CC) $(CFLAGS) $(OMPFLAGS) omp.c omp_broad.c omp_paths.c omp_exact.c $(BASE) -o $@ $(LDLIBS)
+omp: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) $(OMP_SRC) $(BASE) -o $@ $(LDLIBS)
 
 # the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler);
 # omp's broad phase inside each rank
@@ -82,9 +84,8 @@ seq_san: seq.c io.c state.c $(HEADERS) Makefile
 # whose Archer tool tells the sanitizer about OpenMP's own synchronisation (gcc's libgomp would give
 # false reports); needs clang and libomp-dev
 TSAN_CC ?= clang
-omp_tsan: omp.c omp_broad.c omp_paths.c omp_exact.c io.c state.c $(HEADERS) omp_step.h omp_lanes.h Makefile
-	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp omp.c omp_broad.c omp_paths.c \
-	    omp_exact.c io.c state.c -o $@ $(LDLIBS)
+omp_tsan: $(OMP_SRC) io.c state.c $(HEADERS) $(OMP_H) Makefile
+	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp $(OMP_SRC) io.c state.c -o $@ $(LDLIBS)
 
 tools/%: tools/%.c common.h tools/output_error.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)

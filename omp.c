@@ -24,6 +24,7 @@
  */
 #include "exact.h"
 #include "omp_step.h"
+#include "omp_team.h"
 
 #include <omp.h>
 #include <stdio.h>
@@ -765,6 +766,7 @@ void backend_prepare(const Params *par)
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     int nt = threads > 0 ? threads : omp_get_max_threads();
+    team_start(nt);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
 }
@@ -773,6 +775,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 {
     if (opt->threads > 0) omp_set_num_threads(opt->threads);
     omp_set_dynamic(0);
+    team_start(omp_get_max_threads());
     if (opt->exact) return omp_exact_run(sim, par, opt, out, st);
     if (par->steps == 0) return 0; /* the state is the final state: nothing to set up */
     int nt_max = omp_get_max_threads();
