@@ -70,3 +70,27 @@ if ./seq_f32 "$D/f32_fast.in" --quiet --dump17 > "$D/out" 2> "$D/err" &&
 else
     fail "seq_f32 random placement keeps |v| <= 1e9" "$(head -c 200 "$D/err")"
 fi
+
+# omp_team.c moves each thread of the team to a core of its own at the start, then widens its mask
+# again: while a run is under way, every thread may run on every core the process may
+if [ "$(nproc)" -ge 2 ] && [ -d /proc/self/task ]; then
+    printf '100000\n20000\n1\n200\nperf\n' > "$D/team.in"
+    ./omp "$D/team.in" --threads 2 > /dev/null 2>&1 &
+    pid=$!
+    for _ in $(seq 100); do
+        [ "$(ls "/proc/$pid/task" 2> /dev/null | wc -l)" -ge 2 ] && break
+        sleep 0.05
+    done
+    sleep 0.2
+    want=$(awk '/Cpus_allowed_list/ { print $2 }' "/proc/$pid/status" 2> /dev/null)
+    masks=$(cat /proc/"$pid"/task/*/status 2> /dev/null | awk '/Cpus_allowed_list/ { print $2 }' | sort | uniq -c)
+    kill "$pid" 2> /dev/null
+    wait "$pid" 2> /dev/null
+    if [ -n "$want" ] && [ "$(echo "$masks" | wc -l)" = 1 ] && [ "$(echo "$masks" | awk '{ print $1, $2 }')" = "2 $want" ]; then
+        pass "omp's 2 threads free to run on the process's cores ($want) during a run"
+    else
+        fail "omp's threads free to run on the process's cores" "process $want; threads: $(echo $masks)"
+    fi
+else
+    skip "omp's threads free to run on the process's cores" "one core, or no /proc"
+fi
