@@ -69,8 +69,8 @@ omp: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
 
 # the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler);
 # omp's broad phase inside each rank
-MPI_SRC = mpi.c mpi_io.c omp_broad.c omp_paths.c io.c state.c
-mpi: $(MPI_SRC) $(HEADERS) omp_step.h omp_lanes.h mpi.h Makefile
+MPI_SRC = mpi.c mpi_io.c omp_broad.c omp_paths.c omp_team.c io.c state.c
+mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h Makefile
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) $(MPI_SRC) -o $@ $(LDLIBS)
 
 cuda: cuda.cu $(BASE) common.h io.h Makefile

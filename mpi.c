@@ -24,6 +24,7 @@
  */
 #define _XOPEN_SOURCE 700 /* getrusage */
 #include "mpi.h"
+#include "omp_team.h"
 
 #include <limits.h>
 #include <omp.h>
@@ -719,6 +720,7 @@ void backend_prepare(const Params *par)
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     int nt = threads > 0 ? threads : 1;
+    team_start(nt);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
 }
@@ -750,6 +752,7 @@ int main(int argc, char **argv)
     memset(&r, 0, sizeof r);
     r.opt = &opt;
     r.nt = opt.threads > 0 ? opt.threads : 1;
+    team_start(r.nt); /* a rank's threads on cores of their own where its mask has several */
     Local l;
     memset(&l, 0, sizeof l);
     l.with_wi = opt.pressure;
