@@ -258,6 +258,9 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
             best = cost;
             best_g = g;
         }
+        /* beyond the minimum the visits and the cells only grow: no finer grid can win back twice
+         * the best (the search ran to gmax every step, a few microseconds of a serial section) */
+        if (cost > 2 * best) break;
     }
     double h = span / (double)best_g;
     plan_cells(pl, best_g, p->lo, h, visits(nd, s1, h, pl->grow), nt);
