@@ -82,3 +82,25 @@ if git rev-parse --verify -q HEAD > /dev/null 2>&1; then
 else
     skip "bench.sh targets BASE_REV" "not a git checkout"
 fi
+
+# targets with BASE_DIR: the same from a folder of sources (here a copy of this tree's), where there
+# is no git; a folder without omp.c is refused
+mkdir -p "$TMP/base_dir"
+cp ./*.c ./*.h Makefile "$TMP/base_dir"/
+CASES=mixed THREADS=1 REPEATS=1 BASE_DIR="$TMP/base_dir" WORK="$TMP/targets_dir" ./bench.sh targets \
+    > "$TMP/targets_dir.log" 2>&1
+dir_rc=$?
+ours=$(grep -c '^mixed[a-z_]*,omp,1,' "$TMP/targets_dir.log")
+base=$(grep -c '^mixed[a-z_]*,omp_base,1,' "$TMP/targets_dir.log")
+if [ "$dir_rc" -eq 0 ] && [ "$ours" -eq 4 ] && [ "$base" -eq 4 ]; then
+    pass "bench.sh targets BASE_DIR: 4 rows of each build, same bytes"
+else
+    fail "bench.sh targets BASE_DIR" "exit $dir_rc, rows $ours and $base: $(tail -n 2 "$TMP/targets_dir.log")"
+fi
+if BASE_DIR="$TMP" CASES=mixed WORK="$TMP/targets_bad" ./bench.sh targets > /dev/null 2> "$TMP/bad_dir.err"; then
+    fail "bench.sh targets BASE_DIR without omp.c" "accepted"
+elif grep -q "holds no omp.c" "$TMP/bad_dir.err"; then
+    pass "bench.sh targets BASE_DIR without omp.c refused with a message"
+else
+    fail "bench.sh targets BASE_DIR without omp.c" "$(head -c 200 "$TMP/bad_dir.err")"
+fi

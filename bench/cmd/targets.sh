@@ -11,6 +11,8 @@
 #                                          of its runs right after this tree's on the same input (rows
 #                                          program omp_base): the two builds meet the same load of the
 #                                          machine, which on a shared host drifts by a third in minutes
+#   BASE_DIR=DIR ./bench.sh targets        the same with DIR, a folder holding an earlier tree's sources
+#                                          (where there is no git)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 die() { echo "bench_omp.sh: $*" >&2; exit 1; }
@@ -22,18 +24,28 @@ CASES=${CASES:-"random1e3 random1e4 random1e5 mixed dense fixed print"}
 WORK=${WORK:-bench/tmp}
 BIG=${BIG:-0}
 BASE_REV=${BASE_REV:-}
+BASE_DIR=${BASE_DIR:-}
 
 make -s seq omp tools/gen >/dev/null
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
 BASE_OMP=""
-if [ -n "$BASE_REV" ]; then
+if [ -n "$BASE_REV" ] || [ -n "$BASE_DIR" ]; then
     base_dir=$WORK/base
     rm -rf "$base_dir" && mkdir -p "$base_dir"
-    git archive "$BASE_REV" | tar -x -C "$base_dir" || die "no revision $BASE_REV"
-    make -s -C "$base_dir" omp > /dev/null || die "$BASE_REV's omp did not build"
+    if [ -n "$BASE_REV" ]; then
+        git archive "$BASE_REV" | tar -x -C "$base_dir" || die "no revision $BASE_REV"
+        base_name="$BASE_REV ($(git rev-parse --short "$BASE_REV"))"
+    else
+        [ -f "$BASE_DIR/omp.c" ] || die "BASE_DIR=$BASE_DIR holds no omp.c"
+        cp -r "$BASE_DIR"/. "$base_dir"
+        rm -f "$base_dir"/omp "$base_dir"/*.o
+        base_name=$BASE_DIR
+    fi
+    make -s -C "$base_dir" omp > /dev/null || die "the base's omp did not build"
     BASE_OMP=$base_dir/omp
-    echo "# base: $BASE_REV ($(git rev-parse --short "$BASE_REV")), its omp timed in turn with this tree's (rows omp_base)"
+    BASE_REV=${BASE_REV:-$BASE_DIR} # the messages below name the base by it
+    echo "# base: $base_name, its omp timed in turn with this tree's (rows omp_base)"
 fi
 echo "# OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset} REPEATS=$REPEATS"
 echo "case,program,threads,n,steps,best_wall_s,median_wall_s,best_loop_s,median_loop_s,wall_particle_steps_per_s,loop_particle_steps_per_s,pair_tests"
