@@ -66,37 +66,34 @@ else
     fail "bench.sh --steps 7: 6 runs of 7 steps" "exit $steps_rc, $steps_rows rows with 7 steps: $(tail -n 2 "$TMP/steps.log")"
 fi
 
-# targets with BASE_REV: an earlier revision's omp (here HEAD's, built from git) timed in turn with
-# this tree's, a row of each per measurement, and the same bytes
-if git rev-parse --verify -q HEAD > /dev/null 2>&1; then
-    CASES=mixed THREADS=1 REPEATS=1 BASE_REV=HEAD WORK="$TMP/targets" ./bench.sh targets \
-        > "$TMP/targets.log" 2>&1
-    targets_rc=$?
-    ours=$(grep -c '^mixed[a-z_]*,omp,1,' "$TMP/targets.log")
-    base=$(grep -c '^mixed[a-z_]*,omp_base,1,' "$TMP/targets.log")
-    if [ "$targets_rc" -eq 0 ] && [ "$ours" -eq 4 ] && [ "$base" -eq 4 ]; then
-        pass "bench.sh targets BASE_REV=HEAD: 4 rows of each build, same bytes"
+# targets in turn with an earlier tree's omp: a row of each build per measurement (4 for the mixed
+# case at one thread), and the same bytes. LABEL LOG VAR=VALUE...: the base and where the log goes.
+targets_in_turn() {
+    local label=$1 log=$2 rc ours base
+    shift 2
+    env "$@" CASES=mixed THREADS=1 REPEATS=1 ./bench.sh targets > "$log" 2>&1
+    rc=$?
+    ours=$(grep -c '^mixed[a-z_]*,omp,1,' "$log")
+    base=$(grep -c '^mixed[a-z_]*,omp_base,1,' "$log")
+    if [ "$rc" -eq 0 ] && [ "$ours" -eq 4 ] && [ "$base" -eq 4 ]; then
+        pass "bench.sh targets $label: 4 rows of each build, same bytes"
     else
-        fail "bench.sh targets BASE_REV=HEAD" "exit $targets_rc, rows $ours and $base: $(tail -n 2 "$TMP/targets.log")"
+        fail "bench.sh targets $label" "exit $rc, rows $ours and $base: $(tail -n 2 "$log")"
     fi
+}
+
+# BASE_REV: HEAD's omp, built from git
+if git rev-parse --verify -q HEAD > /dev/null 2>&1; then
+    targets_in_turn BASE_REV=HEAD "$TMP/targets.log" BASE_REV=HEAD WORK="$TMP/targets"
 else
     skip "bench.sh targets BASE_REV" "not a git checkout"
 fi
 
-# targets with BASE_DIR: the same from a folder of sources (here a copy of this tree's), where there
-# is no git; a folder without omp.c is refused
+# BASE_DIR: a folder of sources (here a copy of this tree's), where there is no git; a folder without
+# omp.c is refused
 mkdir -p "$TMP/base_dir"
 cp ./*.c ./*.h Makefile "$TMP/base_dir"/
-CASES=mixed THREADS=1 REPEATS=1 BASE_DIR="$TMP/base_dir" WORK="$TMP/targets_dir" ./bench.sh targets \
-    > "$TMP/targets_dir.log" 2>&1
-dir_rc=$?
-ours=$(grep -c '^mixed[a-z_]*,omp,1,' "$TMP/targets_dir.log")
-base=$(grep -c '^mixed[a-z_]*,omp_base,1,' "$TMP/targets_dir.log")
-if [ "$dir_rc" -eq 0 ] && [ "$ours" -eq 4 ] && [ "$base" -eq 4 ]; then
-    pass "bench.sh targets BASE_DIR: 4 rows of each build, same bytes"
-else
-    fail "bench.sh targets BASE_DIR" "exit $dir_rc, rows $ours and $base: $(tail -n 2 "$TMP/targets_dir.log")"
-fi
+targets_in_turn BASE_DIR "$TMP/targets_dir.log" BASE_DIR="$TMP/base_dir" WORK="$TMP/targets_dir"
 if BASE_DIR="$TMP" CASES=mixed WORK="$TMP/targets_bad" ./bench.sh targets > /dev/null 2> "$TMP/bad_dir.err"; then
     fail "bench.sh targets BASE_DIR without omp.c" "accepted"
 elif grep -q "holds no omp.c" "$TMP/bad_dir.err"; then
