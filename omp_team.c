@@ -42,14 +42,16 @@ void team_start(int threads)
         CPU_ZERO(&one);
         CPU_SET(core_at(&all, omp_get_thread_num() % cores), &one);
         if (sched_setaffinity(0, sizeof one, &one) == 0) sched_setaffinity(0, sizeof all, &all);
-        /* until every thread has moved, a thread gives its core up rather than spin on it */
+        /* until every thread has moved, a thread gives its core up rather than spin on it (the team
+         * may have fewer threads than asked for: OMP_DYNAMIC, OMP_THREAD_LIMIT) */
+        int team = omp_get_num_threads();
 #pragma omp atomic update
         arrived++;
         for (;;) {
             int now;
 #pragma omp atomic read
             now = arrived;
-            if (now >= threads) break;
+            if (now >= team) break;
             sched_yield();
         }
     }

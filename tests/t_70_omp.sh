@@ -71,6 +71,19 @@ else
     fail "seq_f32 random placement keeps |v| <= 1e9" "$(head -c 200 "$D/err")"
 fi
 
+# a team smaller than asked for (OMP_THREAD_LIMIT, OMP_DYNAMIC) starts and runs all the same
+printf '1000\n20000\n1\n20\nperf\n' > "$D/limit.in"
+./seq "$D/limit.in" > "$D/limit.ref" 2> /dev/null
+for env_limit in OMP_THREAD_LIMIT=1 OMP_DYNAMIC=true; do
+    env "$env_limit" timeout 60 ./omp "$D/limit.in" --threads 4 > "$D/limit.out" 2> "$D/err"
+    limit_rc=$? # 124: it did not finish within a minute
+    if [ "$limit_rc" -eq 0 ] && cmp -s "$D/limit.ref" "$D/limit.out"; then
+        pass "omp --threads 4 under $env_limit: seq's bytes"
+    else
+        fail "omp --threads 4 under $env_limit" "exit $limit_rc, $(cmp "$D/limit.ref" "$D/limit.out" 2>&1 | head -c 100) $(head -c 200 "$D/err")"
+    fi
+done
+
 # omp_team.c moves each thread of the team to a core of its own at the start, then widens its mask
 # again: while a run is under way, every thread may run on every core the process may
 if [ "$(nproc)" -ge 2 ] && [ -d /proc/self/task ]; then
