@@ -14,8 +14,8 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
   sweep       backends x thread counts x sizes x scenes: one CSV row per run and a summary CSV
               (the default: ./bench.sh --quick is ./bench.sh sweep --quick)
   targets     omp on the scenes of its targets (the assignment's random scene, mixed, dense, gases),
-              one line per target with the measured ratio or rate (BASE_REV=REV: that revision's
-              omp too, each run right after this tree's)
+              one line per target with the measured ratio or rate (BASE_REV=REV, or BASE_DIR=DIR
+              of an earlier tree's sources: that omp too, each run right after this tree's)
   io          the text path: reading, parsing, formatting and writing, whole process (MB/s);
               `io gpu` adds cuda on gases of 1e7 and 1e8 disks
   exact       --exact against the default step, seq and omp, on dense gases

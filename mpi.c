@@ -720,7 +720,6 @@ void backend_prepare(const Params *par)
 void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     int nt = threads > 0 ? threads : 1;
-    team_start(nt);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
 }

@@ -44,7 +44,6 @@ if [ -n "$BASE_REV" ] || [ -n "$BASE_DIR" ]; then
     fi
     make -s -C "$base_dir" omp > /dev/null || die "the base's omp did not build"
     BASE_OMP=$base_dir/omp
-    BASE_REV=${BASE_REV:-$BASE_DIR} # the messages below name the base by it
     echo "# base: $base_name, its omp timed in turn with this tree's (rows omp_base)"
 fi
 echo "# OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset} REPEATS=$REPEATS"
@@ -82,7 +81,7 @@ timed() {
 }
 
 # measure CASE PROGRAM THREADS N STEPS INPUT [OPTIONS]: prints the command and a CSV row (and, where
-# PROGRAM is omp and BASE_REV is given, one for its omp, each of its runs right after this tree's);
+# PROGRAM is omp and a base is given (BASE_REV or BASE_DIR), one for its omp, each of its runs right after this tree's);
 # leaves this tree's output in $WORK/last.out and its best times in BEST_WALL and BEST_LOOP
 measure() {
     local name=$1 prog=$2 threads=$3 n=$4 steps=$5 input=$6
@@ -117,7 +116,7 @@ measure() {
     if [ "$base" = 1 ]; then
         row "$name" omp_base "$threads" "$n" "$steps" "$bwalls" "$bloops"
         sed -n "s/^omp: the step loop's phases, /# the base's last run's phases, /p" "$WORK/base.err"
-        cmp -s "$WORK/last.out" "$WORK/base.out" || die "$BASE_REV's omp printed other bytes"
+        cmp -s "$WORK/last.out" "$WORK/base.out" || die "the base's omp ($base_name) printed other bytes"
     fi
 }
 
