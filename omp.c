@@ -49,6 +49,7 @@ const unsigned backend_features =
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
+#define ASIDE_MIN 256     /* pair events from which a step's choice may run beside the moves */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the nodes of its disks. */
@@ -110,7 +111,7 @@ typedef struct {
     int nt;           /* threads in the parallel region */
     Thread *th;
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
-    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
+    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_alone) */
     int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
     double owner_scale; /* nt / n */
     End *end;         /* the ends of the step's events, by owner */
@@ -122,6 +123,8 @@ typedef struct {
     int32_t *active;  /* undecided nodes, each owner's in its segment */
     size_t active_cap;
     int32_t *node_of; /* n, by slot: its node this step, else -1 */
+    int64_t *paired;  /* n, by slot: the last step it had a pair event in (choose_move: calloc's
+                       * zero pages, touched only where a step's choice runs beside the moves) */
     int64_t undecided;   /* nodes left after a round of the choice */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
@@ -129,6 +132,7 @@ typedef struct {
     size_t fin_tmp_cap;
     int64_t refound;  /* mixed steps found again with a larger keep */
     int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
+    int64_t aside_steps; /* steps whose choice ran beside the moves (choose_move) */
 } Work;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -445,15 +449,57 @@ static void finish_sequential(Work *w)
     walk_events(w, len);
 }
 
-/* The whole choice on one thread, for steps with few pair events (the barriers of the parallel
- * rounds would cost more): thread 0 owns every node, the walk decides them all. */
-static void choose_small(Work *w)
+/* A round's first half over the undecided nodes act[0 .. na): each finds its smallest event among
+ * those whose disks are all free (p: the other node, itself for its wall event; t: the time). */
+static void round_best(Work *w, const int32_t *act, int64_t na)
 {
-    for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
-    ends_scan(w, 1);
-    nodes_build(w, 0);
-    nodes_link(w, 0);
-    finish_sequential(w);
+    Node *node = w->node;
+    for (int64_t k = 0; k < na; k++) {
+        int32_t v = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
+        Node *nd = &node[v];
+        real bt = 0;
+        if (nd->wall_t >= 0) {
+            bp = v;
+            bi = bj = nd->id;
+            bt = nd->wall_t;
+        }
+        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+            const Adj *ad = &w->adj[a];
+            if (node[ad->other].taken) continue;
+            int32_t i = nd->id < ad->other_id ? nd->id : ad->other_id;
+            int32_t j = nd->id < ad->other_id ? ad->other_id : nd->id;
+            if (bp < 0 || event_before(ad->t, 1, i, j, bt, bk, bi, bj)) {
+                bp = ad->other;
+                bt = ad->t;
+                bk = 1;
+                bi = i;
+                bj = j;
+            }
+        }
+        nd->p = bp;
+        nd->t = bt;
+    }
+}
+
+/* A round's second half, once every node has its smallest event: an event that is the smallest of
+ * each of its disks is accepted (a pair marked by its node of lower index; both have its time
+ * already). Keeps the nodes still undecided at the front of act; returns how many. */
+static int64_t round_accept(Work *w, int32_t *act, int64_t na)
+{
+    Node *node = w->node;
+    int64_t kept = 0;
+    for (int64_t k = 0; k < na; k++) {
+        int32_t v = act[k], bp = node[v].p;
+        if (bp < 0) continue;
+        if (bp == v) {
+            node[v].taken = 1;
+        } else if (node[bp].p == v) {
+            if (v < bp) node[v].taken = node[bp].taken = 1;
+        } else {
+            act[kept++] = v;
+        }
+    }
+    return kept;
 }
 
 /* Rounds: every undecided node finds its smallest event among those whose disks are all free; an
@@ -462,50 +508,12 @@ static void choose_small(Work *w)
 static void choose_events(Work *w, int tid)
 {
     Thread *th = &w->th[tid];
-    Node *node = w->node;
     int32_t *act = w->active + th->lo;
     int64_t na = th->n_active;
     for (;;) {
-        for (int64_t k = 0; k < na; k++) {
-            int32_t v = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
-            Node *nd = &node[v];
-            real bt = 0;
-            if (nd->wall_t >= 0) {
-                bp = v;
-                bi = bj = nd->id;
-                bt = nd->wall_t;
-            }
-            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-                const Adj *ad = &w->adj[a];
-                if (node[ad->other].taken) continue;
-                int32_t i = nd->id < ad->other_id ? nd->id : ad->other_id;
-                int32_t j = nd->id < ad->other_id ? ad->other_id : nd->id;
-                if (bp < 0 || event_before(ad->t, 1, i, j, bt, bk, bi, bj)) {
-                    bp = ad->other;
-                    bt = ad->t;
-                    bk = 1;
-                    bi = i;
-                    bj = j;
-                }
-            }
-            nd->p = bp;
-            nd->t = bt;
-        }
+        round_best(w, act, na);
 #pragma omp barrier
-        /* an accepted pair is marked by its node of lower index; both have its time already */
-        int64_t kept = 0;
-        for (int64_t k = 0; k < na; k++) {
-            int32_t v = act[k], bp = node[v].p;
-            if (bp < 0) continue;
-            if (bp == v) {
-                node[v].taken = 1;
-            } else if (node[bp].p == v) {
-                if (v < bp) node[v].taken = node[bp].taken = 1;
-            } else {
-                act[kept++] = v;
-            }
-        }
-        na = kept;
+        na = round_accept(w, act, na);
         th->n_active = na;
 #pragma omp barrier
 #pragma omp single
@@ -517,6 +525,24 @@ static void choose_events(Work *w, int tid)
         }
         if (w->undecided <= SEQ_FINISH) break;
     }
+}
+
+/* The whole choice on the calling thread, for steps with few pair events (the barriers of the
+ * parallel rounds would cost more) or beside the others' moves (choose_move): thread 0 owns every
+ * node, the rounds need no barrier, and the walk decides the last ones. */
+static void choose_alone(Work *w)
+{
+    for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
+    ends_scan(w, 1);
+    nodes_build(w, 0);
+    nodes_link(w, 0);
+    Thread *th = &w->th[0];
+    int32_t *act = w->active + th->lo;
+    while (th->n_active > SEQ_FINISH) {
+        round_best(w, act, th->n_active);
+        th->n_active = round_accept(w, act, th->n_active);
+    }
+    finish_sequential(w);
 }
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
@@ -531,73 +557,122 @@ static inline int pair_mover(int32_t self, int32_t other)
     return (self ^ other) & 1 ? self > other : self < other;
 }
 
-/* Moves the disks of this thread's range (a pair from the disk pair_mover names, both disks) and
- * notes the largest velocity component it leaves and the disks' next steps, for the next step's
- * plan. A slot without a node has no pair event, and no event at all where walls_in_nodes, else its
- * wall event if wall_t holds one. node_of is left all -1 for the next step. */
-static void move_range(Work *w, int tid)
+/* What a thread's moves leave for the next step's plan: the largest velocity component, and the
+ * events. */
+typedef struct {
+    real vm;
+    uint64_t events;
+} Moved;
+
+/* Moves the disk in slot i, whose node is v (-1: none; node_of[i] is then left -1 for the next
+ * step): a pair from the disk pair_mover names, both disks. A slot without a node has no pair event,
+ * and no event at all where walls_in_nodes (wall_t NULL), else its wall event if wall_t holds one.
+ * Notes the disks' next steps for the next step's plan (th), and adds to *m. */
+static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, BroadThread *th,
+                             double inv_span, Moved *m)
 {
     Slots *s = &w->b.s;
-    const Node *node = w->node;
-    real lo = w->p->lo, hi = w->p->hi, vm = 0;
-    double inv_span = 1 / ((double)hi - (double)lo);
-    BroadThread *th = &w->b.th[tid];
-    uint64_t events = 0;
-    int64_t from, to;
-    const real *wall_t = walls_in_nodes(w) ? NULL : w->b.wall_t;
-    range_of(w->p->n, tid, w->nt, &from, &to);
-    for (int64_t i = from; i < to; i++) {
-        int32_t v = w->node_of[i], p = -1;
-        int wall = 0;
-        real t = 0;
-        if (v >= 0) {
-            w->node_of[i] = -1;
-            if (node[v].taken) {
-                p = node[v].p;
-                t = node[v].t;
-                wall = p == v;
-            }
-        } else if (wall_t && wall_t[i] >= 0) {
-            wall = 1;
-            t = wall_t[i];
+    const Node *node = NULL; /* read only where v has one: choose_move's chooser may be growing it */
+    real lo = w->p->lo, hi = w->p->hi;
+    int32_t p = -1;
+    int wall = 0;
+    real t = 0;
+    if (v >= 0) {
+        node = w->node;
+        w->node_of[i] = -1;
+        if (node[v].taken) {
+            p = node[v].p;
+            t = node[v].t;
+            wall = p == v;
         }
-        if (wall) {
-            real vx0 = s->vx[i], vy0 = s->vy[i];
-            wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
-            if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
-            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
-            s->wc[i]++;
-            events++;
-        } else if (p < 0) {
-            s->x[i] = s->x[i] + s->vx[i];
-            s->y[i] = s->y[i] + s->vy[i];
-        } else if (pair_mover(node[v].id, node[p].id)) {
-            int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
-            if (node[p].id < node[v].id) {
-                a = j;
-                b = i;
-            }
-            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
-            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
-            pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
-                         &s->vy[b], t, lo, hi);
-            s->pc[i]++;
-            s->pc[j]++;
-            events++;
-            s->x[j] = clamp_coord(s->x[j], lo, hi);
-            s->y[j] = clamp_coord(s->y[j], lo, hi);
-            vm = fastest(vm, s->vx[j], s->vy[j]);
-            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, 1);
-            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, 1);
-        } else {
-            continue;
-        }
-        s->x[i] = clamp_coord(s->x[i], lo, hi);
-        s->y[i] = clamp_coord(s->y[i], lo, hi);
-        vm = fastest(vm, s->vx[i], s->vy[i]);
+    } else if (wall_t && wall_t[i] >= 0) {
+        wall = 1;
+        t = wall_t[i];
     }
-    th->vmax = vm;
-    w->th[tid].events += events;
+    if (wall) {
+        real vx0 = s->vx[i], vy0 = s->vy[i];
+        wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
+        if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
+        finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
+        s->wc[i]++;
+        m->events++;
+    } else if (p < 0) {
+        s->x[i] = s->x[i] + s->vx[i];
+        s->y[i] = s->y[i] + s->vy[i];
+    } else if (pair_mover(node[v].id, node[p].id)) {
+        int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
+        if (node[p].id < node[v].id) {
+            a = j;
+            b = i;
+        }
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
+        pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
+                     &s->vy[b], t, lo, hi);
+        s->pc[i]++;
+        s->pc[j]++;
+        m->events++;
+        s->x[j] = clamp_coord(s->x[j], lo, hi);
+        s->y[j] = clamp_coord(s->y[j], lo, hi);
+        m->vm = fastest(m->vm, s->vx[j], s->vy[j]);
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, 1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, 1);
+    } else {
+        return;
+    }
+    s->x[i] = clamp_coord(s->x[i], lo, hi);
+    s->y[i] = clamp_coord(s->y[i], lo, hi);
+    m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
+}
+
+/* Moves the disks of this thread's range (move_slot) and notes the largest velocity component it
+ * leaves and its events. node_of is left all -1 for the next step. */
+static void move_range(Work *w, int tid)
+{
+    Moved m = {0, 0};
+    double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
+    const real *wall_t = walls_in_nodes(w) ? NULL : w->b.wall_t;
+    BroadThread *th = &w->b.th[tid];
+    int64_t from, to;
+    range_of(w->p->n, tid, w->nt, &from, &to);
+    for (int64_t i = from; i < to; i++) move_slot(w, i, w->node_of[i], wall_t, th, inv_span, &m);
+    th->vmax = m.vm;
+    w->th[tid].events += m.events;
+}
+
+/* The choice and the moves of a paths step whose choice is small against its moves (choose_aside):
+ * one thread chooses alone while the others move the disks without pair events, which need no choice
+ * (the slots that mark_paired did not mark with this step); the threads take those in chunks,
+ * the chooser too once it is done. Then the disks of the nodes, split over the threads. */
+static void choose_move(Work *w, int tid, int64_t step)
+{
+    Moved m = {0, 0};
+    double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
+    const real *wall_t = w->b.wall_t;
+    BroadThread *th = &w->b.th[tid];
+    int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
+    const int64_t *paired = w->paired;
+#pragma omp single nowait
+    {
+        choose_alone(w);
+        phase_mark(&w->b, tid, PHASE_CHOICE);
+    }
+#pragma omp for schedule(dynamic, 1) nowait
+    for (int64_t c = 0; c < (n + chunk - 1) / chunk; c++) {
+        int64_t to = (c + 1) * chunk < n ? (c + 1) * chunk : n;
+        for (int64_t i = c * chunk; i < to; i++)
+            if (paired[i] != step) move_slot(w, i, -1, wall_t, th, inv_span, &m);
+    }
+    phase_mark(&w->b, tid, PHASE_MOVE);
+#pragma omp barrier
+    phase_mark(&w->b, tid, PHASE_WAIT);
+    int64_t from, to;
+    range_of(w->th[0].nodes, tid, w->nt, &from, &to);
+    for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
+        move_slot(w, w->node[v].slot, (int32_t)v, wall_t, th, inv_span, &m);
+    th->vmax = m.vm;
+    w->th[tid].events += m.events;
+    phase_mark(&w->b, tid, PHASE_MOVE);
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -624,11 +699,39 @@ static void choose(Work *w, int tid)
     for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
     if (total <= SMALL_CHOICE) {
 #pragma omp single
-        choose_small(w);
+        choose_alone(w);
     } else {
         build_nodes(w, tid);
         choose_events(w, tid);
 #pragma omp barrier
+    }
+}
+
+/* Whether this step's choice runs on one thread while the others move (choose_move): a paths step
+ * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
+ * fits in the time the other threads take to move the disks. A pair event costs the choice about
+ * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks); every
+ * thread decides alike from the same counts. Not where the choice is so small that its barrier
+ * costs more than it saves (ASIDE_MIN). */
+static int choose_aside(const Work *w)
+{
+    if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
+    size_t total = 0;
+    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
+    return total >= ASIDE_MIN && 2.0 * (double)total * (double)(w->nt - 1) <= (double)w->p->n;
+}
+
+/* The slots of this thread's pair events, marked with the step for choose_move (steps count from 1:
+ * a slot never marked holds 0). Two threads may mark the same slot. */
+static void mark_paired(Work *w, int tid, int64_t step)
+{
+    const Found *f = &w->b.th[tid].found;
+    (void)step; /* gcc 12 sees no use of it in the atomic writes' right-hand sides */
+    for (size_t k = 0; k < f->len; k++) {
+#pragma omp atomic write
+        w->paired[f->ev[k].a] = step;
+#pragma omp atomic write
+        w->paired[f->ev[k].b] = step;
     }
 }
 
@@ -672,8 +775,17 @@ static void step_run(Work *w, int tid, int64_t step)
      * have been taken by earlier events). */
     int first = step == p->first_step * p->substeps + 1, reorder = step % REORDER_EVERY == 1 || first;
     phase_mark(&w->b, tid, PHASE_OTHER);
+    int aside = 0;
     for (;;) {
         broad_find(&w->b, tid, step, reorder);
+        if (choose_aside(w)) {
+            mark_paired(w, tid, step);
+#pragma omp barrier
+            phase_mark(&w->b, tid, PHASE_CHOICE);
+            choose_move(w, tid, step);
+            aside = 1;
+            break;
+        }
         choose(w, tid);
         phase_mark(&w->b, tid, PHASE_CHOICE);
         if (w->b.plan.mode != MODE_MIXED || w->b.keep == 0) break;
@@ -695,10 +807,11 @@ static void step_run(Work *w, int tid, int64_t step)
     if (tid == 0) { /* read at the end of the run only */
         w->path_steps += w->b.plan.mode == MODE_PATHS;
         w->mixed_steps += w->b.plan.mode == MODE_MIXED;
+        w->aside_steps += aside;
     }
 
     /* the moves (3.4, 3.5) */
-    move_range(w, tid);
+    if (!aside) move_range(w, tid);
     phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier
     phase_mark(&w->b, tid, PHASE_WAIT);
@@ -794,6 +907,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
+    w.paired = sim_calloc((size_t)n, sizeof *w.paired);
 
     double t0 = 0;
 #pragma omp parallel
@@ -836,6 +950,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (ps > 0)
             fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", backend_name,
                     paths_lanes(w.b.paths));
+        if (w.path_steps > 0)
+            fprintf(stderr, "%s: the choice on one thread beside the moves in %lld of %lld steps\n",
+                    backend_name, (long long)w.aside_steps, (long long)steps);
         if (w.mixed_steps)
             fprintf(stderr,
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
@@ -852,6 +969,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.adj);
     free(w.active);
     free(w.node_of);
+    free(w.paired);
     free(w.fin);
     free(w.fin_tmp);
     return 0;
