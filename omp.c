@@ -49,7 +49,8 @@ const unsigned backend_features =
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
-#define ASIDE_MIN 256     /* pair events from which a step's choice may run beside the moves */
+#define CHOOSER_MOVES 256 /* pair events up to which choose_move's chooser moves the nodes' disks */
+#define MOVE_CHUNK 64    /* disks at least in a chunk of choose_move's dynamic moves */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the nodes of its disks. */
@@ -123,8 +124,8 @@ typedef struct {
     int32_t *active;  /* undecided nodes, each owner's in its segment */
     size_t active_cap;
     int32_t *node_of; /* n, by slot: its node this step, else -1 */
-    int64_t *paired;  /* n, by slot: the last step it had a pair event in (choose_move: calloc's
-                       * zero pages, touched only where a step's choice runs beside the moves) */
+    int64_t *paired;  /* n, by slot: the last paths step it had a pair event found in (Broad's mark,
+                       * for choose_move: calloc's zero pages, touched only on paths steps) */
     int64_t undecided;   /* nodes left after a round of the choice */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
@@ -564,16 +565,48 @@ typedef struct {
     uint64_t events;
 } Moved;
 
-/* Moves the disk in slot i, whose node is v (-1: none; node_of[i] is then left -1 for the next
- * step): a pair from the disk pair_mover names, both disks. A slot without a node has no pair event,
- * and no event at all where walls_in_nodes (wall_t NULL), else its wall event if wall_t holds one.
- * Notes the disks' next steps for the next step's plan (th), and adds to *m. */
-static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, BroadThread *th,
-                             double inv_span, Moved *m)
+/* What every move of a thread reads: the slots, the box, wall_t where it holds wall events (NULL
+ * where walls_in_nodes), and the thread's notes for the next step's plan. */
+typedef struct {
+    Slots *s;
+    real lo, hi;
+    double inv_span;
+    const real *wall_t;
+    BroadThread *th;
+} Mover;
+
+static Mover mover_of(Work *w, int tid)
 {
-    Slots *s = &w->b.s;
+    Mover c = {&w->b.s, w->p->lo, w->p->hi, 1 / ((double)w->p->hi - (double)w->p->lo),
+               walls_in_nodes(w) ? NULL : w->b.wall_t, &w->b.th[tid]};
+    return c;
+}
+
+/* Whether the disk in slot i, whose node is v (-1: none), flies freely this step: no node, and no
+ * wall event in wall_t. */
+static inline int flies(const real *wall_t, int64_t i, int32_t v)
+{
+    return v < 0 && !(wall_t && wall_t[i] >= 0);
+}
+
+/* The move of a disk that flies freely (most of them: inline in the loops, whose box bounds stay in
+ * registers). */
+static inline void fly(Slots *s, int64_t i, real lo, real hi, Moved *m)
+{
+    s->x[i] = clamp_coord(s->x[i] + s->vx[i], lo, hi);
+    s->y[i] = clamp_coord(s->y[i] + s->vy[i], lo, hi);
+    m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
+}
+
+/* Moves the disk in slot i that has an event or a node v (-1: none; node_of[i] is then left -1 for
+ * the next step): its wall event, or a pair from the disk pair_mover names, both disks (a node
+ * whose event another node's disk moves, or that has none, flies). Notes the disks' next steps for
+ * the next step's plan, and adds to *m. */
+static void move_event(Work *w, const Mover *c, int64_t i, int32_t v, Moved *m)
+{
+    Slots *s = c->s;
     const Node *node = NULL; /* read only where v has one: choose_move's chooser may be growing it */
-    real lo = w->p->lo, hi = w->p->hi;
+    real lo = c->lo, hi = c->hi;
     int32_t p = -1;
     int wall = 0;
     real t = 0;
@@ -585,9 +618,9 @@ static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, 
             t = node[v].t;
             wall = p == v;
         }
-    } else if (wall_t && wall_t[i] >= 0) {
+    } else {
         wall = 1;
-        t = wall_t[i];
+        t = c->wall_t[i];
     }
     if (wall) {
         real vx0 = s->vx[i], vy0 = s->vy[i];
@@ -597,16 +630,17 @@ static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, 
         s->wc[i]++;
         m->events++;
     } else if (p < 0) {
-        s->x[i] = s->x[i] + s->vx[i];
-        s->y[i] = s->y[i] + s->vy[i];
+        fly(s, i, lo, hi, m);
+        return;
     } else if (pair_mover(node[v].id, node[p].id)) {
         int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
         if (node[p].id < node[v].id) {
             a = j;
             b = i;
         }
-        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
-        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
+        BroadThread *th = c->th;
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, -1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, -1);
         pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
                      &s->vy[b], t, lo, hi);
         s->pc[i]++;
@@ -615,8 +649,8 @@ static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, 
         s->x[j] = clamp_coord(s->x[j], lo, hi);
         s->y[j] = clamp_coord(s->y[j], lo, hi);
         m->vm = fastest(m->vm, s->vx[j], s->vy[j]);
-        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, 1);
-        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, 1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, 1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, 1);
     } else {
         return;
     }
@@ -625,52 +659,79 @@ static inline void move_slot(Work *w, int64_t i, int32_t v, const real *wall_t, 
     m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
 }
 
-/* Moves the disks of this thread's range (move_slot) and notes the largest velocity component it
- * leaves and its events. node_of is left all -1 for the next step. */
+/* Moves the disks of this thread's range and notes the largest velocity component it leaves and
+ * its events. node_of is left all -1 for the next step. */
 static void move_range(Work *w, int tid)
 {
     Moved m = {0, 0};
-    double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
-    const real *wall_t = walls_in_nodes(w) ? NULL : w->b.wall_t;
-    BroadThread *th = &w->b.th[tid];
+    Mover c = mover_of(w, tid);
+    Slots *s = c.s;
+    real lo = c.lo, hi = c.hi;
+    const real *wall_t = c.wall_t;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
-    for (int64_t i = from; i < to; i++) move_slot(w, i, w->node_of[i], wall_t, th, inv_span, &m);
-    th->vmax = m.vm;
+    for (int64_t i = from; i < to; i++) {
+        int32_t v = w->node_of[i];
+        if (flies(wall_t, i, v)) fly(s, i, lo, hi, &m);
+        else move_event(w, &c, i, v, &m);
+    }
+    c.th->vmax = m.vm;
     w->th[tid].events += m.events;
 }
 
+/* The pair events the threads found this step (every thread counts them itself, so that all take
+ * the same branch on it). */
+static size_t events_found(const Work *w)
+{
+    size_t total = 0;
+    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
+    return total;
+}
+
 /* The choice and the moves of a paths step whose choice is small against its moves (choose_aside):
- * one thread chooses alone while the others move the disks without pair events, which need no choice
- * (the slots that mark_paired did not mark with this step); the threads take those in chunks,
- * the chooser too once it is done. Then the disks of the nodes, split over the threads. */
+ * one thread chooses alone while the others move the disks without pair events, which need no
+ * choice (the slots whose mark, found_push's, is not this step); the threads take those in chunks,
+ * the chooser too once it is done. The disks of the nodes follow: where they are few the chooser
+ * moves them before it joins the others (no barrier), else every thread a part of them, once the
+ * choice is made. */
 static void choose_move(Work *w, int tid, int64_t step)
 {
     Moved m = {0, 0};
-    double inv_span = 1 / ((double)w->p->hi - (double)w->p->lo);
-    const real *wall_t = w->b.wall_t;
-    BroadThread *th = &w->b.th[tid];
-    int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
-    const int64_t *paired = w->paired;
+    Mover c = mover_of(w, tid);
+    Slots *s = c.s;
+    real lo = c.lo, hi = c.hi;
+    const real *wall_t = c.wall_t;
+    int64_t n = w->p->n, chunk = n / (8 * w->nt);
+    if (chunk < MOVE_CHUNK) chunk = MOVE_CHUNK;
+    int few = events_found(w) <= CHOOSER_MOVES;
+    const int64_t *mark = w->paired;
 #pragma omp single nowait
     {
         choose_alone(w);
         phase_mark(&w->b, tid, PHASE_CHOICE);
+        if (few)
+            for (int64_t v = w->th[0].lo; v < w->th[0].lo + w->th[0].nodes; v++)
+                move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
     }
 #pragma omp for schedule(dynamic, 1) nowait
-    for (int64_t c = 0; c < (n + chunk - 1) / chunk; c++) {
-        int64_t to = (c + 1) * chunk < n ? (c + 1) * chunk : n;
-        for (int64_t i = c * chunk; i < to; i++)
-            if (paired[i] != step) move_slot(w, i, -1, wall_t, th, inv_span, &m);
+    for (int64_t k = 0; k < (n + chunk - 1) / chunk; k++) {
+        int64_t to = (k + 1) * chunk < n ? (k + 1) * chunk : n;
+        for (int64_t i = k * chunk; i < to; i++) {
+            if (mark[i] == step) continue;
+            if (flies(wall_t, i, -1)) fly(s, i, lo, hi, &m);
+            else move_event(w, &c, i, -1, &m);
+        }
     }
-    phase_mark(&w->b, tid, PHASE_MOVE);
+    if (!few) {
+        phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier
-    phase_mark(&w->b, tid, PHASE_WAIT);
-    int64_t from, to;
-    range_of(w->th[0].nodes, tid, w->nt, &from, &to);
-    for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
-        move_slot(w, w->node[v].slot, (int32_t)v, wall_t, th, inv_span, &m);
-    th->vmax = m.vm;
+        phase_mark(&w->b, tid, PHASE_WAIT);
+        int64_t from, to;
+        range_of(w->th[0].nodes, tid, w->nt, &from, &to);
+        for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
+            move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
+    }
+    c.th->vmax = m.vm;
     w->th[tid].events += m.events;
     phase_mark(&w->b, tid, PHASE_MOVE);
 }
@@ -695,9 +756,7 @@ static void print_state(Work *w, int tid, int64_t step)
  * in rounds (every thread counts the events itself, so all take the same branch). */
 static void choose(Work *w, int tid)
 {
-    size_t total = 0;
-    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
-    if (total <= SMALL_CHOICE) {
+    if (events_found(w) <= SMALL_CHOICE) {
 #pragma omp single
         choose_alone(w);
     } else {
@@ -710,29 +769,11 @@ static void choose(Work *w, int tid)
 /* Whether this step's choice runs on one thread while the others move (choose_move): a paths step
  * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
  * fits in the time the other threads take to move the disks. A pair event costs the choice about
- * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks); every
- * thread decides alike from the same counts. Not where the choice is so small that its barrier
- * costs more than it saves (ASIDE_MIN). */
+ * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). */
 static int choose_aside(const Work *w)
 {
     if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
-    size_t total = 0;
-    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
-    return total >= ASIDE_MIN && 2.0 * (double)total * (double)(w->nt - 1) <= (double)w->p->n;
-}
-
-/* The slots of this thread's pair events, marked with the step for choose_move (steps count from 1:
- * a slot never marked holds 0). Two threads may mark the same slot. */
-static void mark_paired(Work *w, int tid, int64_t step)
-{
-    const Found *f = &w->b.th[tid].found;
-    (void)step; /* gcc 12 sees no use of it in the atomic writes' right-hand sides */
-    for (size_t k = 0; k < f->len; k++) {
-#pragma omp atomic write
-        w->paired[f->ev[k].a] = step;
-#pragma omp atomic write
-        w->paired[f->ev[k].b] = step;
-    }
+    return 2.0 * (double)events_found(w) * (double)(w->nt - 1) <= (double)w->p->n;
 }
 
 /* Whether the choice took the fast disk of each of this thread's trims (SlowGrid's keep) at a key
@@ -779,9 +820,6 @@ static void step_run(Work *w, int tid, int64_t step)
     for (;;) {
         broad_find(&w->b, tid, step, reorder);
         if (choose_aside(w)) {
-            mark_paired(w, tid, step);
-#pragma omp barrier
-            phase_mark(&w->b, tid, PHASE_CHOICE);
             choose_move(w, tid, step);
             aside = 1;
             break;
@@ -824,7 +862,9 @@ static void step_run(Work *w, int tid, int64_t step)
 #pragma omp single
         io_checkpoint(w->out, w->sim, step / k);
     }
-#pragma omp single
+    /* no barrier after it: the next step's plan waits for every thread anyway, and the progress
+     * line reads nothing the others write */
+#pragma omp single nowait
     io_progress(w->out, step / k);
 }
 
@@ -908,6 +948,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
     w.paired = sim_calloc((size_t)n, sizeof *w.paired);
+    w.b.mark = w.paired;
 
     double t0 = 0;
 #pragma omp parallel
