@@ -49,8 +49,7 @@ const unsigned backend_features =
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
-#define CHOOSER_MOVES 256 /* pair events up to which choose_move's chooser moves the nodes' disks */
-#define MOVE_CHUNK 64    /* disks at least in a chunk of choose_move's dynamic moves */
+#define ASIDE_MIN 256     /* pair events from which a step's choice may run beside the moves */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the nodes of its disks. */
@@ -691,9 +690,8 @@ static size_t events_found(const Work *w)
 /* The choice and the moves of a paths step whose choice is small against its moves (choose_aside):
  * one thread chooses alone while the others move the disks without pair events, which need no
  * choice (the slots whose mark, found_push's, is not this step); the threads take those in chunks,
- * the chooser too once it is done. The disks of the nodes follow: where they are few the chooser
- * moves them before it joins the others (no barrier), else every thread a part of them, once the
- * choice is made. */
+ * the chooser too once it is done. Then, the choice made, the disks of the nodes, split over the
+ * threads. */
 static void choose_move(Work *w, int tid, int64_t step)
 {
     Moved m = {0, 0};
@@ -701,17 +699,12 @@ static void choose_move(Work *w, int tid, int64_t step)
     Slots *s = c.s;
     real lo = c.lo, hi = c.hi;
     const real *wall_t = c.wall_t;
-    int64_t n = w->p->n, chunk = n / (8 * w->nt);
-    if (chunk < MOVE_CHUNK) chunk = MOVE_CHUNK;
-    int few = events_found(w) <= CHOOSER_MOVES;
+    int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
     const int64_t *mark = w->paired;
 #pragma omp single nowait
     {
         choose_alone(w);
         phase_mark(&w->b, tid, PHASE_CHOICE);
-        if (few)
-            for (int64_t v = w->th[0].lo; v < w->th[0].lo + w->th[0].nodes; v++)
-                move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
     }
 #pragma omp for schedule(dynamic, 1) nowait
     for (int64_t k = 0; k < (n + chunk - 1) / chunk; k++) {
@@ -722,15 +715,13 @@ static void choose_move(Work *w, int tid, int64_t step)
             else move_event(w, &c, i, -1, &m);
         }
     }
-    if (!few) {
-        phase_mark(&w->b, tid, PHASE_MOVE);
+    phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier
-        phase_mark(&w->b, tid, PHASE_WAIT);
-        int64_t from, to;
-        range_of(w->th[0].nodes, tid, w->nt, &from, &to);
-        for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
-            move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
-    }
+    phase_mark(&w->b, tid, PHASE_WAIT);
+    int64_t from, to;
+    range_of(w->th[0].nodes, tid, w->nt, &from, &to);
+    for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
+        move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
     c.th->vmax = m.vm;
     w->th[tid].events += m.events;
     phase_mark(&w->b, tid, PHASE_MOVE);
@@ -769,11 +760,14 @@ static void choose(Work *w, int tid)
 /* Whether this step's choice runs on one thread while the others move (choose_move): a paths step
  * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
  * fits in the time the other threads take to move the disks. A pair event costs the choice about
- * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). */
+ * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). Below
+ * ASIDE_MIN pair events the choice is too short to hide the cost of the moves' chunks and their
+ * barrier (the assignment's sample, 1000 disks and about 24 pair events a step: 3% slower so). */
 static int choose_aside(const Work *w)
 {
     if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
-    return 2.0 * (double)events_found(w) * (double)(w->nt - 1) <= (double)w->p->n;
+    size_t e = events_found(w);
+    return e >= ASIDE_MIN && 2.0 * (double)e * (double)(w->nt - 1) <= (double)w->p->n;
 }
 
 /* Whether the choice took the fast disk of each of this thread's trims (SlowGrid's keep) at a key

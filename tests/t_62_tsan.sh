@@ -52,7 +52,7 @@ else
     tsan_run fast "$T/fast.in" auto
     tsan_run "fast --broad grid" "$T/fast.in" grid
     tsan_run mixed "$T/mixed.in" auto
-    tsan_run "mixed --broad paths" "$T/mixed.in" paths
+    tsan_run "mixed --broad paths" "$T/mixed.in" paths # 2 of its 5 steps choose beside the moves (choose_move)
     tsan_run "dense --broad mixed" "$T/dense.in" mixed
     OMP_ONLY="--keep 1" tsan_run "mixed --keep 1 (steps found again)" "$T/mixed.in" auto
     tsan_run dense "$T/dense.in" auto
