@@ -762,7 +762,7 @@ static void choose(Work *w, int tid)
  * fits in the time the other threads take to move the disks. A pair event costs the choice about
  * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). Below
  * ASIDE_MIN pair events the choice is too short to hide the cost of the moves' chunks and their
- * barrier (the assignment's sample, 1000 disks and about 24 pair events a step: 3% slower so). */
+ * barrier (the assignment's sample, 1000 disks and about 24 pair events a step, ran slower so). */
 static int choose_aside(const Work *w)
 {
     if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
