@@ -757,17 +757,25 @@ static void choose(Work *w, int tid)
     }
 }
 
-/* Whether this step's choice runs on one thread while the others move (choose_move): a paths step
+/* Whether this step's choice may run on one thread while the others move (choose_move): a paths step
  * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
  * fits in the time the other threads take to move the disks. A pair event costs the choice about
  * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). Below
  * ASIDE_MIN pair events the choice is too short to hide the cost of the moves' chunks and their
  * barrier (the assignment's sample, 1000 disks and about 24 pair events a step, ran slower so). */
-static int choose_aside(const Work *w)
+static int aside_fits(const Work *w)
 {
     if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
     size_t e = events_found(w);
     return e >= ASIDE_MIN && 2.0 * (double)e * (double)(w->nt - 1) <= (double)w->p->n;
+}
+
+/* choose_move needs this step's marks, which found_push writes only where the step before fitted
+ * too (step_run): on steps with many pair events, as at 1e5 disks, they would cost stores to lines
+ * that other cores hold, for nothing. */
+static int choose_aside(const Work *w)
+{
+    return w->b.mark && aside_fits(w);
 }
 
 /* Whether the choice took the fast disk of each of this thread's trims (SlowGrid's keep) at a key
@@ -840,6 +848,9 @@ static void step_run(Work *w, int tid, int64_t step)
         w->path_steps += w->b.plan.mode == MODE_PATHS;
         w->mixed_steps += w->b.plan.mode == MODE_MIXED;
         w->aside_steps += aside;
+        /* the next step's broad phase marks its pair events where this one fitted choose_move (read
+         * after the move's barrier; a scene's count of pair events moves little from step to step) */
+        w->b.mark = aside_fits(w) ? w->paired : NULL;
     }
 
     /* the moves (3.4, 3.5) */
@@ -942,7 +953,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
     w.paired = sim_calloc((size_t)n, sizeof *w.paired);
-    w.b.mark = w.paired;
+    w.b.mark = w.paired; /* the first step marks (step_run) */
 
     double t0 = 0;
 #pragma omp parallel
