@@ -790,7 +790,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.b.wall_lists = 1;
     w.b.timing = opt->stats;
     w.b.keep = opt->keep < 0 ? KEEP_FIRST : opt->keep;
-    w.th = sim_calloc((size_t)nt_max, sizeof *w.th);
+    w.th = sim_calloc_lines((size_t)nt_max, sizeof *w.th);
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);

@@ -85,7 +85,7 @@ void broad_init(Broad *b, const Params *p, const Options *opt, int64_t cap, int 
     b->with_wi = with_wi;
     b->rx0 = b->ry0 = p->lo;
     b->rx1 = b->ry1 = p->hi;
-    b->th = sim_calloc((size_t)nt_max, sizeof *b->th);
+    b->th = sim_calloc_lines((size_t)nt_max, sizeof *b->th);
     b->nt_max = nt_max;
     while (1 << b->name_shift < nt_max) b->name_shift++;
     b->paths = paths_new(nt_max, opt->lanes);

@@ -288,7 +288,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.check = opt->check;
     w.nt = omp_get_max_threads();
     exact_alloc(&w.d, sim, par);
-    w.th = sim_calloc((size_t)w.nt, sizeof *w.th);
+    w.th = sim_calloc_lines((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
     w.cell_of = sim_calloc((size_t)n, sizeof *w.cell_of);
     w.cell_start = sim_calloc((size_t)w.max_cells + 1, sizeof *w.cell_start);

@@ -143,7 +143,7 @@ Paths *paths_new(int nt_max, int lanes)
     Paths *pp = sim_calloc(1, sizeof *pp);
     pp->nt_max = nt_max;
     pp->lanes = lanes_of(lanes);
-    pp->sc = sim_calloc((size_t)nt_max, sizeof *pp->sc);
+    pp->sc = sim_calloc_lines((size_t)nt_max, sizeof *pp->sc);
     return pp;
 }
 
@@ -296,9 +296,10 @@ void paths_ready(Paths *pp, const PathsPlan *pl, int nt)
     }
     size_t need = (size_t)nt * (size_t)pp->pl.tiles;
     if (need > pp->bk_cap) {
-        pp->bk = realloc(pp->bk, need * sizeof *pp->bk);
-        if (!pp->bk) sim_fail("out of memory (%zu buckets)", need);
-        memset(pp->bk + pp->bk_cap, 0, (need - pp->bk_cap) * sizeof *pp->bk);
+        Bucket *bk = sim_calloc_lines(need, sizeof *bk); /* each bucket a line of its own */
+        if (pp->bk_cap) memcpy(bk, pp->bk, pp->bk_cap * sizeof *bk);
+        free(pp->bk);
+        pp->bk = bk;
         pp->bk_cap = need;
     }
 }
