@@ -49,6 +49,7 @@ const unsigned backend_features =
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
+#define ASIDE_MIN 256     /* pair events from which a step's choice may run beside the moves */
 #define REORDER_EVERY 8  /* steps between reorders when disks move less than a cell per step */
 
 /* An event of the sequential finish: the key of SPEC.md 3.3 and the nodes of its disks. */
@@ -110,7 +111,7 @@ typedef struct {
     int nt;           /* threads in the parallel region */
     Thread *th;
     int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
-    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_small) */
+    int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_alone) */
     int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
     double owner_scale; /* nt / n */
     End *end;         /* the ends of the step's events, by owner */
@@ -122,6 +123,8 @@ typedef struct {
     int32_t *active;  /* undecided nodes, each owner's in its segment */
     size_t active_cap;
     int32_t *node_of; /* n, by slot: its node this step, else -1 */
+    int64_t *paired;  /* n, by slot: the last paths step it had a pair event found in (Broad's mark,
+                       * for choose_move: calloc's zero pages, touched only on paths steps) */
     int64_t undecided;   /* nodes left after a round of the choice */
     SeqEvent *fin;    /* events of the sequential finish */
     size_t fin_cap;
@@ -129,6 +132,7 @@ typedef struct {
     size_t fin_tmp_cap;
     int64_t refound;  /* mixed steps found again with a larger keep */
     int64_t path_steps, mixed_steps; /* steps that used the paths' or the mixed broad phase */
+    int64_t aside_steps; /* steps whose choice ran beside the moves (choose_move) */
 } Work;
 
 static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
@@ -445,15 +449,57 @@ static void finish_sequential(Work *w)
     walk_events(w, len);
 }
 
-/* The whole choice on one thread, for steps with few pair events (the barriers of the parallel
- * rounds would cost more): thread 0 owns every node, the walk decides them all. */
-static void choose_small(Work *w)
+/* A round's first half over the undecided nodes act[0 .. na): each finds its smallest event among
+ * those whose disks are all free (p: the other node, itself for its wall event; t: the time). */
+static void round_best(Work *w, const int32_t *act, int64_t na)
 {
-    for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
-    ends_scan(w, 1);
-    nodes_build(w, 0);
-    nodes_link(w, 0);
-    finish_sequential(w);
+    Node *node = w->node;
+    for (int64_t k = 0; k < na; k++) {
+        int32_t v = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
+        Node *nd = &node[v];
+        real bt = 0;
+        if (nd->wall_t >= 0) {
+            bp = v;
+            bi = bj = nd->id;
+            bt = nd->wall_t;
+        }
+        for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
+            const Adj *ad = &w->adj[a];
+            if (node[ad->other].taken) continue;
+            int32_t i = nd->id < ad->other_id ? nd->id : ad->other_id;
+            int32_t j = nd->id < ad->other_id ? ad->other_id : nd->id;
+            if (bp < 0 || event_before(ad->t, 1, i, j, bt, bk, bi, bj)) {
+                bp = ad->other;
+                bt = ad->t;
+                bk = 1;
+                bi = i;
+                bj = j;
+            }
+        }
+        nd->p = bp;
+        nd->t = bt;
+    }
+}
+
+/* A round's second half, once every node has its smallest event: an event that is the smallest of
+ * each of its disks is accepted (a pair marked by its node of lower index; both have its time
+ * already). Keeps the nodes still undecided at the front of act; returns how many. */
+static int64_t round_accept(Work *w, int32_t *act, int64_t na)
+{
+    Node *node = w->node;
+    int64_t kept = 0;
+    for (int64_t k = 0; k < na; k++) {
+        int32_t v = act[k], bp = node[v].p;
+        if (bp < 0) continue;
+        if (bp == v) {
+            node[v].taken = 1;
+        } else if (node[bp].p == v) {
+            if (v < bp) node[v].taken = node[bp].taken = 1;
+        } else {
+            act[kept++] = v;
+        }
+    }
+    return kept;
 }
 
 /* Rounds: every undecided node finds its smallest event among those whose disks are all free; an
@@ -462,50 +508,12 @@ static void choose_small(Work *w)
 static void choose_events(Work *w, int tid)
 {
     Thread *th = &w->th[tid];
-    Node *node = w->node;
     int32_t *act = w->active + th->lo;
     int64_t na = th->n_active;
     for (;;) {
-        for (int64_t k = 0; k < na; k++) {
-            int32_t v = act[k], bp = -1, bi = 0, bj = 0, bk = 0;
-            Node *nd = &node[v];
-            real bt = 0;
-            if (nd->wall_t >= 0) {
-                bp = v;
-                bi = bj = nd->id;
-                bt = nd->wall_t;
-            }
-            for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
-                const Adj *ad = &w->adj[a];
-                if (node[ad->other].taken) continue;
-                int32_t i = nd->id < ad->other_id ? nd->id : ad->other_id;
-                int32_t j = nd->id < ad->other_id ? ad->other_id : nd->id;
-                if (bp < 0 || event_before(ad->t, 1, i, j, bt, bk, bi, bj)) {
-                    bp = ad->other;
-                    bt = ad->t;
-                    bk = 1;
-                    bi = i;
-                    bj = j;
-                }
-            }
-            nd->p = bp;
-            nd->t = bt;
-        }
+        round_best(w, act, na);
 #pragma omp barrier
-        /* an accepted pair is marked by its node of lower index; both have its time already */
-        int64_t kept = 0;
-        for (int64_t k = 0; k < na; k++) {
-            int32_t v = act[k], bp = node[v].p;
-            if (bp < 0) continue;
-            if (bp == v) {
-                node[v].taken = 1;
-            } else if (node[bp].p == v) {
-                if (v < bp) node[v].taken = node[bp].taken = 1;
-            } else {
-                act[kept++] = v;
-            }
-        }
-        na = kept;
+        na = round_accept(w, act, na);
         th->n_active = na;
 #pragma omp barrier
 #pragma omp single
@@ -517,6 +525,24 @@ static void choose_events(Work *w, int tid)
         }
         if (w->undecided <= SEQ_FINISH) break;
     }
+}
+
+/* The whole choice on the calling thread, for steps with few pair events (the barriers of the
+ * parallel rounds would cost more) or beside the others' moves (choose_move): thread 0 owns every
+ * node, the rounds need no barrier, and the walk decides the last ones. */
+static void choose_alone(Work *w)
+{
+    for (int t = 0; t < w->nt; t++) ends_count(w, t, 1);
+    ends_scan(w, 1);
+    nodes_build(w, 0);
+    nodes_link(w, 0);
+    Thread *th = &w->th[0];
+    int32_t *act = w->active + th->lo;
+    while (th->n_active > SEQ_FINISH) {
+        round_best(w, act, th->n_active);
+        th->n_active = round_accept(w, act, th->n_active);
+    }
+    finish_sequential(w);
 }
 
 /* ==== moving (SPEC.md 3.4, 3.5) ======================================================================= */
@@ -531,73 +557,174 @@ static inline int pair_mover(int32_t self, int32_t other)
     return (self ^ other) & 1 ? self > other : self < other;
 }
 
-/* Moves the disks of this thread's range (a pair from the disk pair_mover names, both disks) and
- * notes the largest velocity component it leaves and the disks' next steps, for the next step's
- * plan. A slot without a node has no pair event, and no event at all where walls_in_nodes, else its
- * wall event if wall_t holds one. node_of is left all -1 for the next step. */
+/* What a thread's moves leave for the next step's plan: the largest velocity component, and the
+ * events. */
+typedef struct {
+    real vm;
+    uint64_t events;
+} Moved;
+
+/* What every move of a thread reads: the slots, the box, wall_t where it holds wall events (NULL
+ * where walls_in_nodes), and the thread's notes for the next step's plan. */
+typedef struct {
+    Slots *s;
+    real lo, hi;
+    double inv_span;
+    const real *wall_t;
+    BroadThread *th;
+} Mover;
+
+static Mover mover_of(Work *w, int tid)
+{
+    Mover c = {&w->b.s, w->p->lo, w->p->hi, 1 / ((double)w->p->hi - (double)w->p->lo),
+               walls_in_nodes(w) ? NULL : w->b.wall_t, &w->b.th[tid]};
+    return c;
+}
+
+/* Whether the disk in slot i, whose node is v (-1: none), flies freely this step: no node, and no
+ * wall event in wall_t. */
+static inline int flies(const real *wall_t, int64_t i, int32_t v)
+{
+    return v < 0 && !(wall_t && wall_t[i] >= 0);
+}
+
+/* The move of a disk that flies freely (most of them: inline in the loops, whose box bounds stay in
+ * registers). */
+static inline void fly(Slots *s, int64_t i, real lo, real hi, Moved *m)
+{
+    s->x[i] = clamp_coord(s->x[i] + s->vx[i], lo, hi);
+    s->y[i] = clamp_coord(s->y[i] + s->vy[i], lo, hi);
+    m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
+}
+
+/* Moves the disk in slot i that has an event or a node v (-1: none; node_of[i] is then left -1 for
+ * the next step): its wall event, or a pair from the disk pair_mover names, both disks (a node
+ * whose event another node's disk moves, or that has none, flies). Notes the disks' next steps for
+ * the next step's plan, and adds to *m. */
+static void move_event(Work *w, const Mover *c, int64_t i, int32_t v, Moved *m)
+{
+    Slots *s = c->s;
+    const Node *node = NULL; /* read only where v has one: choose_move's chooser may be growing it */
+    real lo = c->lo, hi = c->hi;
+    int32_t p = -1;
+    int wall = 0;
+    real t = 0;
+    if (v >= 0) {
+        node = w->node;
+        w->node_of[i] = -1;
+        if (node[v].taken) {
+            p = node[v].p;
+            t = node[v].t;
+            wall = p == v;
+        }
+    } else {
+        wall = 1;
+        t = c->wall_t[i];
+    }
+    if (wall) {
+        real vx0 = s->vx[i], vy0 = s->vy[i];
+        wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
+        if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
+        finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
+        s->wc[i]++;
+        m->events++;
+    } else if (p < 0) {
+        fly(s, i, lo, hi, m);
+        return;
+    } else if (pair_mover(node[v].id, node[p].id)) {
+        int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
+        if (node[p].id < node[v].id) {
+            a = j;
+            b = i;
+        }
+        BroadThread *th = c->th;
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, -1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, -1);
+        pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
+                     &s->vy[b], t, lo, hi);
+        s->pc[i]++;
+        s->pc[j]++;
+        m->events++;
+        s->x[j] = clamp_coord(s->x[j], lo, hi);
+        s->y[j] = clamp_coord(s->y[j], lo, hi);
+        m->vm = fastest(m->vm, s->vx[j], s->vy[j]);
+        note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, 1);
+        note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, 1);
+    } else {
+        return;
+    }
+    s->x[i] = clamp_coord(s->x[i], lo, hi);
+    s->y[i] = clamp_coord(s->y[i], lo, hi);
+    m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
+}
+
+/* Moves the disks of this thread's range and notes the largest velocity component it leaves and
+ * its events. node_of is left all -1 for the next step. */
 static void move_range(Work *w, int tid)
 {
-    Slots *s = &w->b.s;
-    const Node *node = w->node;
-    real lo = w->p->lo, hi = w->p->hi, vm = 0;
-    double inv_span = 1 / ((double)hi - (double)lo);
-    BroadThread *th = &w->b.th[tid];
-    uint64_t events = 0;
+    Moved m = {0, 0};
+    Mover c = mover_of(w, tid);
+    Slots *s = c.s;
+    real lo = c.lo, hi = c.hi;
+    const real *wall_t = c.wall_t;
     int64_t from, to;
-    const real *wall_t = walls_in_nodes(w) ? NULL : w->b.wall_t;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
-        int32_t v = w->node_of[i], p = -1;
-        int wall = 0;
-        real t = 0;
-        if (v >= 0) {
-            w->node_of[i] = -1;
-            if (node[v].taken) {
-                p = node[v].p;
-                t = node[v].t;
-                wall = p == v;
-            }
-        } else if (wall_t && wall_t[i] >= 0) {
-            wall = 1;
-            t = wall_t[i];
-        }
-        if (wall) {
-            real vx0 = s->vx[i], vy0 = s->vy[i];
-            wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], t, lo, hi);
-            if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
-            finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], t, lo, hi);
-            s->wc[i]++;
-            events++;
-        } else if (p < 0) {
-            s->x[i] = s->x[i] + s->vx[i];
-            s->y[i] = s->y[i] + s->vy[i];
-        } else if (pair_mover(node[v].id, node[p].id)) {
-            int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
-            if (node[p].id < node[v].id) {
-                a = j;
-                b = i;
-            }
-            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, -1);
-            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, -1);
-            pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
-                         &s->vy[b], t, lo, hi);
-            s->pc[i]++;
-            s->pc[j]++;
-            events++;
-            s->x[j] = clamp_coord(s->x[j], lo, hi);
-            s->y[j] = clamp_coord(s->y[j], lo, hi);
-            vm = fastest(vm, s->vx[j], s->vy[j]);
-            note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], inv_span, 1);
-            note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], inv_span, 1);
-        } else {
-            continue;
-        }
-        s->x[i] = clamp_coord(s->x[i], lo, hi);
-        s->y[i] = clamp_coord(s->y[i], lo, hi);
-        vm = fastest(vm, s->vx[i], s->vy[i]);
+        int32_t v = w->node_of[i];
+        if (flies(wall_t, i, v)) fly(s, i, lo, hi, &m);
+        else move_event(w, &c, i, v, &m);
     }
-    th->vmax = vm;
-    w->th[tid].events += events;
+    c.th->vmax = m.vm;
+    w->th[tid].events += m.events;
+}
+
+/* The pair events the threads found this step (every thread counts them itself, so that all take
+ * the same branch on it). */
+static size_t events_found(const Work *w)
+{
+    size_t total = 0;
+    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
+    return total;
+}
+
+/* The choice and the moves of a paths step whose choice is small against its moves (choose_aside):
+ * one thread chooses alone while the others move the disks without pair events, which need no
+ * choice (the slots whose mark, found_push's, is not this step); the threads take those in chunks,
+ * the chooser too once it is done. Then, the choice made, the disks of the nodes, split over the
+ * threads. */
+static void choose_move(Work *w, int tid, int64_t step)
+{
+    Moved m = {0, 0};
+    Mover c = mover_of(w, tid);
+    Slots *s = c.s;
+    real lo = c.lo, hi = c.hi;
+    const real *wall_t = c.wall_t;
+    int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
+    const int64_t *mark = w->paired;
+#pragma omp single nowait
+    {
+        choose_alone(w);
+        phase_mark(&w->b, tid, PHASE_CHOICE);
+    }
+#pragma omp for schedule(dynamic, 1) nowait
+    for (int64_t k = 0; k < (n + chunk - 1) / chunk; k++) {
+        int64_t to = (k + 1) * chunk < n ? (k + 1) * chunk : n;
+        for (int64_t i = k * chunk; i < to; i++) {
+            if (mark[i] == step) continue;
+            if (flies(wall_t, i, -1)) fly(s, i, lo, hi, &m);
+            else move_event(w, &c, i, -1, &m);
+        }
+    }
+    phase_mark(&w->b, tid, PHASE_MOVE);
+#pragma omp barrier
+    phase_mark(&w->b, tid, PHASE_WAIT);
+    int64_t from, to;
+    range_of(w->th[0].nodes, tid, w->nt, &from, &to);
+    for (int64_t v = w->th[0].lo + from; v < w->th[0].lo + to; v++)
+        move_event(w, &c, w->node[v].slot, (int32_t)v, &m);
+    c.th->vmax = m.vm;
+    w->th[tid].events += m.events;
+    phase_mark(&w->b, tid, PHASE_MOVE);
 }
 
 /* ==== print mode: each thread formats its block of lines, the blocks are written in order ======== */
@@ -620,16 +747,35 @@ static void print_state(Work *w, int tid, int64_t step)
  * in rounds (every thread counts the events itself, so all take the same branch). */
 static void choose(Work *w, int tid)
 {
-    size_t total = 0;
-    for (int t = 0; t < w->nt; t++) total += w->b.th[t].found.len;
-    if (total <= SMALL_CHOICE) {
+    if (events_found(w) <= SMALL_CHOICE) {
 #pragma omp single
-        choose_small(w);
+        choose_alone(w);
     } else {
         build_nodes(w, tid);
         choose_events(w, tid);
 #pragma omp barrier
     }
+}
+
+/* Whether this step's choice may run on one thread while the others move (choose_move): a paths step
+ * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
+ * fits in the time the other threads take to move the disks. A pair event costs the choice about
+ * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). Below
+ * ASIDE_MIN pair events the choice is too short to hide the cost of the moves' chunks and their
+ * barrier (the assignment's sample, 1000 disks and about 24 pair events a step, ran slower so). */
+static int aside_fits(const Work *w)
+{
+    if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
+    size_t e = events_found(w);
+    return e >= ASIDE_MIN && 2.0 * (double)e * (double)(w->nt - 1) <= (double)w->p->n;
+}
+
+/* choose_move needs this step's marks, which found_push writes only where the step before fitted
+ * too (step_run): on steps with many pair events, as at 1e5 disks, they would cost stores to lines
+ * that other cores hold, for nothing. */
+static int choose_aside(const Work *w)
+{
+    return w->b.mark && aside_fits(w);
 }
 
 /* Whether the choice took the fast disk of each of this thread's trims (SlowGrid's keep) at a key
@@ -672,8 +818,14 @@ static void step_run(Work *w, int tid, int64_t step)
      * have been taken by earlier events). */
     int first = step == p->first_step * p->substeps + 1, reorder = step % REORDER_EVERY == 1 || first;
     phase_mark(&w->b, tid, PHASE_OTHER);
+    int aside = 0;
     for (;;) {
         broad_find(&w->b, tid, step, reorder);
+        if (choose_aside(w)) {
+            choose_move(w, tid, step);
+            aside = 1;
+            break;
+        }
         choose(w, tid);
         phase_mark(&w->b, tid, PHASE_CHOICE);
         if (w->b.plan.mode != MODE_MIXED || w->b.keep == 0) break;
@@ -695,10 +847,14 @@ static void step_run(Work *w, int tid, int64_t step)
     if (tid == 0) { /* read at the end of the run only */
         w->path_steps += w->b.plan.mode == MODE_PATHS;
         w->mixed_steps += w->b.plan.mode == MODE_MIXED;
+        w->aside_steps += aside;
+        /* the next step's broad phase marks its pair events where this one fitted choose_move (read
+         * after the move's barrier; a scene's count of pair events moves little from step to step) */
+        w->b.mark = aside_fits(w) ? w->paired : NULL;
     }
 
     /* the moves (3.4, 3.5) */
-    move_range(w, tid);
+    if (!aside) move_range(w, tid);
     phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier
     phase_mark(&w->b, tid, PHASE_WAIT);
@@ -711,7 +867,9 @@ static void step_run(Work *w, int tid, int64_t step)
 #pragma omp single
         io_checkpoint(w->out, w->sim, step / k);
     }
-#pragma omp single
+    /* no barrier after it: the next step's plan waits for every thread anyway, and the progress
+     * line reads nothing the others write */
+#pragma omp single nowait
     io_progress(w->out, step / k);
 }
 
@@ -794,6 +952,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
+    w.paired = sim_calloc((size_t)n, sizeof *w.paired);
+    w.b.mark = w.paired; /* the first step marks (step_run) */
 
     double t0 = 0;
 #pragma omp parallel
@@ -836,6 +996,9 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         if (ps > 0)
             fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", backend_name,
                     paths_lanes(w.b.paths));
+        if (w.path_steps > 0)
+            fprintf(stderr, "%s: the choice on one thread beside the moves in %lld of %lld steps\n",
+                    backend_name, (long long)w.aside_steps, (long long)steps);
         if (w.mixed_steps)
             fprintf(stderr,
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
@@ -852,6 +1015,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     free(w.adj);
     free(w.active);
     free(w.node_of);
+    free(w.paired);
     free(w.fin);
     free(w.fin_tmp);
     return 0;

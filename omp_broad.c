@@ -651,6 +651,8 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
         if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
     }
     phase_mark(b, tid, PHASE_PLAN);
+    th->found.mark = b->plan.mode == MODE_PATHS ? b->mark : NULL;
+    th->found.step = step;
     if (b->plan.mode == MODE_PATHS) {
         paths_find(b, tid, NULL);
     } else {

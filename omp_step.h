@@ -43,6 +43,8 @@ typedef struct {
     PairEvent *trim; /* a: a fast disk's slot; t, i, j: the smallest key of its events left out */
     size_t trim_len, trim_cap;
     uint64_t tests, visits, overlaps, trimmed; /* trimmed: the disks with a trim, all steps */
+    int64_t *mark; /* this step's Broad's mark, or NULL: where found_push marks its slots */
+    int64_t step;  /* the step being found (broad_find) */
 } Found;
 
 /* Grows *ptr to hold need items of size bytes (geometrically); sim_fail when memory runs out. */
@@ -57,11 +59,21 @@ static inline void *omp_scratch_grow(void *ptr, size_t *cap, size_t need, size_t
     return omp_grow(NULL, cap, need, size);
 }
 
+/* A pair event of disks i and j (original indices) in slots a and b, and the marks of both slots
+ * (another thread may mark either one in the same step). */
 static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a, int32_t b)
 {
     if (f->len == f->cap) f->ev = omp_grow(f->ev, &f->cap, f->len + 1, sizeof *f->ev);
     PairEvent e = {t, i, j, a, b};
     f->ev[f->len++] = e;
+    if (f->mark) {
+        int64_t *ma = &f->mark[a], *mb = &f->mark[b], step = f->step;
+        (void)step; /* gcc 12 sees no use of it in the atomic writes' right-hand sides */
+#pragma omp atomic write
+        *ma = step;
+#pragma omp atomic write
+        *mb = step;
+    }
 }
 
 static inline void found_wall(Found *f, real t, int32_t q)
@@ -258,6 +270,8 @@ typedef struct {
                        * every slot's time only where the paths or --check read it */
     int keep;         /* MODE_MIXED: SlowGrid's (the caller's; 0: all) */
     int timing;       /* 1: phase_mark adds up the phases' times (--stats) */
+    int64_t *mark;    /* by slot, the caller's (omp.c) or NULL: on paths steps found_push marks the
+                       * slots of every pair event with the step (Found's mark) */
     Plan plan;
     BroadThread *th;
     Paths *paths;     /* the broad phase of fast scenes */

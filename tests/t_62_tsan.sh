@@ -49,11 +49,13 @@ else
     tools/gen 600 --r 5 --fraction 0.3 --speed 4 --steps 6 > "$T/dense.in"
     tools/gen 300 --fraction 0.2 --speed 2 --steps 6 --mode print > "$T/print.in"
     tools/gen 1200 --fraction 2 --overlap --speed 0.5 --steps 2 > "$T/rounds.in"
+    tools/gen 3000 --assignment --L 6000 --steps 3 > "$T/aside.in" # chooses beside the moves (choose_move)
     tsan_run fast "$T/fast.in" auto
     tsan_run "fast --broad grid" "$T/fast.in" grid
     tsan_run mixed "$T/mixed.in" auto
     tsan_run "mixed --broad paths" "$T/mixed.in" paths
     tsan_run "dense --broad mixed" "$T/dense.in" mixed
+    tsan_run "the choice beside the moves" "$T/aside.in" auto
     OMP_ONLY="--keep 1" tsan_run "mixed --keep 1 (steps found again)" "$T/mixed.in" auto
     tsan_run dense "$T/dense.in" auto
     tsan_run print "$T/print.in" auto

@@ -1,7 +1,7 @@
 # omp against seq, byte for byte, on generated scenes that stress the broad phase and the choice of
 # events: slow, fast (a quarter of the box per step), dense, dilute, overlapping, and scenes of 12000
 # heavily overlapping disks that need several parallel rounds before the sequential finish, at 1, 2,
-# 3 and 7 threads. Then --check
+# 3 and 7 threads (and that fast_aside takes omp.c's choose_move, whose bytes it compares). Then --check
 # (the broad phase against all pairs, every step) on scenes of a few thousand disks.
 # The single-precision builds (seq_f32, omp_f32) go through the same scenes: their broad phase has its
 # own rounding margins, and only these comparisons show they suffice.
@@ -42,6 +42,17 @@ omp_compare random "$D/random.in" --seed 7
 SUF=_f32 omp_compare random "$D/random.in" --seed 7
 omp_compare dump17 "$D/overlap_print.in" --dump17
 OMP_THREAD_COUNTS="4 5 6 8 9 10 11 12 13 14 15 16" omp_compare rounds_threads "$D/rounds_print.in"
+
+# fast_aside's steps on 2 and 3 threads choose on one thread while the others move (omp.c's
+# choose_move): the comparison above covers that path only if the steps take it
+for t in 2 3; do
+    if ./omp "$D/fast_aside.in" --quiet --threads "$t" --stats 2>&1 > /dev/null |
+        grep -q 'beside the moves in 4 of 4 steps'; then
+        pass "omp/fast_aside: the choice beside the moves in every step at $t threads"
+    else
+        fail "omp/fast_aside: the choice beside the moves at $t threads" "--stats counts fewer steps"
+    fi
+done
 
 # --check: the broad phase must find every event all pairs find
 for args in "4000 --fraction 0.3 --speed 0.5 --steps 4" \
