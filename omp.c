@@ -761,8 +761,8 @@ static void choose(Work *w, int tid)
  * (no trims to check; wall_t holds every disk's wall event) on two or more threads, whose choice
  * fits in the time the other threads take to move the disks. A pair event costs the choice about
  * twice what moving a disk costs (--stats, one thread, the assignment's scene of 1e4 disks). Below
- * ASIDE_MIN pair events the choice is too short to hide the cost of the moves' chunks and their
- * barrier (the assignment's sample, 1000 disks and about 24 pair events a step, ran slower so). */
+ * ASIDE_MIN pair events the choice takes a few microseconds, less than the moves' chunks and their
+ * barrier cost (the assignment's sample has about 24 a step). */
 static int aside_fits(const Work *w)
 {
     if (w->nt < 2 || w->b.plan.mode != MODE_PATHS) return 0;
