@@ -1613,9 +1613,9 @@ void io_parse_args(int argc, char **argv, Options *opt)
             else if (strcmp(val, "auto") == 0) opt->broad = SIM_BROAD_AUTO;
             else sim_fail("--broad must be grid, paths, mixed or auto (found '%s')", val);
         } else if (strcmp(backend_name, "omp" SIM_SUFFIX) == 0 && strcmp(a, "--lanes") == 0) {
-            opt->lanes = (int)option_value(argc, argv, &k, 1, 8);
-            if (opt->lanes != 1 && opt->lanes != 4 && opt->lanes != 8)
-                sim_fail("--lanes must be 1, 4 or 8 (found %d)", opt->lanes);
+            opt->lanes = (int)option_value(argc, argv, &k, 1, 16);
+            if (opt->lanes != 1 && opt->lanes != 4 && opt->lanes != 8 && opt->lanes != 16)
+                sim_fail("--lanes must be 1, 4, 8 or 16 (found %d)", opt->lanes);
         } else if (strcmp(backend_name, "omp" SIM_SUFFIX) == 0 && strcmp(a, "--keep") == 0) {
             opt->keep = (int)option_value(argc, argv, &k, 0, SIM_KEEP_MOST);
         } else if (is_mpi && strcmp(a, "--balance") == 0) {

@@ -39,8 +39,8 @@ const char backend_options[] =
     "  --broad B    the broad phase: grid (cells as wide as the fastest disk's step), paths (each\n"
     "               disk's path through the cells it crosses), mixed (slow disks in a grid, the\n"
     "               paths of fast ones across it) or auto (default: the cheapest, step by step)\n"
-    "  --lanes W    pairs of visits the paths' SIMD screens take at a time: 1, 4 (SSE2) or 8\n"
-    "               (AVX2); default: the widest this processor runs\n"
+    "  --lanes W    pairs of visits the paths' SIMD screens take at a time: 1, 4 (SSE2), 8\n"
+    "               (AVX2) or 16 (AVX-512F); default: the widest this processor runs\n"
     "  --keep K     in a mixed step, keep only a fast disk's first K events with slow disks\n"
     "               (1 to 64, 0: all; default 8); a step where that would change the outcome\n"
     "               is found again keeping twice as many\n";

@@ -4,8 +4,8 @@
  *   LW            the lanes: 1, 4 or 8
  *   LN(name)      the instance's name of a function (name_4, ...)
  *   LATTR         attributes of its functions (the instruction set they may use)
- *   LV            a vector of LW floats, with LV_LOAD(p), LV_SET(x), LV_SUB, LV_MUL, LV_ADD,
- *                 LV_SQRT, LV_ABS and LV_LE(a, b): the bit mask of the lanes where a <= b
+ *   LV            a vector of LW floats, with LV_LOAD(p), LV_SET(x), LV_SUB, LV_MUL, LV_ADD and
+ *                 LV_LE(a, b): the bit mask of the lanes where a <= b
  *   LRUN(m)       how many of the low bits of mask m are set in a row
  *   LCOUNT(m)     how many bits of m are set
  * and it undefines them all at its end.
@@ -19,7 +19,7 @@
 /* Visit i as its pairs with LW others at a time need it, each value in every lane. */
 typedef struct {
     LV t0, t1, x, y, vx, vy;
-    LV s, c; /* line's bound */
+    LV s, c; /* line's bound: cr^2 <= s a + c */
 } LN(Probe);
 
 LATTR static inline void LN(probe_of)(const Paths *pp, const Visits *v, int32_t i, LN(Probe) *q)
@@ -49,16 +49,19 @@ LATTR static inline unsigned LN(enter)(const Visits *v, const LN(Probe) *q, int3
 /* The bits k of visits j + k whose disk's line of motion may come within 2 G_TEST of the probe's:
  * the distance of closest approach of two lines is |cr| / sqrt(a), cr = dx dvy - dy dvx, a = |dv|^2,
  * and in float, with positions rounded (at most u X off, X the largest coordinate) and velocity
- * components (u vm), |cr| stays within 64 u X vm of its exact value and sqrt(a) within 6 u vm: the
- * bound |cr| <= s sqrt(a) + c (plan: s = 2 G_TEST, c those terms, both rounded up) lets through every
- * pair that meets. Where coordinates or speeds are too large for float, every pair goes through. */
+ * components (u vm), |cr| stays within 64 u X vm of its exact value and sqrt(a) within 6 u vm: every
+ * pair that meets has |cr| <= s sqrt(a) + c (s = 2 G_TEST, c those terms). Squared, without the
+ * square root (whose throughput bounds a wide screen): (s sqrt(a) + c)^2 <= (1 + e) s^2 a +
+ * (1 + 1 / e) c^2 for any e > 0, as 2 s c sqrt(a) <= e s^2 a + c^2 / e. The plan holds those two
+ * factors, rounded up and widened for the rounding of this test, and where coordinates or speeds are
+ * too large for float squares, every pair goes through. */
 LATTR static inline unsigned LN(line)(const Visits *v, const LN(Probe) *q, int32_t j)
 {
     LV dx = LV_SUB(LV_LOAD(v->x + j), q->x), dy = LV_SUB(LV_LOAD(v->y + j), q->y);
     LV dvx = LV_SUB(LV_LOAD(v->vx + j), q->vx), dvy = LV_SUB(LV_LOAD(v->vy + j), q->vy);
     LV cr = LV_SUB(LV_MUL(dx, dvy), LV_MUL(dy, dvx));
     LV a = LV_ADD(LV_MUL(dvx, dvx), LV_MUL(dvy, dvy));
-    return LV_LE(LV_ABS(cr), LV_ADD(LV_MUL(q->s, LV_SQRT(a)), q->c));
+    return LV_LE(LV_MUL(cr, cr), LV_ADD(LV_MUL(q->s, a), q->c));
 }
 
 /* The survivors among the pairs (i, j + k) of mask m, through meet. */
@@ -68,9 +71,8 @@ LATTR static void LN(meet_mask)(const Paths *pp, const Visits *v, int32_t i, int
     Body A, B;
     int32_t qa = v->slot[i];
     body_of(v->s, qa, v->wall_t[qa], &A);
-    for (int k = 0; k < LW; k++) {
-        if (!(m >> k & 1)) continue;
-        int32_t qb = v->slot[j + k];
+    for (; m; m &= m - 1) { /* the set bits, lowest first */
+        int32_t qb = v->slot[j + __builtin_ctz(m)];
         body_of(v->s, qb, v->wall_t[qb], &B);
         meet(pp, &A, &B, qa, qb, cx, cy, p, mine);
     }
@@ -144,8 +146,6 @@ LATTR static void LN(cell_sweep)(const Paths *pp, const Visits *v, int32_t lo, i
 #undef LV_SUB
 #undef LV_MUL
 #undef LV_ADD
-#undef LV_SQRT
-#undef LV_ABS
 #undef LV_LE
 #undef LRUN
 #undef LCOUNT

@@ -41,9 +41,11 @@
 #endif
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
-#define LANES_AVX2 1 /* the compiler builds AVX2 functions, run where the processor has AVX2 */
+#define LANES_AVX2 1   /* the compiler builds AVX2 functions, run where the processor has AVX2 */
+#define LANES_AVX512 1 /* and AVX-512F functions, run where the processor has AVX-512F */
 #endif
 
+#define LINE_EPS 0.0625 /* e of the squared line screen (omp_lanes.h): (1 + e) s^2 a + (1 + 1/e) c^2 */
 #define T_PAD 1e-6f          /* widening of a float time interval, both ends */
 #define TILE_ENTRIES 16384.0 /* entries of a tile that fit a core's cache with room to spare */
 #define CELL_FEW 16          /* cells of more visits than this are sorted by time, not paired all */
@@ -122,7 +124,8 @@ struct Paths {
     int lanes;         /* phase B's screens: pairs at a time */
 };
 
-/* The width of phase B's screens: want (1, 4 or 8), or 0: the widest this build and processor run. */
+/* The width of phase B's screens: want (1, 4, 8 or 16), or 0: the widest this build and processor
+ * run. */
 static int lanes_of(int want)
 {
     int widest = 1;
@@ -132,9 +135,12 @@ static int lanes_of(int want)
 #ifdef LANES_AVX2
     if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt")) widest = 8;
 #endif
+#ifdef LANES_AVX512
+    if (widest == 8 && __builtin_cpu_supports("avx512f")) widest = 16;
+#endif
     if (want > widest)
         sim_fail("--lanes %d needs %s, which this processor or build lacks (at most %d here)", want,
-                 want == 8 ? "AVX2" : "SSE2", widest);
+                 want == 16 ? "AVX-512F" : want == 8 ? "AVX2" : "SSE2", widest);
     return want ? want : widest;
 }
 
@@ -191,9 +197,10 @@ static void plan_margins(const Params *p, double vm, PathsPlan *pl)
     double X = fabs((double)p->lo) > fabs((double)p->hi + pl->grow) ? fabs((double)p->lo)
                                                                      : fabs((double)p->hi + pl->grow);
     double u = 5.9604644775390625e-8; /* 2^-24, a float's unit roundoff */
-    pl->flt = X < 1e17 && vm < 1e17;
-    pl->flt_s = pl->flt ? (float)(2 * g_test * (1 + 1e-6)) : 0;
-    pl->flt_c = pl->flt ? (float)((12 * u * g_test * vm + 64 * u * X * vm) * (1 + 1e-6) + 1e-30) : 0;
+    double s = 2 * g_test, c = 12 * u * g_test * vm + 64 * u * X * vm;
+    pl->flt = X < 1e17 && vm < 1e17 && X * vm < 1e18 && g_test * vm < 1e18;
+    pl->flt_s = pl->flt ? (float)((1 + LINE_EPS) * s * s * (1 + 1e-6)) : 0;
+    pl->flt_c = pl->flt ? (float)((1 + 1 / LINE_EPS) * c * c * (1 + 1e-6) + 1e-30) : 0;
 }
 
 /* The cells (g from x0 with side h) and, for `entries` visits, the tiles: enough for dynamic
@@ -704,7 +711,7 @@ static void sort_cell(Item *it, int32_t lo, int32_t hi)
 
 /* ---- the widths of phase B's screens (omp_lanes.h) -------------------------------------------- */
 
-#define LANES_MAX 8 /* the widest screen: the spare entries past a tile's visits that it reads */
+#define LANES_MAX 16 /* the widest screen: the spare entries past a tile's visits that it reads */
 
 #define LW 1
 #define LN(name) name##_1
@@ -715,8 +722,6 @@ static void sort_cell(Item *it, int32_t lo, int32_t hi)
 #define LV_SUB(a, b) ((a) - (b))
 #define LV_MUL(a, b) ((a) * (b))
 #define LV_ADD(a, b) ((a) + (b))
-#define LV_SQRT(a) sqrtf(a)
-#define LV_ABS(a) fabsf(a)
 #define LV_LE(a, b) ((unsigned)((a) <= (b)))
 #define LRUN(m) (m)
 #define LCOUNT(m) (m)
@@ -735,8 +740,6 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #define LV_SUB(a, b) _mm_sub_ps(a, b)
 #define LV_MUL(a, b) _mm_mul_ps(a, b)
 #define LV_ADD(a, b) _mm_add_ps(a, b)
-#define LV_SQRT(a) _mm_sqrt_ps(a)
-#define LV_ABS(a) _mm_andnot_ps(_mm_set1_ps(-0.0f), a)
 #define LV_LE(a, b) ((unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b)))
 #define LRUN(m) low_ones[m]
 #define LCOUNT(m) bits_count[m]
@@ -753,9 +756,23 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #define LV_SUB(a, b) _mm256_sub_ps(a, b)
 #define LV_MUL(a, b) _mm256_mul_ps(a, b)
 #define LV_ADD(a, b) _mm256_add_ps(a, b)
-#define LV_SQRT(a) _mm256_sqrt_ps(a)
-#define LV_ABS(a) _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a)
 #define LV_LE(a, b) ((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)))
+#define LRUN(m) ((unsigned)__builtin_ctz(~(m)))
+#define LCOUNT(m) ((unsigned)__builtin_popcount(m))
+#include "omp_lanes.h"
+#endif
+
+#ifdef LANES_AVX512
+#define LW 16
+#define LN(name) name##_16
+#define LATTR __attribute__((target("avx512f,popcnt")))
+#define LV __m512
+#define LV_LOAD(p) _mm512_loadu_ps(p)
+#define LV_SET(x) _mm512_set1_ps(x)
+#define LV_SUB(a, b) _mm512_sub_ps(a, b)
+#define LV_MUL(a, b) _mm512_mul_ps(a, b)
+#define LV_ADD(a, b) _mm512_add_ps(a, b)
+#define LV_LE(a, b) ((unsigned)_mm512_cmp_ps_mask(a, b, _CMP_LE_OQ))
 #define LRUN(m) ((unsigned)__builtin_ctz(~(m)))
 #define LCOUNT(m) ((unsigned)__builtin_popcount(m))
 #include "omp_lanes.h"
@@ -767,6 +784,13 @@ static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
                        int64_t cy, const Params *p, Found *mine)
 {
     int sweep = cell_swept(lo, hi);
+#ifdef LANES_AVX512
+    if (pp->lanes == 16) {
+        if (sweep) cell_sweep_16(pp, v, lo, hi, cx, cy, p, mine);
+        else cell_pairs_16(pp, v, lo, hi, cx, cy, p, mine);
+        return;
+    }
+#endif
 #ifdef LANES_AVX2
     if (pp->lanes == 8) {
         if (sweep) cell_sweep_8(pp, v, lo, hi, cx, cy, p, mine);

@@ -156,7 +156,7 @@ typedef struct {
     double grow;     /* G: how far the cells are grown for the paths */
     double reach2;   /* (2 G_TEST)^2: meet's filter */
     int flt;         /* 1: the screens test the lines in float (the coordinates and speeds allow) */
-    float flt_s, flt_c; /* its bound |cr| <= flt_s sqrt(a) + flt_c */
+    float flt_s, flt_c; /* its bound cr^2 <= flt_s a + flt_c (omp_lanes.h's line) */
     int64_t tc, gt, tiles; /* tile side in cells, tiles per side, tiles */
     int32_t bins;    /* bins of entry time per cell in phase B's counting sort: a power of 2 */
 } PathsPlan;
