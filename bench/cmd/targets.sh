@@ -144,10 +144,14 @@ random() {
         measure "$name" omp "$t" "$n" "$steps" "$in"
         [ "$with_seq" = 1 ] && same_output "$WORK/$name.ref"
         eval "${name}_$t=\$BEST_WALL ${name}_loop_$t=\$BEST_LOOP"
-        # the paths' screens 4 pairs at a time (SSE2) beside the default (8 where the processor has AVX2)
-        measure "${name}_lanes4" omp "$t" "$n" "$steps" "$in" --lanes 4
+        # the paths' screens one width narrower than the default: 8 pairs at a time (AVX2) where the
+        # default is 16 (AVX-512F), else 4 (SSE2) beside 8
+        measure "${name}_lanes$NARROW" omp "$t" "$n" "$steps" "$in" --lanes "$NARROW"
     done
 }
+
+printf '2\n10\n1\n1\nperf\n' > "$WORK/lanes.in"
+if ./omp "$WORK/lanes.in" --quiet --lanes 16 > /dev/null 2>&1; then NARROW=8; else NARROW=4; fi
 
 for c in $CASES; do
     case $c in
