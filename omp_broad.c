@@ -16,6 +16,9 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define SCAN_WIDTH 4 /* boxes one group of the scan tests at once */
 
@@ -26,7 +29,7 @@
 #define COST_CELL 0.3
 #define COST_BOX 0.25
 
-static const Box empty_box = {INFINITY, -INFINITY, INFINITY, -INFINITY}; /* overlaps nothing */
+static const Box empty_box = {-INFINITY, -INFINITY, -INFINITY, -INFINITY}; /* overlaps nothing */
 
 /* The box swept by one disk over the step, grown by the radius and the rounding margin. */
 typedef struct {
@@ -296,10 +299,8 @@ static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
 
 static inline void span_box(const Span *a, const Plan *pl, Box *b)
 {
-    b->xlo = (float)(((double)a->xlo - pl->x0) * pl->inv_h);
-    b->xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
-    b->ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h);
-    b->yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
+    *b = box_of((float)(((double)a->xlo - pl->x0) * pl->inv_h), (float)(((double)a->xhi - pl->x0) * pl->inv_h),
+                (float)(((double)a->ylo - pl->y0) * pl->inv_h), (float)(((double)a->yhi - pl->y0) * pl->inv_h));
 }
 
 static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
@@ -482,15 +483,26 @@ static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, uns
 /* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
  * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
  * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
- * entries) and masks them off. */
+ * entries) and masks them off. With SSE2 each box is one comparison of four lanes (Box). */
 static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
 {
     const Box *bx = w->boxes, *ba = &w->boxes[a];
+#ifdef __SSE2__
+    __m128 v = _mm_loadu_ps(&ba->xhi);
+    __m128 probe = _mm_xor_ps(_mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1)), _mm_set1_ps(-0.0f));
+#endif
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
+#ifdef __SSE2__
+        unsigned m = (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b].xhi))) == 15) |
+                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 1].xhi))) == 15) << 1 |
+                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 2].xhi))) == 15) << 2 |
+                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 3].xhi))) == 15) << 3;
+#else
         unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
                      (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
                      (unsigned)boxes_overlap(ba, &bx[b + 2]) << 2 |
                      (unsigned)boxes_overlap(ba, &bx[b + 3]) << 3;
+#endif
         int32_t rest = b1 - b;
         m &= rest < SCAN_WIDTH ? (1u << rest) - 1 : (1u << SCAN_WIDTH) - 1;
         if (m) scan_hits(w, th, a, b, m);

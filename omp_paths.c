@@ -539,7 +539,7 @@ static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s
         int64_t m1 = (int64_t)(m1d > 0 ? (m1d < gl ? m1d : gl) : 0);
         float bil = (float)((il - Gf - x0) * k), bih = (float)((ih + Gf - x0) * k);
         float bol = (float)((ol - Gf - x0) * k), boh = (float)((oh + Gf - x0) * k);
-        Box vb = {o ? bil : bol, o ? bih : boh, o ? bol : bil, o ? boh : bih};
+        Box vb = box_of(o ? bil : bol, o ? bih : boh, o ? bol : bil, o ? boh : bih);
         /* along a row the run's boxes lie together; along a column, cell by cell */
         int64_t runs = o ? 1 : m1 - m0 + 1, len = o ? m1 - m0 + 1 : 1;
         for (int64_t u = 0; u < runs; u++) {

@@ -113,14 +113,22 @@ static inline int before_walls(real t, real wa, real wb)
 
 /* A disk's swept box in cell units of the grid ((c - x0) / h, rounded to float: spans that overlap
  * still overlap as Boxes, since subtracting, scaling by a positive factor and rounding never reverse
- * the order of two coordinates). An empty box (+inf, -inf) overlaps nothing. */
+ * the order of two coordinates), stored as (xhi, -xlo, yhi, -ylo): box a overlaps box b where each
+ * of the four lanes of (-a.nxlo, -a.xhi, -a.nylo, -a.yhi) is at most b's, one SIMD comparison
+ * (negation is exact). An empty box (xlo = ylo = +inf, xhi = yhi = -inf) overlaps nothing. */
 typedef struct {
-    float xlo, xhi, ylo, yhi;
+    float xhi, nxlo, yhi, nylo;
 } Box;
+
+static inline Box box_of(float xlo, float xhi, float ylo, float yhi)
+{
+    Box b = {xhi, -xlo, yhi, -ylo};
+    return b;
+}
 
 static inline int boxes_overlap(const Box *a, const Box *b)
 {
-    return (a->xlo <= b->xhi) & (b->xlo <= a->xhi) & (a->ylo <= b->yhi) & (b->ylo <= a->yhi);
+    return (-a->nxlo <= b->xhi) & (-a->xhi <= b->nxlo) & (-a->nylo <= b->yhi) & (-a->yhi <= b->nylo);
 }
 
 /* The slow disks of a mixed step, binned by the centres of their boxes into g x g square cells of
