@@ -112,6 +112,13 @@ typedef struct {
     char pad[64];
 } Scratch;
 
+typedef struct Visits Visits;
+
+/* Phase B's screens of one cell's visits [lo, hi), at one width (omp_lanes.h). */
+typedef void CellFn(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx, int64_t cy,
+                    const Params *p, Found *mine);
+static void cell_screens(int lanes, CellFn **few, CellFn **many);
+
 struct Paths {
     PathsPlan pl;      /* this step's */
     int32_t *tile_of;  /* g: tile coordinate of a cell coordinate */
@@ -122,6 +129,7 @@ struct Paths {
     int nt_max;
     Scratch *sc;       /* nt_max */
     int lanes;         /* phase B's screens: pairs at a time */
+    CellFn *few, *many; /* and their functions (cell_screens) */
 };
 
 /* The width of phase B's screens: want (1, 4, 8 or 16), or 0: the widest this build and processor
@@ -149,6 +157,7 @@ Paths *paths_new(int nt_max, int lanes)
     Paths *pp = sim_calloc(1, sizeof *pp);
     pp->nt_max = nt_max;
     pp->lanes = lanes_of(lanes);
+    cell_screens(pp->lanes, &pp->few, &pp->many);
     pp->sc = sim_calloc_lines((size_t)nt_max, sizeof *pp->sc);
     return pp;
 }
@@ -629,12 +638,12 @@ void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const S
 
 /* A tile's visits in cell order (Scratch), as the pairing reads them, and where the survivors of its
  * screens find their disks in full. */
-typedef struct {
+struct Visits {
     const float *t0, *t1, *x, *y, *vx, *vy;
     const int32_t *slot;
     const Slots *s;
     const real *wall_t;
-} Visits;
+};
 
 /* A pair that passed the filter: its time of closest approach within [0, tm] and the cell of its
  * midpoint then, and in that cell alone the exact test with the lower original index first. */
@@ -778,35 +787,38 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #include "omp_lanes.h"
 #endif
 
+/* The screens of phase B at `lanes` pairs at a time: *few for a cell's visits paired all, *many for
+ * those sorted and swept (cell_swept). */
+static void cell_screens(int lanes, CellFn **few, CellFn **many)
+{
+    *few = cell_pairs_1;
+    *many = cell_sweep_1;
+#ifdef __SSE2__
+    if (lanes == 4) {
+        *few = cell_pairs_4;
+        *many = cell_sweep_4;
+    }
+#endif
+#ifdef LANES_AVX2
+    if (lanes == 8) {
+        *few = cell_pairs_8;
+        *many = cell_sweep_8;
+    }
+#endif
+#ifdef LANES_AVX512
+    if (lanes == 16) {
+        *few = cell_pairs_16;
+        *many = cell_sweep_16;
+    }
+#endif
+}
+
 /* The pairs of the visits [lo, hi) of cell (cx, cy): few, each against every later one; many (sorted
  * first), each against the run of later ones that enter before it leaves; at the plan's width. */
 static void cell_pairs(const Paths *pp, const Visits *v, int32_t lo, int32_t hi, int64_t cx,
                        int64_t cy, const Params *p, Found *mine)
 {
-    int sweep = cell_swept(lo, hi);
-#ifdef LANES_AVX512
-    if (pp->lanes == 16) {
-        if (sweep) cell_sweep_16(pp, v, lo, hi, cx, cy, p, mine);
-        else cell_pairs_16(pp, v, lo, hi, cx, cy, p, mine);
-        return;
-    }
-#endif
-#ifdef LANES_AVX2
-    if (pp->lanes == 8) {
-        if (sweep) cell_sweep_8(pp, v, lo, hi, cx, cy, p, mine);
-        else cell_pairs_8(pp, v, lo, hi, cx, cy, p, mine);
-        return;
-    }
-#endif
-#ifdef __SSE2__
-    if (pp->lanes == 4) {
-        if (sweep) cell_sweep_4(pp, v, lo, hi, cx, cy, p, mine);
-        else cell_pairs_4(pp, v, lo, hi, cx, cy, p, mine);
-        return;
-    }
-#endif
-    if (sweep) cell_sweep_1(pp, v, lo, hi, cx, cy, p, mine);
-    else cell_pairs_1(pp, v, lo, hi, cx, cy, p, mine);
+    (cell_swept(lo, hi) ? pp->many : pp->few)(pp, v, lo, hi, cx, cy, p, mine);
 }
 
 static void scratch_grow(Scratch *sc, size_t need)
