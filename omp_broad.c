@@ -299,8 +299,9 @@ static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
 
 static inline void span_box(const Span *a, const Plan *pl, Box *b)
 {
-    *b = box_of((float)(((double)a->xlo - pl->x0) * pl->inv_h), (float)(((double)a->xhi - pl->x0) * pl->inv_h),
-                (float)(((double)a->ylo - pl->y0) * pl->inv_h), (float)(((double)a->yhi - pl->y0) * pl->inv_h));
+    float xlo = (float)(((double)a->xlo - pl->x0) * pl->inv_h), xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
+    float ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h), yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
+    *b = box_of(xlo, xhi, ylo, yhi);
 }
 
 static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)
@@ -480,6 +481,14 @@ static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, uns
         if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
 }
 
+#ifdef __SSE2__
+/* Whether box b overlaps the box whose probe (Box) is p: all four lanes at most b's. */
+static inline unsigned box_hit(__m128 p, const Box *b)
+{
+    return (unsigned)(_mm_movemask_ps(_mm_cmple_ps(p, _mm_loadu_ps(&b->xhi))) == 15);
+}
+#endif
+
 /* Tests box a against the boxes [b0, b1) in groups of SCAN_WIDTH, each group's overlaps a mask without
  * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
  * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
@@ -493,10 +502,8 @@ static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_
 #endif
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
 #ifdef __SSE2__
-        unsigned m = (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b].xhi))) == 15) |
-                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 1].xhi))) == 15) << 1 |
-                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 2].xhi))) == 15) << 2 |
-                     (unsigned)(_mm_movemask_ps(_mm_cmple_ps(probe, _mm_loadu_ps(&bx[b + 3].xhi))) == 15) << 3;
+        unsigned m = box_hit(probe, &bx[b]) | box_hit(probe, &bx[b + 1]) << 1 |
+                     box_hit(probe, &bx[b + 2]) << 2 | box_hit(probe, &bx[b + 3]) << 3;
 #else
         unsigned m = (unsigned)boxes_overlap(ba, &bx[b]) |
                      (unsigned)boxes_overlap(ba, &bx[b + 1]) << 1 |
