@@ -110,7 +110,8 @@ typedef struct {
     TextJob text;     /* print mode: the state being formatted and written */
     int nt;           /* threads in the parallel region */
     Thread *th;
-    int64_t *ends;    /* nt x nt: ends each thread sends to each owner, then where they go */
+    int64_t *ends;    /* nt rows of nt: ends each thread sends to each owner, then where they go; */
+    size_t ends_stride; /* each row on cache lines of its own (threads count into their rows) */
     int owners;       /* threads that own the slots in this step's choice: nt, or 1 (choose_alone) */
     int64_t *bound;   /* nt + 1: where each thread's range of slots starts (range_of), and n */
     double owner_scale; /* nt / n */
@@ -202,7 +203,7 @@ static inline int owner_of(const Work *w, int64_t q)
 static void ends_count(Work *w, int t, int nown)
 {
     const Found *f = &w->b.th[t].found;
-    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    int64_t *row = w->ends + (size_t)t * w->ends_stride;
     size_t walls = walls_in_nodes(w) ? f->wall_len : 0;
     for (int u = 0; u < nown; u++) row[u] = 0;
     if (nown == 1) {
@@ -228,8 +229,8 @@ static void ends_scan(Work *w, int nown)
     for (int u = 0; u < nt; u++) {
         w->th[u].lo = acc;
         for (int t = 0; t < nt && u < nown; t++) {
-            int64_t v = w->ends[(size_t)t * (size_t)nt + (size_t)u];
-            w->ends[(size_t)t * (size_t)nt + (size_t)u] = acc;
+            int64_t v = w->ends[(size_t)t * w->ends_stride + (size_t)u];
+            w->ends[(size_t)t * w->ends_stride + (size_t)u] = acc;
             acc += v;
         }
         w->th[u].hi = acc;
@@ -248,7 +249,7 @@ static void ends_scan(Work *w, int nown)
 static void ends_scatter(Work *w, int t)
 {
     const Found *f = &w->b.th[t].found;
-    int64_t *row = w->ends + (size_t)t * (size_t)w->nt;
+    int64_t *row = w->ends + (size_t)t * w->ends_stride;
     size_t walls = walls_in_nodes(w) ? f->wall_len : 0;
     for (size_t k = 0; k < f->len; k++) {
         End x[2];
@@ -949,7 +950,8 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     w.b.timing = opt->stats;
     w.b.keep = opt->keep < 0 ? KEEP_FIRST : opt->keep;
     w.th = sim_calloc_lines((size_t)nt_max, sizeof *w.th);
-    w.ends = sim_calloc((size_t)nt_max * (size_t)nt_max, sizeof *w.ends);
+    w.ends_stride = ((size_t)nt_max + 7) / 8 * 8; /* 8 counts a cache line */
+    w.ends = sim_calloc_lines((size_t)nt_max * w.ends_stride, sizeof *w.ends);
     w.bound = sim_calloc((size_t)nt_max + 1, sizeof *w.bound);
     w.node_of = sim_calloc((size_t)n, sizeof *w.node_of);
     w.paired = sim_calloc((size_t)n, sizeof *w.paired);
