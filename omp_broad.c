@@ -297,11 +297,16 @@ static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
     b->yhi = (ya > yb ? ya : yb) + grow;
 }
 
+/* A coordinate in the grid's cell units from origin, rounded to float. */
+static inline float grid_units(real c, double origin, double inv_h)
+{
+    return (float)(((double)c - origin) * inv_h);
+}
+
 static inline void span_box(const Span *a, const Plan *pl, Box *b)
 {
-    float xlo = (float)(((double)a->xlo - pl->x0) * pl->inv_h), xhi = (float)(((double)a->xhi - pl->x0) * pl->inv_h);
-    float ylo = (float)(((double)a->ylo - pl->y0) * pl->inv_h), yhi = (float)(((double)a->yhi - pl->y0) * pl->inv_h);
-    *b = box_of(xlo, xhi, ylo, yhi);
+    *b = box_of(grid_units(a->xlo, pl->x0, pl->inv_h), grid_units(a->xhi, pl->x0, pl->inv_h),
+                grid_units(a->ylo, pl->y0, pl->inv_h), grid_units(a->yhi, pl->y0, pl->inv_h));
 }
 
 static inline int64_t cell_coord(double lo, double hi, double origin, double inv_h, int64_t g)

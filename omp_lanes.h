@@ -1,7 +1,7 @@
 /* omp_lanes.h: phase B's screens of a cell's pairs of visits, LW pairs at a time. omp_paths.c
- * includes it once for each width it builds (1: plain C; 4: SSE2; 8: AVX2, chosen at run time
- * where the processor has it), after defining:
- *   LW            the lanes: 1, 4 or 8
+ * includes it once for each width it builds (1: plain C; 4: SSE2; 8: AVX2 and 16: AVX-512F, chosen
+ * at run time where the processor has them), after defining:
+ *   LW            the lanes: 1, 4, 8 or 16
  *   LN(name)      the instance's name of a function (name_4, ...)
  *   LATTR         attributes of its functions (the instruction set they may use)
  *   LV            a vector of LW floats, with LV_LOAD(p), LV_SET(x), LV_SUB, LV_MUL, LV_ADD and
