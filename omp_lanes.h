@@ -108,23 +108,48 @@ LATTR static void LN(cell_pairs)(const Paths *pp, const Visits *v, int32_t lo, i
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy), many, sorted by entry time: visit i overlaps
  * exactly the run of later visits that enter before it leaves, taken LW at a time; line screens
- * them where flt (a constant where inlined). */
+ * them where flt (a constant where inlined). Two visits, i and i + 1, go through the later ones
+ * together: each block of LW is loaded once for both, and the loop ends (which a processor
+ * mispredicts) once for both, when both runs have ended. Visit i + 1's own lane, the first of the
+ * first block, counts as entering (its run goes on past it) but is never paired. */
 LATTR static inline void LN(sweep_of)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
                                       int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
 {
     uint64_t overlaps = 0;
-    LN(Probe) q;
-    for (int32_t i = lo; i + 1 < hi; i++) {
-        LN(probe_of)(pp, v, i, &q);
+    LN(Probe) a, b;
+    int32_t i = lo;
+    for (; i + 2 < hi; i += 2) {
+        LN(probe_of)(pp, v, i, &a);
+        LN(probe_of)(pp, v, i + 1, &b);
+        unsigned live_a = 1, live_b = 1, own = 1; /* own: visit i + 1's lane in this block */
         for (int32_t j = i + 1; j < hi; j += LW) {
-            unsigned e = LN(enter)(v, &q, j);
-            if (hi - j < LW) e &= LFIRST(hi - j);
-            unsigned run = LRUN(e);
-            unsigned m = flt ? LFIRST(run) & LN(line)(v, &q, j) : LFIRST(run);
-            overlaps += run;
-            if (m) LN(meet_mask)(pp, v, i, j, m, cx, cy, p, mine);
-            if (run < LW) break;
+            unsigned ea = LN(enter)(v, &a, j), eb = LN(enter)(v, &b, j) | own;
+            if (hi - j < LW) {
+                ea &= LFIRST(hi - j);
+                eb &= LFIRST(hi - j);
+            }
+            unsigned run_a = live_a ? LRUN(ea) : 0, run_b = live_b ? LRUN(eb) : 0;
+            unsigned ma = LFIRST(run_a), mb = LFIRST(run_b) & ~own;
+            if (flt) {
+                ma &= LN(line)(v, &a, j);
+                mb &= LN(line)(v, &b, j);
+            }
+            overlaps += run_a + run_b - (own & live_b);
+            if (ma) LN(meet_mask)(pp, v, i, j, ma, cx, cy, p, mine);
+            if (mb) LN(meet_mask)(pp, v, i + 1, j, mb, cx, cy, p, mine);
+            live_a &= run_a == LW;
+            live_b &= run_b == LW;
+            own = 0;
+            if (!(live_a | live_b)) break;
         }
+    }
+    if (i + 1 < hi) { /* the last two visits: one pair */
+        LN(Probe) q;
+        LN(probe_of)(pp, v, i, &q);
+        unsigned run = LN(enter)(v, &q, i + 1) & 1u;
+        unsigned m = flt ? run & LN(line)(v, &q, i + 1) : run;
+        overlaps += run;
+        if (m) LN(meet_mask)(pp, v, i, i + 1, m, cx, cy, p, mine);
     }
     mine->overlaps += overlaps;
 }
