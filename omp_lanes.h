@@ -8,6 +8,8 @@
  *                 LV_LE(a, b): the bit mask of the lanes where a <= b
  *   LRUN(m)       how many of the low bits of mask m are set in a row
  *   LCOUNT(m)     how many bits of m are set
+ *   LPROBES       the visits a sweep takes through the later ones at a time: 1, or 2 where the
+ *                 vector registers hold two probes
  * and it undefines them all at its end.
  * The widths screen the same pairs with the same float operations, so they pass the same ones: the
  * width changes how fast, never what is found. No branch per pair, whose outcome would be a coin
@@ -108,12 +110,35 @@ LATTR static void LN(cell_pairs)(const Paths *pp, const Visits *v, int32_t lo, i
 
 /* The pairs of the visits [lo, hi) of cell (cx, cy), many, sorted by entry time: visit i overlaps
  * exactly the run of later visits that enter before it leaves, taken LW at a time; line screens
- * them where flt (a constant where inlined). Two visits, i and i + 1, go through the later ones
- * together: each block of LW is loaded once for both, and the loop ends (which a processor
- * mispredicts) once for both, when both runs have ended. Visit i + 1's own lane, the first of the
- * first block, counts as entering (its run goes on past it) but is never paired. */
+ * them where flt (a constant where inlined). */
 LATTR static inline void LN(sweep_of)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
                                       int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
+{
+    uint64_t overlaps = 0;
+    LN(Probe) q;
+    for (int32_t i = lo; i + 1 < hi; i++) {
+        LN(probe_of)(pp, v, i, &q);
+        for (int32_t j = i + 1; j < hi; j += LW) {
+            unsigned e = LN(enter)(v, &q, j);
+            if (hi - j < LW) e &= LFIRST(hi - j);
+            unsigned run = LRUN(e);
+            unsigned m = flt ? LFIRST(run) & LN(line)(v, &q, j) : LFIRST(run);
+            overlaps += run;
+            if (m) LN(meet_mask)(pp, v, i, j, m, cx, cy, p, mine);
+            if (run < LW) break;
+        }
+    }
+    mine->overlaps += overlaps;
+}
+
+#if LPROBES == 2
+/* sweep_of two visits at a time, where the vector registers hold two probes (AVX-512F's 32; with
+ * AVX2's 16 they spill, and the sweep ran slower than one visit at a time). Visits i and i + 1 go
+ * through the later ones together: each block of LW is loaded once for both, and the loop ends
+ * (which a processor mispredicts) once for both, when both runs have ended. Visit i + 1's own lane,
+ * the first of the first block, counts as entering (its run goes on past it) but is never paired. */
+LATTR static inline void LN(sweep2_of)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
+                                       int64_t cx, int64_t cy, const Params *p, Found *mine, int flt)
 {
     uint64_t overlaps = 0;
     LN(Probe) a, b;
@@ -153,12 +178,18 @@ LATTR static inline void LN(sweep_of)(const Paths *pp, const Visits *v, int32_t 
     }
     mine->overlaps += overlaps;
 }
+#endif
 
 LATTR static void LN(cell_sweep)(const Paths *pp, const Visits *v, int32_t lo, int32_t hi,
                                  int64_t cx, int64_t cy, const Params *p, Found *mine)
 {
+#if LPROBES == 2
+    if (pp->pl.flt) LN(sweep2_of)(pp, v, lo, hi, cx, cy, p, mine, 1);
+    else LN(sweep2_of)(pp, v, lo, hi, cx, cy, p, mine, 0);
+#else
     if (pp->pl.flt) LN(sweep_of)(pp, v, lo, hi, cx, cy, p, mine, 1);
     else LN(sweep_of)(pp, v, lo, hi, cx, cy, p, mine, 0);
+#endif
 }
 
 #undef LFIRST
@@ -174,3 +205,4 @@ LATTR static void LN(cell_sweep)(const Paths *pp, const Visits *v, int32_t lo, i
 #undef LV_LE
 #undef LRUN
 #undef LCOUNT
+#undef LPROBES

@@ -734,6 +734,7 @@ static void sort_cell(Item *it, int32_t lo, int32_t hi)
 #define LV_LE(a, b) ((unsigned)((a) <= (b)))
 #define LRUN(m) (m)
 #define LCOUNT(m) (m)
+#define LPROBES 1
 #include "omp_lanes.h"
 
 #ifdef __SSE2__
@@ -752,6 +753,7 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #define LV_LE(a, b) ((unsigned)_mm_movemask_ps(_mm_cmple_ps(a, b)))
 #define LRUN(m) low_ones[m]
 #define LCOUNT(m) bits_count[m]
+#define LPROBES 1
 #include "omp_lanes.h"
 #endif
 
@@ -768,6 +770,7 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #define LV_LE(a, b) ((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)))
 #define LRUN(m) ((unsigned)__builtin_ctz(~(m)))
 #define LCOUNT(m) ((unsigned)__builtin_popcount(m))
+#define LPROBES 1
 #include "omp_lanes.h"
 #endif
 
@@ -784,6 +787,7 @@ static const unsigned char bits_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3,
 #define LV_LE(a, b) ((unsigned)_mm512_cmp_ps_mask(a, b, _CMP_LE_OQ))
 #define LRUN(m) ((unsigned)__builtin_ctz(~(m)))
 #define LCOUNT(m) ((unsigned)__builtin_popcount(m))
+#define LPROBES 2
 #include "omp_lanes.h"
 #endif
 
