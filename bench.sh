@@ -16,6 +16,8 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
   targets     omp on the scenes of its targets (the assignment's random scene, mixed, dense, gases),
               one line per target with the measured ratio or rate (BASE_REV=REV, or BASE_DIR=DIR
               of an earlier tree's sources: that omp too, each run right after this tree's)
+  phases      omp's step loop phase by phase (--stats), medians of REPEATS runs; BASE_REV or
+              BASE_DIR: that tree's omp too, each run right after this tree's
   io          the text path: reading, parsing, formatting and writing, whole process (MB/s);
               `io gpu` adds cuda on gases of 1e7 and 1e8 disks
   exact       --exact against the default step, seq and omp, on dense gases
@@ -50,7 +52,7 @@ while [ $# -gt 0 ]; do
         -h | --help)
             if [ $given = 0 ]; then usage; exit 0; fi
             args+=("$1"); shift ;;
-        sweep | targets | io | exact | mpi | accuracy | gpu-sweep | variants | viewer | plots | gpu-*)
+        sweep | targets | phases | io | exact | mpi | accuracy | gpu-sweep | variants | viewer | plots | gpu-*)
             if [ $given = 0 ] && [ ${#args[@]} -eq 0 ]; then cmd=$1 given=1; else args+=("$1"); fi
             shift ;;
         *) args+=("$1"); shift ;;
@@ -70,7 +72,7 @@ if [ "${1:-}" = --help ] && [ "$cmd" != sweep ] && [ "$cmd" != accuracy ]; then
     exit 0
 fi
 case $cmd in
-    sweep | targets | io | exact | mpi | accuracy | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
+    sweep | targets | phases | io | exact | mpi | accuracy | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
     gpu-sweep) exec bash bench/cmd/gpu_sweep.sh "$@" ;;
     gpu-check | gpu-memcheck | gpu-perf | gpu-host | gpu-big | gpu-profile | gpu-kernels | gpu-targets | gpu-all)
         exec bash bench/cmd/gpu.sh "${cmd#gpu-}" "$@" ;;

@@ -101,3 +101,30 @@ elif grep -q "holds no omp.c" "$TMP/bad_dir.err"; then
 else
     fail "bench.sh targets BASE_DIR without omp.c" "$(head -c 200 "$TMP/bad_dir.err")"
 fi
+
+# phases: medians of each phase, this tree's omp and the base's in turn; every row's phases add up to
+# its loop within rounding (medians of sums and sums of medians differ by a little), and the same bytes
+printf '1000\n20000\n1\n100\nperf\n' > "$TMP/phases.in"
+if BASE_DIR="$TMP/base_dir" INPUTS="$TMP/phases.in" THREADS="1 2" REPEATS=3 WORK="$TMP/phases" \
+    ./bench.sh phases > "$TMP/phases.log" 2>&1; then
+    phases_problem=$(awk -F, '
+        /^#/ { next }
+        !header { header = $0; if ($0 != "input,program,threads,plan,binning,pairs,choice,move,waiting,output_and_final_order,all") { print "unexpected header: " $0; exit }; next }
+        NF != 11 { print "line " NR " has " NF " fields"; exit }
+        {
+            sum = 0
+            for (k = 4; k <= 11; k++) if ($k !~ /^[0-9.]+$/) { print "line " NR " field " k " not a number: " $k; exit }
+            for (k = 4; k <= 10; k++) sum += $k
+            if (!($11 > 0) || sum < 0.5 * $11 || sum > 1.5 * $11) { print "line " NR ": phases add up to " sum " of " $11; exit }
+            rows[$2 "," $3]++
+        }
+        END { if (rows["omp,1"] != 1 || rows["omp_base,1"] != 1 || rows["omp,2"] != 1 || rows["omp_base,2"] != 1) print "not one row of each build and thread count" }
+    ' "$TMP/phases.log")
+    if [ -z "$phases_problem" ]; then
+        pass "bench.sh phases: a row of each build and thread count, phases adding up to the loop"
+    else
+        fail "bench.sh phases" "$phases_problem"
+    fi
+else
+    fail "bench.sh phases" "exit status non-zero: $(tail -n 2 "$TMP/phases.log")"
+fi

@@ -60,3 +60,25 @@ machine_provenance() {
             "nvcc: $(nvcc --version 2>/dev/null | tail -n 1)"
     fi
 }
+
+# base_omp WORK: with BASE_REV (a revision) or BASE_DIR (a folder of an earlier tree's sources, where
+# there is no git), that tree's omp built in WORK/base; sets BASE_OMP to it (empty without either) and
+# BASE_NAME, and prints the header line naming it.
+base_omp() {
+    BASE_OMP="" BASE_NAME=""
+    [ -n "${BASE_REV:-}" ] || [ -n "${BASE_DIR:-}" ] || return 0
+    local dir=$1/base
+    rm -rf "$dir" && mkdir -p "$dir"
+    if [ -n "${BASE_REV:-}" ]; then
+        git archive "$BASE_REV" | tar -x -C "$dir" || die "no revision $BASE_REV"
+        BASE_NAME="$BASE_REV ($(git rev-parse --short "$BASE_REV"))"
+    else
+        [ -f "$BASE_DIR/omp.c" ] || die "BASE_DIR=$BASE_DIR holds no omp.c"
+        cp -r "$BASE_DIR"/. "$dir"
+        rm -f "$dir"/omp "$dir"/*.o
+        BASE_NAME=$BASE_DIR
+    fi
+    make -s -C "$dir" omp > /dev/null || die "the base's omp did not build"
+    BASE_OMP=$dir/omp
+    echo "# base: $BASE_NAME, its omp timed in turn with this tree's (rows omp_base)"
+}

@@ -29,23 +29,7 @@ BASE_DIR=${BASE_DIR:-}
 make -s seq omp tools/gen >/dev/null
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
-BASE_OMP=""
-if [ -n "$BASE_REV" ] || [ -n "$BASE_DIR" ]; then
-    base_dir=$WORK/base
-    rm -rf "$base_dir" && mkdir -p "$base_dir"
-    if [ -n "$BASE_REV" ]; then
-        git archive "$BASE_REV" | tar -x -C "$base_dir" || die "no revision $BASE_REV"
-        base_name="$BASE_REV ($(git rev-parse --short "$BASE_REV"))"
-    else
-        [ -f "$BASE_DIR/omp.c" ] || die "BASE_DIR=$BASE_DIR holds no omp.c"
-        cp -r "$BASE_DIR"/. "$base_dir"
-        rm -f "$base_dir"/omp "$base_dir"/*.o
-        base_name=$BASE_DIR
-    fi
-    make -s -C "$base_dir" omp > /dev/null || die "the base's omp did not build"
-    BASE_OMP=$base_dir/omp
-    echo "# base: $base_name, its omp timed in turn with this tree's (rows omp_base)"
-fi
+base_omp "$WORK"
 echo "# OMP_PROC_BIND=${OMP_PROC_BIND:-unset} OMP_PLACES=${OMP_PLACES:-unset} REPEATS=$REPEATS"
 echo "case,program,threads,n,steps,best_wall_s,median_wall_s,best_loop_s,median_loop_s,wall_particle_steps_per_s,loop_particle_steps_per_s,pair_tests"
 
@@ -116,7 +100,7 @@ measure() {
     if [ "$base" = 1 ]; then
         row "$name" omp_base "$threads" "$n" "$steps" "$bwalls" "$bloops"
         sed -n "s/^omp: the step loop's phases, /# the base's last run's phases, /p" "$WORK/base.err"
-        cmp -s "$WORK/last.out" "$WORK/base.out" || die "the base's omp ($base_name) printed other bytes"
+        cmp -s "$WORK/last.out" "$WORK/base.out" || die "the base's omp ($BASE_NAME) printed other bytes"
     fi
 }
 
