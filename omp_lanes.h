@@ -168,15 +168,8 @@ LATTR static inline void LN(sweep2_of)(const Paths *pp, const Visits *v, int32_t
             if (!(live_a | live_b)) break;
         }
     }
-    if (i + 1 < hi) { /* the last two visits: one pair */
-        LN(Probe) q;
-        LN(probe_of)(pp, v, i, &q);
-        unsigned run = LN(enter)(v, &q, i + 1) & 1u;
-        unsigned m = flt ? run & LN(line)(v, &q, i + 1) : run;
-        overlaps += run;
-        if (m) LN(meet_mask)(pp, v, i, i + 1, m, cx, cy, p, mine);
-    }
     mine->overlaps += overlaps;
+    LN(sweep_of)(pp, v, i, hi, cx, cy, p, mine, flt); /* the last one or two visits */
 }
 #endif
 
