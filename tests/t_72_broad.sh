@@ -108,6 +108,22 @@ else
     fail "broad --keep 1: trims and steps found again expected" "$keep_stats"
 fi
 
+# a fast disk's walk across the slow grid stops once its first K + 1 events with slow disks lie
+# before the next line of cells it would visit (omp_paths.c's fast_slow): on a gas whose fast disks
+# cross a quarter of a box 140 radii wide, keeping 8 (the default) makes fewer exact tests than
+# walking every path whole (--keep 0), with the same bytes (--keep 0 against seq: above)
+tools/gen 20000 --fraction 0.2 --speed 0.5 --fast 0.01 --steps 3 > "$B/walk.in"
+walk_tests() { sed -n 's/.*: \([0-9]*\) pair tests.*/\1/p' "$1"; }
+./omp "$B/walk.in" --quiet --stats --threads 2 --broad mixed --keep 0 > "$B/walk_all.out" 2> "$B/walk_all.err"
+./omp "$B/walk.in" --quiet --stats --threads 2 --broad mixed > "$B/walk_first.out" 2> "$B/walk_first.err"
+t_all=$(walk_tests "$B/walk_all.err") t_first=$(walk_tests "$B/walk_first.err")
+if [ -n "$t_all" ] && [ -n "$t_first" ] && [ "$t_first" -lt "$t_all" ] &&
+    cmp -s "$B/walk_all.out" "$B/walk_first.out"; then
+    pass "broad mixed: walks stopped early, $t_first exact tests against $t_all with --keep 0, same bytes"
+else
+    fail "broad mixed: fewer exact tests keeping 8 than all, same bytes" "${t_first:-none} against ${t_all:-none}"
+fi
+
 # --stats times the step loop's phases on every thread: each broad phase's run names all seven, and
 # their means add up to the step loop (the same clock over the same steps; the end of the parallel
 # region is the only time outside them)
