@@ -322,7 +322,7 @@ static void find_events(Run *r, int64_t step)
             memset(th->speed_s1, 0, sizeof th->speed_s1);
         }
 #pragma omp barrier
-        broad_find(b, tid, step, 0);
+        broad_find(b, tid, step, 0, 0);
     }
 }
 

@@ -815,13 +815,13 @@ static void step_run(Work *w, int tid, int64_t step)
     /* wall events (3.1) and pair events (3.2): a broad phase, its surviving pairs through the
      * narrow phase; reordered every few steps, and on a run's first step too (a resumed run starts
      * from the original order); then the choice. A mixed step whose trims do not hold is found and
-     * chosen again keeping twice as many events (rare: the first partners of a fast disk must all
-     * have been taken by earlier events). */
+     * chosen again keeping twice as many events, under the same plan (rare: the first partners of a
+     * fast disk must all have been taken by earlier events). */
     int first = step == p->first_step * p->substeps + 1, reorder = step % REORDER_EVERY == 1 || first;
     phase_mark(&w->b, tid, PHASE_OTHER);
-    int aside = 0;
+    int aside = 0, again = 0;
     for (;;) {
-        broad_find(&w->b, tid, step, reorder);
+        broad_find(&w->b, tid, step, reorder, again);
         if (choose_aside(w)) {
             choose_move(w, tid, step);
             aside = 1;
@@ -843,6 +843,7 @@ static void step_run(Work *w, int tid, int64_t step)
             w->refound++;
         }
         reorder = 0;
+        again = 1;
     }
     phase_mark(&w->b, tid, PHASE_CHOICE);
     if (tid == 0) { /* read at the end of the run only */

@@ -272,7 +272,7 @@ static Plan plan_step(Broad *b, int nt)
         c = grid_plan(b, v, grid_grow(p, v), n_slow, nt, &pl);
         pl.reach = all.grow + (pl.grow + v / 2) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * p->L;
         c += paths_plan_grid(p, p->n - n_slow, n_slow, vm, (double)s1_fast * unit, pl.reach,
-                             1 / pl.inv_h, pl.g, nt, &pl.paths);
+                             1 / pl.inv_h, pl.g, b->keep, nt, &pl.paths);
         if (c < cost) {
             cost = c;
             best = pl;
@@ -663,7 +663,7 @@ static void paths_find(Broad *b, int tid, const SlowGrid *slow)
     phase_mark(b, tid, PHASE_WAIT);
 }
 
-void broad_find(Broad *b, int tid, int64_t step, int reorder)
+void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
 {
     BroadThread *th = &b->th[tid];
 
@@ -671,7 +671,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder)
     th->found.len = th->found.wall_len = th->found.trim_len = 0;
 #pragma omp single
     {
-        b->plan = plan_step(b, b->nt);
+        if (!again) b->plan = plan_step(b, b->nt);
         if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
     }
     phase_mark(b, tid, PHASE_PLAN);

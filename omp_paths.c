@@ -285,14 +285,21 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
 
 /* The fast disks of a mixed step meet each other along their paths (a plan of their own) and the
  * slow disks across the rows of the slow grid (fast_slow): about n q + s1 / (2 h) rows and
- * visits(s1, h, Gs) cells, n_slow / cells boxes each. */
+ * visits(s1, h, Gs) cells, n_slow / cells boxes each. With keep k, a walk stops after about k + 1
+ * free paths among the slow disks (one per 4 r n_slow / area of its length) and a cell and the reach
+ * more, and s1 counts no more than that of each path (an axis length up to sqrt 2 times a length). */
 double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double vm, double s1,
-                       double slow_reach, double h, int64_t g, int nt, PathsPlan *pl)
+                       double slow_reach, double h, int64_t g, int keep, int nt, PathsPlan *pl)
 {
-    double nf = (double)n_fast, cells = (double)g * (double)g;
+    double nf = (double)n_fast, cells = (double)g * (double)g, span = p->hi - p->lo;
     double cost = paths_plan(p, n_fast, vm, s1, nt, pl);
-    double rows = nf * (1 + 2 * slow_reach / h) + s1 / (2 * h);
-    return cost + COST_ROW * rows + COST_SLOW * visits(nf, s1, h, slow_reach) * (double)n_slow / cells;
+    double walk = s1, rate = 4 * p->r * (double)n_slow / (span * span);
+    if (keep > 0 && rate > 0) {
+        double most = nf * 1.4142135623730951 * ((keep + 1) / rate + 2 * (h + slow_reach));
+        walk = walk < most ? walk : most;
+    }
+    double rows = nf * (1 + 2 * slow_reach / h) + walk / (2 * h);
+    return cost + COST_ROW * rows + COST_SLOW * visits(nf, walk, h, slow_reach) * (double)n_slow / cells;
 }
 
 void paths_ready(Paths *pp, const PathsPlan *pl, int nt)

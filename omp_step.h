@@ -178,10 +178,10 @@ void paths_free(Paths *pp);
  * of omp.c's cost model. */
 double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, PathsPlan *pl);
 /* The same for the n_fast fast disks of a mixed step (s1 theirs), which also meet the n_slow slow
- * disks of a grid of g x g cells of side h (SlowGrid, its reach slow_reach): the cost of the fast
- * disks' part. */
+ * disks of a grid of g x g cells of side h (SlowGrid, its reach slow_reach; keep its keep): the cost
+ * of the fast disks' part. */
 double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double vm, double s1,
-                       double slow_reach, double h, int64_t g, int nt, PathsPlan *pl);
+                       double slow_reach, double h, int64_t g, int keep, int nt, PathsPlan *pl);
 /* Adopts a plan and makes the buffers ready for it. */
 void paths_ready(Paths *pp, const PathsPlan *pl, int nt);
 /* Finds every pair event of the step that before_walls admits into mine, in two calls by every
@@ -337,8 +337,10 @@ void slots_free(Slots *s);
 void broad_count_speeds(Broad *b, int tid);
 /* Called by every thread of the team (b->nt of them): plans the step and finds every wall event into
  * b->wall_t and every pair event that before_walls admits into b->th[tid].found (reorder: the slots
- * are moved into cell order on the way; step names the step in --check's messages). */
-void broad_find(Broad *b, int tid, int64_t step, int reorder);
+ * are moved into cell order on the way; step names the step in --check's messages). again: the step
+ * is found again keeping more (keep), under the plan it had: planned anew with the larger keep, a
+ * step could turn to the paths of every disk, and find the step a third time at their cost. */
+void broad_find(Broad *b, int tid, int64_t step, int reorder, int again);
 
 /* ---- omp_exact.c ---------------------------------------------------------------------------------- */
 
