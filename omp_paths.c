@@ -515,11 +515,11 @@ static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, cons
 /* A fast disk of a mixed step against the slow disks: its path is rasterised across the slow disks'
  * grid in lines of cells (cutting it across its shorter axis or, see keep below, its longer), with
  * its cells grown by the half-size of a slow box besides the paths' G (slow->reach), so that it
- * visits the cell of every slow box it can meet. In each line, the boxes of the line's run of cells (together
- * in cell order along a row; cell by cell along a column) are tested against the box of the path
- * during the line's interval of time (grown by the paths' G); survivors go through the filter of
- * meet and the exact test. Each slow box lies in one cell, which a straight path visits once: each
- * pair is tested once.
+ * visits the cell of every slow box it can meet. In each line, the boxes of the line's run of cells
+ * (together in cell order along a row; cell by cell along a column) are tested against the box of
+ * the path during the line's interval of time (grown by the paths' G); survivors go through the
+ * filter of meet and the exact test. Each slow box lies in one cell, which a straight path visits
+ * once: each pair is tested once.
  *
  * With keep k > 0 the lines cut the path across its longer axis, taken in the order it crosses them,
  * and the walk stops at the first line that can hold no event among the k + 1 earliest: an event

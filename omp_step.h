@@ -338,8 +338,8 @@ void broad_count_speeds(Broad *b, int tid);
 /* Called by every thread of the team (b->nt of them): plans the step and finds every wall event into
  * b->wall_t and every pair event that before_walls admits into b->th[tid].found (reorder: the slots
  * are moved into cell order on the way; step names the step in --check's messages). again: the step
- * is found again keeping more (keep), under the plan it had: planned anew with the larger keep, a
- * step could turn to the paths of every disk, and find the step a third time at their cost. */
+ * is found again keeping more (keep), under the plan it had: planned anew with the larger keep, it
+ * could turn to the paths of every disk and pay for a second broad phase of another kind. */
 void broad_find(Broad *b, int tid, int64_t step, int reorder, int again);
 
 /* ---- omp_exact.c ---------------------------------------------------------------------------------- */
