@@ -663,15 +663,35 @@ static void paths_find(Broad *b, int tid, const SlowGrid *slow)
     phase_mark(b, tid, PHASE_WAIT);
 }
 
+/* --check: the step's events against all pairs, once every thread has found its own. */
+static void broad_checked(Broad *b, int tid, int64_t step)
+{
+    if (b->opt->check) {
+#pragma omp single
+        check_broad_phase(b, step);
+        phase_mark(b, tid, PHASE_PAIRS);
+    }
+}
+
 void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
 {
     BroadThread *th = &b->th[tid];
 
+    if (again) { /* a mixed step: of its events only the fast disks' with slow disks depend on keep */
+        const Plan *pl = &b->plan;
+        SlowGrid slow = {b->boxes, b->cell_start, b->box_slot, pl->g, pl->x0, pl->inv_h, pl->reach, b->keep};
+        paths_refind(b->paths, &b->s, b->p, b->wall_t, &slow, th->fast, (int64_t)th->fast_len, &th->found);
+        phase_mark(b, tid, PHASE_BIN);
+#pragma omp barrier
+        phase_mark(b, tid, PHASE_WAIT);
+        broad_checked(b, tid, step);
+        return;
+    }
     /* the fastest disk and the lengths of all steps (found by the last move) plan the broad phase */
     th->found.len = th->found.wall_len = th->found.trim_len = 0;
 #pragma omp single
     {
-        if (!again) b->plan = plan_step(b, b->nt);
+        b->plan = plan_step(b, b->nt);
         if (b->plan.mode != MODE_GRID) paths_ready(b->paths, &b->plan.paths, b->nt);
     }
     phase_mark(b, tid, PHASE_PLAN);
@@ -691,9 +711,5 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
             paths_find(b, tid, &slow);
         }
     }
-    if (b->opt->check) {
-#pragma omp single
-        check_broad_phase(b, step);
-        phase_mark(b, tid, PHASE_PAIRS);
-    }
+    broad_checked(b, tid, step);
 }

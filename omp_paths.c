@@ -638,6 +638,15 @@ static void keep_first(Found *mine, size_t from, int k, int32_t q)
     mine->trimmed++;
 }
 
+/* The fast disk A in slot q against the slow disks, its events beyond the first keep trimmed. */
+static void fast_slow_kept(const Paths *pp, const Body *A, int32_t q, const Slots *s, const real *wall_t,
+                           const SlowGrid *slow, const Params *p, Found *mine)
+{
+    size_t from = mine->len;
+    fast_slow(pp, A, q, s, wall_t, slow, p, mine);
+    if (slow->keep > 0 && mine->len - from > (size_t)slow->keep) keep_first(mine, from, slow->keep, q);
+}
+
 /* Phase A (paths_bin) for this thread's disks: those of its range of slots (slow = NULL), their wall
  * events found on the way, or those of its list of fast slots, each first against the slow disks. A
  * disk whose wall event is at t = 0 has no pair event that can be accepted: no path. */
@@ -657,20 +666,44 @@ void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const S
             if (b.cap > 0) path_cells(pp, &b, (int32_t)q, bk);
         }
     } else {
+        mine->slow_from = mine->len;
         for (int64_t k = 0; k < n_fast; k++) {
             int32_t q = fast[k];
             Body b;
             body_of(s, q, wall_t[q], &b);
             if (b.cap > 0) {
-                size_t from = mine->len;
-                fast_slow(pp, &b, q, s, wall_t, slow, p, mine);
-                if (slow->keep > 0 && mine->len - from > (size_t)slow->keep)
-                    keep_first(mine, from, slow->keep, q);
+                fast_slow_kept(pp, &b, q, s, wall_t, slow, p, mine);
                 path_cells(pp, &b, q, bk);
             }
         }
+        mine->slow_to = mine->len;
     }
     for (int64_t k = 0; k < pp->pl.tiles; k++) mine->visits += bk[k].len;
+}
+
+void paths_refind(const Paths *pp, const Slots *s, const Params *p, const real *wall_t,
+                  const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine)
+{
+    /* the events after the range (the fast disks' with each other) wait aside */
+    size_t rest = mine->len - mine->slow_to;
+    PairEvent *aside = rest ? sim_realloc(NULL, rest, sizeof *aside) : NULL;
+    if (rest) memcpy(aside, mine->ev + mine->slow_to, rest * sizeof *aside);
+    mine->len = mine->slow_from;
+    mine->trim_len = 0;
+    for (int64_t k = 0; k < n_fast; k++) {
+        int32_t q = fast[k];
+        Body b;
+        body_of(s, q, wall_t[q], &b);
+        if (b.cap > 0) fast_slow_kept(pp, &b, q, s, wall_t, slow, p, mine);
+    }
+    mine->slow_to = mine->len;
+    if (rest) {
+        if (mine->len + rest > mine->cap)
+            mine->ev = omp_grow(mine->ev, &mine->cap, mine->len + rest, sizeof *mine->ev);
+        memcpy(mine->ev + mine->len, aside, rest * sizeof *aside);
+        mine->len += rest;
+    }
+    free(aside);
 }
 
 /* ==== phase B: the tiles ============================================================================= */

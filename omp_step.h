@@ -42,6 +42,8 @@ typedef struct {
     size_t wall_len, wall_cap;
     PairEvent *trim; /* a: a fast disk's slot; t, i, j: the smallest key of its events left out */
     size_t trim_len, trim_cap;
+    size_t slow_from, slow_to; /* a mixed step: ev[slow_from, slow_to) are the fast disks' events
+                                  with slow disks (paths_bin), those that keep bounds */
     uint64_t tests, visits, overlaps, trimmed; /* trimmed: the disks with a trim, all steps */
     int64_t *mark; /* this step's Broad's mark, or NULL: where found_push marks its slots */
     int64_t step;  /* the step being found (broad_find) */
@@ -194,6 +196,11 @@ void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const S
                const int32_t *fast, int64_t n_fast, Found *mine, int tid, int nt);
 void paths_pairs(Paths *pp, const Slots *s, const Params *p, const real *wall_t, Found *mine, int tid,
                  int nt);
+/* A mixed step found again keeping more (slow->keep): this thread's fast disks' events with slow
+ * disks, found by paths_bin under the smaller keep, replaced by those under the larger one, in the
+ * same place of mine; its other events, which keep does not bound, stay. */
+void paths_refind(const Paths *pp, const Slots *s, const Params *p, const real *wall_t,
+                  const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine);
 
 /* ---- omp_broad.c: the broad phase of a step over a set of slots (omp.c: all disks; mpi.c: a rank's
  * own disks and halo) ------------------------------------------------------------------------------ */
@@ -337,9 +344,9 @@ void slots_free(Slots *s);
 void broad_count_speeds(Broad *b, int tid);
 /* Called by every thread of the team (b->nt of them): plans the step and finds every wall event into
  * b->wall_t and every pair event that before_walls admits into b->th[tid].found (reorder: the slots
- * are moved into cell order on the way; step names the step in --check's messages). again: the step
- * is found again keeping more (keep), under the plan it had: planned anew with the larger keep, it
- * could turn to the paths of every disk and pay for a second broad phase of another kind. */
+ * are moved into cell order on the way; step names the step in --check's messages). again: a mixed
+ * step found again keeping more (keep), under the plan it had: only the fast disks' events with
+ * slow disks are found again (paths_refind), the others do not depend on keep. */
 void broad_find(Broad *b, int tid, int64_t step, int reorder, int again);
 
 /* ---- omp_exact.c ---------------------------------------------------------------------------------- */
