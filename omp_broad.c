@@ -663,6 +663,14 @@ static void paths_find(Broad *b, int tid, const SlowGrid *slow)
     phase_mark(b, tid, PHASE_WAIT);
 }
 
+/* A mixed step's slow disks as the fast disks' paths meet them (the grid's boxes, binned). */
+static SlowGrid slow_grid_of(const Broad *b)
+{
+    const Plan *pl = &b->plan;
+    SlowGrid slow = {b->boxes, b->cell_start, b->box_slot, pl->g, pl->x0, pl->inv_h, pl->reach, b->keep};
+    return slow;
+}
+
 /* --check: the step's events against all pairs, once every thread has found its own. */
 static void broad_checked(Broad *b, int tid, int64_t step)
 {
@@ -678,8 +686,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
     BroadThread *th = &b->th[tid];
 
     if (again) { /* a mixed step: of its events only the fast disks' with slow disks depend on keep */
-        const Plan *pl = &b->plan;
-        SlowGrid slow = {b->boxes, b->cell_start, b->box_slot, pl->g, pl->x0, pl->inv_h, pl->reach, b->keep};
+        SlowGrid slow = slow_grid_of(b);
         paths_refind(b->paths, &b->s, b->p, b->wall_t, &slow, th->fast, (int64_t)th->fast_len, &th->found);
         phase_mark(b, tid, PHASE_BIN);
 #pragma omp barrier
@@ -705,9 +712,7 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
         scan_grid(b, tid);
         phase_mark(b, tid, PHASE_PAIRS);
         if (b->plan.mode == MODE_MIXED) {
-            const Plan *pl = &b->plan;
-            SlowGrid slow = {b->boxes, b->cell_start, b->box_slot, pl->g,   pl->x0,
-                             pl->inv_h, pl->reach,      b->keep};
+            SlowGrid slow = slow_grid_of(b);
             paths_find(b, tid, &slow);
         }
     }
