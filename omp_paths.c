@@ -684,11 +684,12 @@ void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const S
 void paths_refind(const Paths *pp, const Slots *s, const Params *p, const real *wall_t,
                   const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine)
 {
-    /* the events after the range (the fast disks' with each other) wait aside */
+    /* the events after the range (the fast disks' with each other) move down over it, and the new
+     * range follows them: the choice reads a thread's events in any order */
     size_t rest = mine->len - mine->slow_to;
-    PairEvent *aside = rest ? sim_realloc(NULL, rest, sizeof *aside) : NULL;
-    if (rest) memcpy(aside, mine->ev + mine->slow_to, rest * sizeof *aside);
-    mine->len = mine->slow_from;
+    memmove(mine->ev + mine->slow_from, mine->ev + mine->slow_to, rest * sizeof *mine->ev);
+    mine->len = mine->slow_from + rest;
+    mine->slow_from = mine->len;
     mine->trim_len = 0;
     for (int64_t k = 0; k < n_fast; k++) {
         int32_t q = fast[k];
@@ -697,13 +698,6 @@ void paths_refind(const Paths *pp, const Slots *s, const Params *p, const real *
         if (b.cap > 0) fast_slow_kept(pp, &b, q, s, wall_t, slow, p, mine);
     }
     mine->slow_to = mine->len;
-    if (rest) {
-        if (mine->len + rest > mine->cap)
-            mine->ev = omp_grow(mine->ev, &mine->cap, mine->len + rest, sizeof *mine->ev);
-        memcpy(mine->ev + mine->len, aside, rest * sizeof *aside);
-        mine->len += rest;
-    }
-    free(aside);
 }
 
 /* ==== phase B: the tiles ============================================================================= */

@@ -197,8 +197,8 @@ void paths_bin(Paths *pp, const Slots *s, const Params *p, real *wall_t, const S
 void paths_pairs(Paths *pp, const Slots *s, const Params *p, const real *wall_t, Found *mine, int tid,
                  int nt);
 /* A mixed step found again keeping more (slow->keep): this thread's fast disks' events with slow
- * disks, found by paths_bin under the smaller keep, replaced by those under the larger one, in the
- * same place of mine; its other events, which keep does not bound, stay. */
+ * disks, found by paths_bin under the smaller keep, replaced in mine by those under the larger one;
+ * its other events, which keep does not bound, stay. */
 void paths_refind(const Paths *pp, const Slots *s, const Params *p, const real *wall_t,
                   const SlowGrid *slow, const int32_t *fast, int64_t n_fast, Found *mine);
 
