@@ -139,6 +139,18 @@ static inline SIM_HD real wall_time(real c, real v, real lo, real hi)
     return t;
 }
 
+/* Whether a centre at c with velocity v surely reaches no wall within time t (0 <= t <= 1), so that
+ * wall_time(c, v, lo, hi) > t needs no division: the distance ahead, computed as wall_time computes
+ * it, exceeds |v| t with SIM_REL_MARGIN to spare, far more than the three roundings between the two
+ * (the product, the margin's, the quotient). Where |v| t is tiny (or 0, or v is 0) it answers no, and
+ * the caller divides: no bound on the rounding of subnormal products is needed. */
+static inline SIM_HD int wall_beyond(real c, real v, real t, real lo, real hi)
+{
+    real ahead = v > 0 ? hi - c : c - lo;
+    real reach = SIM_FABS(v) * t * (real)(1 + SIM_REL_MARGIN);
+    return reach > (real)1e-30 && ahead > reach;
+}
+
 static inline SIM_HD real min_time(real a, real b)
 {
     return b < a ? b : a;
@@ -187,14 +199,16 @@ static inline SIM_HD int event_before(real ta, int ka, int64_t ia, int64_t ja, r
 static inline SIM_HD void wall_bounce(real *x, real *y, real *vx, real *vy, real t1,
                                       real lo, real hi)
 {
-    real tx = wall_time(*x, *vx, lo, hi), ty = wall_time(*y, *vy, lo, hi);
-    if (tx == t1) {
+    /* an axis that surely reaches no wall by t1 did not hit: most wall events need no division */
+    int hx = !wall_beyond(*x, *vx, t1, lo, hi) && wall_time(*x, *vx, lo, hi) == t1;
+    int hy = !wall_beyond(*y, *vy, t1, lo, hi) && wall_time(*y, *vy, lo, hi) == t1;
+    if (hx) {
         *x = *vx > 0 ? hi : lo;
         *vx = -*vx;
     } else {
         *x = *x + *vx * t1;
     }
-    if (ty == t1) {
+    if (hy) {
         *y = *vy > 0 ? hi : lo;
         *vy = -*vy;
     } else {
@@ -225,6 +239,11 @@ static inline SIM_HD void finish_step(real *x, real *y, real vx, real vy, real t
                                       real lo, real hi)
 {
     real rem = 1 - t1;
+    if (wall_beyond(*x, vx, rem, lo, hi) && wall_beyond(*y, vy, rem, lo, hi)) { /* most disks */
+        *x = *x + vx * rem;
+        *y = *y + vy * rem;
+        return;
+    }
     real tx = wall_time(*x, vx, lo, hi), ty = wall_time(*y, vy, lo, hi);
     real t2 = min_time(tx, ty);
     if (t2 <= rem) {
