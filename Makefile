@@ -87,6 +87,11 @@ TSAN_CC ?= clang
 omp_tsan: $(OMP_SRC) io.c state.c $(HEADERS) $(OMP_H) Makefile
 	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp $(OMP_SRC) io.c state.c -o $@ $(LDLIBS)
 
+# omp with the portable C alone (SIM_NO_SIMD: no SSE2, AVX2 or AVX-512F code, as other processors
+# build it), for tests/t_72_broad.sh
+omp_portable: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
+	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_NO_SIMD $(OMP_SRC) $(BASE) -o $@ $(LDLIBS)
+
 tools/%: tools/%.c common.h tools/output_error.h Makefile
 	$(CC) $(CFLAGS) $< -o $@ $(LDLIBS)
 

@@ -16,7 +16,7 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef __SSE2__
+#ifdef SIM_SSE2
 #include <emmintrin.h>
 #endif
 
@@ -486,7 +486,7 @@ static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, uns
         if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
 }
 
-#ifdef __SSE2__
+#ifdef SIM_SSE2
 /* Whether box b overlaps the box whose probe (Box) is p: all four lanes at most b's. */
 static inline unsigned box_hit(__m128 p, const Box *b)
 {
@@ -501,12 +501,12 @@ static inline unsigned box_hit(__m128 p, const Box *b)
 static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
 {
     const Box *bx = w->boxes, *ba = &w->boxes[a];
-#ifdef __SSE2__
+#ifdef SIM_SSE2
     __m128 v = _mm_loadu_ps(&ba->xhi);
     __m128 probe = _mm_xor_ps(_mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1)), _mm_set1_ps(-0.0f));
 #endif
     for (int32_t b = b0; b < b1; b += SCAN_WIDTH) {
-#ifdef __SSE2__
+#ifdef SIM_SSE2
         unsigned m = box_hit(probe, &bx[b]) | box_hit(probe, &bx[b + 1]) << 1 |
                      box_hit(probe, &bx[b + 2]) << 2 | box_hit(probe, &bx[b + 3]) << 3;
 #else

@@ -12,6 +12,16 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The broad phases' x86 SIMD: SSE2 where the compiler targets it (every x86-64 build), and AVX2 and
+ * AVX-512F functions chosen at run time (omp_paths.c). SIM_NO_SIMD builds the portable C alone, as on
+ * other processors; make test runs that build too, so that both stay tested. */
+#if defined(__SSE2__) && !defined(SIM_NO_SIMD)
+#define SIM_SSE2 1
+#endif
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(SIM_NO_SIMD)
+#define SIM_X86_TARGETS 1
+#endif
+
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
 typedef struct {
     real *x, *y, *vx, *vy;

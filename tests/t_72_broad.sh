@@ -81,6 +81,30 @@ for lanes in 1 4 8 16; do
     fi
 done
 
+# the portable build (omp_portable: the C that processors without SSE2 run, the paths' cells set up
+# one axis at a time and screened one pair at a time): seq's bytes under each broad phase, and as
+# many exact tests as the default build at one lane
+if make -s omp_portable > "$B/err" 2>&1; then
+    bad=""
+    for name in fast_walls fast_mid mixed_gas mixed_dilute; do
+        ./seq "$B/$name.in" --quiet > "$B/portable.ref"
+        for mode in auto paths mixed; do
+            m=$(threads_mismatch "1 3" "$B/portable.ref" ./omp_portable "$B/$name.in" --quiet --broad $mode)
+            [ -z "$m" ] || bad="$bad $name/$mode:$m"
+        done
+    done
+    ./omp_portable "$B/lanes_big.in" --quiet --stats 2>&1 > /dev/null | grep "pair tests" > "$B/portable.tests"
+    [ -s "$B/lanes1.tests" ] && cmp -s "$B/lanes1.tests" "$B/portable.tests" ||
+        bad="$bad tests:$(cat "$B/portable.tests") against $(cat "$B/lanes1.tests")"
+    if [ -z "$bad" ]; then
+        pass "broad portable build at 1 and 3 threads: seq's bytes, the default build's exact tests"
+    else
+        fail "broad portable build" "$bad"
+    fi
+else
+    fail "broad portable build" "$(head -c 300 "$B/err")"
+fi
+
 # the assignment's own random scene (no particle lines) at the sample's density, small N and print
 printf '120\n2400\n1\n25\nprint\n' > "$B/random.in"
 broad_compare random "$B/random.in" --seed 11
