@@ -213,7 +213,10 @@ static void plan_margins(const Params *p, double vm, PathsPlan *pl)
 }
 
 /* The cells (g from x0 with side h) and, for `entries` visits, the tiles: enough for dynamic
- * scheduling over the threads, small enough for a core's cache; and up to two bins of entry time per
+ * scheduling over the threads (two a thread or more: a path's cells that span two tiles cost phase A
+ * a slower loop, and the branch between the two loops a misprediction where that is a coin toss, so
+ * smaller tiles cost more than their finer balance gains), small enough for a core's cache; and up to
+ * two bins of entry time per
  * visit, so that a cell's visits come out of phase B's count nearly sorted: the insertion sort's
  * test of each item against the one before it is then mostly false, and a processor predicts it
  * (at one visit per bin it was a coin toss). More bins would cost more in the count, which clears
@@ -226,7 +229,7 @@ static void plan_cells(PathsPlan *pl, int64_t g, double x0, double h, double ent
     pl->inv_h = 1 / h;
     pl->last = (double)(g - 1);
     double want = entries / TILE_ENTRIES;
-    if (nt > 1 && want < 4.0 * nt) want = 4.0 * nt;
+    if (nt > 1 && want < 2.0 * nt) want = 2.0 * nt;
     int64_t gt = (int64_t)ceil(sqrt(want));
     if (gt < 1) gt = 1;
     if (gt > g) gt = g;
