@@ -16,9 +16,6 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef SIM_SSE2
-#include <emmintrin.h>
-#endif
 
 #define SCAN_WIDTH 4 /* boxes one group of the scan tests at once */
 

@@ -36,9 +36,6 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef SIM_SSE2
-#include <emmintrin.h>
-#endif
 #ifdef SIM_X86_TARGETS
 #include <immintrin.h>
 #define LANES_AVX2 1   /* the compiler builds AVX2 functions, run where the processor has AVX2 */
@@ -216,11 +213,10 @@ static void plan_margins(const Params *p, double vm, PathsPlan *pl)
  * scheduling over the threads (two a thread or more: a path's cells that span two tiles cost phase A
  * a slower loop, and the branch between the two loops a misprediction where that is a coin toss, so
  * smaller tiles cost more than their finer balance gains), small enough for a core's cache; and up to
- * two bins of entry time per
- * visit, so that a cell's visits come out of phase B's count nearly sorted: the insertion sort's
- * test of each item against the one before it is then mostly false, and a processor predicts it
- * (at one visit per bin it was a coin toss). More bins would cost more in the count, which clears
- * and sums them for every tile. */
+ * two bins of entry time per visit, so that a cell's visits come out of phase B's count nearly
+ * sorted: the insertion sort's test of each item against the one before it is then mostly false, and
+ * a processor predicts it (at one visit per bin it was a coin toss). More bins would cost more in
+ * the count, which clears and sums them for every tile. */
 static void plan_cells(PathsPlan *pl, int64_t g, double x0, double h, double entries, int nt)
 {
     pl->g = g;
@@ -481,8 +477,8 @@ static inline __m128d select_pd(__m128d mask, __m128d a, __m128d b) /* mask ? a 
 
 /* path_cells' set-up of both axes at once, lane k axis k: each operation the portable loop's there
  * (inverse, cell_of, crossing), in the same order, so every value is the same. One division and one
- * chain of dependent operations for the two axes, where the loop ran two: on the assignment's sample
- * the step loop ran 6% faster on one thread and on two. */
+ * chain of dependent operations for the two axes, where the loop ran two (REPORT.md 3.3: an eighth
+ * off the sample's binning). */
 static void path_setup(const Paths *pp, const double *c, double *v, double T, int64_t *c0, int64_t *c1,
                        double *ea, double *eb, double *dt)
 {

@@ -55,6 +55,13 @@ done < <(broad_scenes)
 # has AVX2, 16 where it has AVX-512F; a SKIP elsewhere): seq's bytes, and as many exact tests as at
 # one lane (--stats) on a fast scene of 3000 disks
 tools/gen 3000 --assignment --L 6000 --steps 3 --seed 4 > "$B/lanes_big.in"
+# tests_verdict NAME TESTS WHAT: pass NAME (WHAT: what held) where $bad is empty and TESTS, the
+# "pair tests" line of a --stats run on lanes_big, equals one lane's; else fail it
+tests_verdict() {
+    [ -s "$B/lanes1.tests" ] && cmp -s "$B/lanes1.tests" "$2" ||
+        bad="$bad tests:$(cat "$2") against $(cat "$B/lanes1.tests")"
+    if [ -z "$bad" ]; then pass "$1 $3"; else fail "$1" "$bad"; fi
+}
 ./omp "$B/lanes_big.in" --quiet --stats --lanes 1 2>&1 > /dev/null | grep "pair tests" > "$B/lanes1.tests"
 for lanes in 1 4 8 16; do
     if ! ./omp "$B/fast_walls.in" --quiet --lanes $lanes > /dev/null 2> "$B/err"; then
@@ -72,13 +79,7 @@ for lanes in 1 4 8 16; do
         [ -z "$m" ] || bad="$bad $name:$m"
     done
     ./omp "$B/lanes_big.in" --quiet --stats --lanes $lanes 2>&1 > /dev/null | grep "pair tests" > "$B/lanes.tests"
-    [ -s "$B/lanes1.tests" ] && cmp -s "$B/lanes1.tests" "$B/lanes.tests" ||
-        bad="$bad tests:$(cat "$B/lanes.tests") against $(cat "$B/lanes1.tests")"
-    if [ -z "$bad" ]; then
-        pass "broad --lanes $lanes at 1 and 3 threads: seq's bytes, one lane's exact tests"
-    else
-        fail "broad --lanes $lanes" "$bad"
-    fi
+    tests_verdict "broad --lanes $lanes" "$B/lanes.tests" "at 1 and 3 threads: seq's bytes, one lane's exact tests"
 done
 
 # the portable build (omp_portable: the C that processors without SSE2 run, the paths' cells set up
@@ -94,13 +95,7 @@ if make -s omp_portable > "$B/err" 2>&1; then
         done
     done
     ./omp_portable "$B/lanes_big.in" --quiet --stats 2>&1 > /dev/null | grep "pair tests" > "$B/portable.tests"
-    [ -s "$B/lanes1.tests" ] && cmp -s "$B/lanes1.tests" "$B/portable.tests" ||
-        bad="$bad tests:$(cat "$B/portable.tests") against $(cat "$B/lanes1.tests")"
-    if [ -z "$bad" ]; then
-        pass "broad portable build at 1 and 3 threads: seq's bytes, the default build's exact tests"
-    else
-        fail "broad portable build" "$bad"
-    fi
+    tests_verdict "broad portable build" "$B/portable.tests" "at 1 and 3 threads: seq's bytes, the default build's exact tests"
 else
     fail "broad portable build" "$(head -c 300 "$B/err")"
 fi
