@@ -238,14 +238,17 @@ static void plan_cells(PathsPlan *pl, int64_t g, double x0, double h, double ent
 }
 
 /* Visits and pairs of visits overlapping in time for n disks whose steps' axis lengths add up to s1,
- * on cells of side h, g * g of them: about n q^2 + q s1 / h visits (q = 1 + 2G/h: a disk at rest
- * overlaps q^2 cells on average, and a path adds a cell per h of its axis lengths), spending
- * D = n q^2 cell-steps of time in all; pairs, about 0.85 E D / cells (each visit meets the others'
- * time in its cell; the factor measured), at most all pairs of each cell. */
-static double visits(double n, double s1, double h, double grow)
+ * on cells of side h = 1 / inv_h, g * g of them: about n q^2 + q s1 / h visits (q = 1 + 2G/h: a disk
+ * at rest overlaps q^2 cells on average, and a path adds a cell per h of its axis lengths), spending
+ * D = n q^2 cell-steps of time in all (*spent, where not NULL); pairs, about 0.85 E D / cells (each
+ * visit meets the others' time in its cell; the factor measured), at most all pairs of each cell.
+ * Multiplications by inv_h, no division: paths_plan's search runs several times a step (once more
+ * per cut of a mixed plan), in a serial section. */
+static double visits(double n, double s1, double inv_h, double grow, double *spent)
 {
-    double q = 1 + 2 * grow / h;
-    return n * q * q + q * s1 / h;
+    double q = 1 + 2 * grow * inv_h, d = n * q * q;
+    if (spent) *spent = d;
+    return d + q * s1 * inv_h;
 }
 
 double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, PathsPlan *pl)
@@ -258,10 +261,8 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
     double best = -1, inv_span = 1 / span;
     int64_t best_g = 1;
     for (double gd = 1; gd <= gmax; gd = gd < 8 ? gd + 1 : gd * 1.125) {
-        /* visits and pairs (above) with one division, not five: the search runs several times a
-         * step (once more per cut of a mixed plan), in a serial section */
-        double g = (double)(int64_t)gd, ig = 1 / g, cells = g * g;
-        double q = 1 + 2 * pl->grow * g * inv_span, d = nd * q * q, e = d + q * s1 * g * inv_span;
+        double g = (double)(int64_t)gd, ig = 1 / g, cells = g * g, d;
+        double e = visits(nd, s1, g * inv_span, pl->grow, &d);
         double pairs = (0.85 * e * d < e * e / 2 ? 0.85 * e * d : e * e / 2) * ig * ig;
         double cost = COST_ENTRY * e + COST_PAIR * pairs + COST_CELL * cells;
         if (best < 0 || cost < best) {
@@ -273,7 +274,7 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
         if (cost > 2 * best) break;
     }
     double h = span / (double)best_g;
-    plan_cells(pl, best_g, p->lo, h, visits(nd, s1, h, pl->grow), nt);
+    plan_cells(pl, best_g, p->lo, h, visits(nd, s1, 1 / h, pl->grow, NULL), nt);
     return COST_DISK * nd + best;
 }
 
@@ -293,7 +294,7 @@ double paths_plan_grid(const Params *p, int64_t n_fast, int64_t n_slow, double v
         walk = walk < most ? walk : most;
     }
     double rows = nf * (1 + 2 * slow_reach / h) + walk / (2 * h);
-    return cost + COST_ROW * rows + COST_SLOW * visits(nf, walk, h, slow_reach) * (double)n_slow / cells;
+    return cost + COST_ROW * rows + COST_SLOW * visits(nf, walk, 1 / h, slow_reach, NULL) * (double)n_slow / cells;
 }
 
 void paths_ready(Paths *pp, const PathsPlan *pl, int nt)
@@ -470,11 +471,6 @@ static void path_lines(const Paths *pp, Entry x, double T, const double *c, cons
 }
 
 #ifdef SIM_SSE2
-static inline __m128d select_pd(__m128d mask, __m128d a, __m128d b) /* mask ? a : b, lane by lane */
-{
-    return _mm_or_pd(_mm_and_pd(mask, a), _mm_andnot_pd(mask, b));
-}
-
 /* path_cells' set-up of both axes at once, lane k axis k: each operation the portable loop's there
  * (inverse, cell_of, crossing), in the same order, so every value is the same. One division and one
  * chain of dependent operations for the two axes, where the loop ran two (REPORT.md 3.3: an eighth

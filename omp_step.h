@@ -18,6 +18,11 @@
 #if defined(__SSE2__) && !defined(SIM_NO_SIMD)
 #define SIM_SSE2 1
 #include <emmintrin.h>
+
+static inline __m128d select_pd(__m128d mask, __m128d a, __m128d b) /* mask ? a : b, lane by lane */
+{
+    return _mm_or_pd(_mm_and_pd(mask, a), _mm_andnot_pd(mask, b));
+}
 #endif
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(SIM_NO_SIMD)
 #define SIM_X86_TARGETS 1
@@ -114,9 +119,8 @@ static inline real slot_wall_time(const Slots *s, const Params *p, int64_t q)
      * zero velocity is discarded) */
     __m128d c = _mm_set_pd(y, x), v = _mm_set_pd(vy, vx), zero = _mm_setzero_pd();
     __m128d pos = _mm_cmpgt_pd(v, zero), moving = _mm_cmpneq_pd(v, zero);
-    __m128d w = _mm_or_pd(_mm_and_pd(pos, _mm_set1_pd(p->hi)), _mm_andnot_pd(pos, _mm_set1_pd(p->lo)));
-    __m128d t = _mm_div_pd(_mm_sub_pd(w, c), v);
-    t = _mm_or_pd(_mm_and_pd(moving, t), _mm_andnot_pd(moving, _mm_set1_pd(INFINITY)));
+    __m128d t = _mm_div_pd(_mm_sub_pd(select_pd(pos, _mm_set1_pd(p->hi), _mm_set1_pd(p->lo)), c), v);
+    t = select_pd(moving, t, _mm_set1_pd(INFINITY));
     t = _mm_max_pd(t, zero);                                       /* t <= 0 ? 0 : t */
     real tw = _mm_cvtsd_f64(_mm_min_sd(_mm_unpackhi_pd(t, t), t)); /* min_time(tx, ty) */
 #else
