@@ -206,6 +206,8 @@ typedef struct {
     int32_t other;
 } Adj;
 
+typedef struct StepClock StepClock; /* --stats: the steps' phases (below) */
+
 typedef struct {
     Params par;       /* the run's */
     Params lp;        /* the broad phase's: n = own + halo */
@@ -236,7 +238,96 @@ typedef struct {
     double busy;      /* seconds of the steps since the last balance, MPI calls left out */
     double waited_steps; /* seconds of the steps inside MPI calls (--stats) */
     int64_t moves;    /* times the balance moved the cuts */
+    StepClock *clock; /* --stats: the steps' phases */
 } Run;
+
+/* --stats: a step's phases timed on every rank, outside MPI calls and inside them. Each step waits
+ * for its slowest rank at every exchange, so the phases' time on each step's slowest rank, summed over
+ * the steps, against the ranks' mean shows what the lockstep costs phase by phase, and the rank that
+ * was slowest in most steps points at a slower core. Rank 0 gathers the steps every CLOCK_CHUNK
+ * steps: one reduction then, none inside a step. */
+enum { PART_HALO, PART_FIND, PART_CHOOSE, PART_MOVE, PART_MIGRATE, STEP_PARTS };
+static const char *const part_name[STEP_PARTS] = {"halo", "broad phase", "choice", "move", "migration"};
+#define CLOCK_CHUNK 64
+
+struct StepClock {
+    double at, waited_at;                      /* the running phase's start: the clock, and `waited` */
+    double busy[CLOCK_CHUNK][STEP_PARTS];      /* the chunk's steps, outside MPI calls */
+    int fill;                                  /* steps in the chunk */
+    double inside[STEP_PARTS];                 /* this rank's seconds inside MPI calls, by phase */
+    double most[STEP_PARTS], mean[STEP_PARTS]; /* rank 0: each step's slowest rank, and the mean, summed */
+    int64_t *slowest;                          /* rank 0: the steps in which each rank was the slowest */
+    int64_t steps;                             /* steps gathered */
+};
+
+static void clock_start(StepClock *c)
+{
+    c->at = MPI_Wtime();
+    c->waited_at = waited;
+}
+
+/* Ends phase ph of the step and starts the next. */
+static void clock_end(StepClock *c, int ph)
+{
+    double now = MPI_Wtime(), in = waited - c->waited_at;
+    c->busy[c->fill][ph] += now - c->at - in;
+    c->inside[ph] += in;
+    c->at = now;
+    c->waited_at = waited;
+}
+
+/* The chunk's steps to rank 0 (every rank calls it, at the same steps). */
+static void clock_flush(StepClock *c)
+{
+    if (c->fill == 0) return;
+    int n = c->fill * STEP_PARTS;
+    double most[CLOCK_CHUNK * STEP_PARTS], sum[CLOCK_CHUNK * STEP_PARTS];
+    struct { double t; int rank; } step[CLOCK_CHUNK], worst[CLOCK_CHUNK];
+    for (int k = 0; k < c->fill; k++) {
+        step[k].t = 0, step[k].rank = mpi_me;
+        for (int ph = 0; ph < STEP_PARTS; ph++) step[k].t += c->busy[k][ph];
+    }
+    double t0 = MPI_Wtime();
+    MPI_Reduce(c->busy, most, n, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    MPI_Reduce(c->busy, sum, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(step, worst, c->fill, MPI_DOUBLE_INT, MPI_MAXLOC, 0, MPI_COMM_WORLD);
+    waited += MPI_Wtime() - t0; /* the step loop's time inside MPI calls, if in no phase */
+    if (mpi_me == 0) {
+        for (int k = 0; k < n; k++)
+            c->most[k % STEP_PARTS] += most[k], c->mean[k % STEP_PARTS] += sum[k] / mpi_np;
+        for (int k = 0; k < c->fill; k++) c->slowest[worst[k].rank]++;
+    }
+    c->steps += c->fill;
+    c->fill = 0;
+    memset(c->busy, 0, sizeof c->busy);
+}
+
+/* The last chunk, and the ranks' waiting summed, to rank 0 (every rank calls it). */
+static void clock_gather(StepClock *c)
+{
+    clock_flush(c);
+    double inside[STEP_PARTS];
+    MPI_Reduce(c->inside, inside, STEP_PARTS, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    memcpy(c->inside, inside, sizeof inside);
+}
+
+/* Rank 0's two lines of --stats. */
+static void clock_report(const StepClock *c)
+{
+    int top = 0;
+    for (int q = 1; q < mpi_np; q++)
+        if (c->slowest[q] > c->slowest[top]) top = q;
+    fprintf(stderr, "%s: the steps' phases outside MPI calls, on each step's slowest rank (the ranks' mean), "
+            "seconds:", backend_name);
+    for (int ph = 0; ph < STEP_PARTS; ph++)
+        fprintf(stderr, " %s %.4f (%.4f)%s", part_name[ph], c->most[ph], c->mean[ph],
+                ph + 1 < STEP_PARTS ? "," : ";");
+    fprintf(stderr, " the slowest rank in most steps: rank %d (%lld of %lld steps)\n", top,
+            (long long)c->slowest[top], (long long)c->steps);
+    fprintf(stderr, "%s: the steps' phases inside MPI calls (the ranks' mean), seconds: halo %.4f, choice %.4f, "
+            "migration %.4f\n", backend_name, c->inside[PART_HALO] / mpi_np, c->inside[PART_CHOOSE] / mpi_np,
+            c->inside[PART_MIGRATE] / mpi_np);
+}
 
 static void run_reserve(Run *r, int64_t n)
 {
@@ -678,16 +769,26 @@ static double run_steps(Run *r, RunStats *st)
     double vm = own_vmax(r), all; /* the first step's fastest component; migrate finds the others' */
     MPI_Allreduce(&vm, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
     r->vmax = (real)all;
+    StepClock *c = r->clock;
     for (int64_t sub = 1; sub <= last; sub++) {
         double ts = MPI_Wtime(), w0 = waited;
+        if (c) clock_start(c);
         halo_exchange(r);
+        if (c) clock_end(c, PART_HALO);
         find_events(r, sub);
+        if (c) clock_end(c, PART_FIND);
         choose(r);
+        if (c) clock_end(c, PART_CHOOSE);
         move(r);
+        if (c) clock_end(c, PART_MOVE);
         r->busy += MPI_Wtime() - ts - (waited - w0);
         if (every && mpi_np > 1 && sub % every == 0) balance(r);
         migrate(r);
         if (sub % REORDER_EVERY == 1) reorder_own(r);
+        if (c) {
+            clock_end(c, PART_MIGRATE);
+            if (++c->fill == CLOCK_CHUNK) clock_flush(c);
+        }
         if (sub % k) continue;
         if (r->par.print && sub < last) {
             Local l = view(r);
@@ -790,6 +891,10 @@ int main(int argc, char **argv)
     io_set_velocity_scale(k);
     RunStats st;
     memset(&st, 0, sizeof st);
+    if (opt.stats) {
+        r.clock = sim_calloc(1, sizeof *r.clock);
+        r.clock->slowest = sim_calloc((size_t)mpi_np, sizeof *r.clock->slowest);
+    }
     double t0 = MPI_Wtime();
     st.seconds = run_steps(&r, &st);
     double run_s = MPI_Wtime() - t0;
@@ -813,6 +918,7 @@ int main(int argc, char **argv)
     MPI_Reduce(split, split_sum, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     MPI_Reduce(split, split_most, 2, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     MPI_Reduce(split, split_least, 2, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD);
+    if (r.clock) clock_gather(r.clock);
     if (mpi_me == 0) {
         int64_t subs = r.par.steps * r.par.substeps;
         if (opt.stats)
@@ -831,6 +937,7 @@ int main(int argc, char **argv)
             fprintf(stderr, "%s: a rank's step loop outside MPI calls %.4f to %.4f s (mean %.4f), inside them "
                     "%.4f to %.4f s (mean %.4f)\n", backend_name, split_least[0], split_most[0],
                     split_sum[0] / mpi_np, split_least[1], split_most[1], split_sum[1] / mpi_np);
+        if (r.clock) clock_report(r.clock);
         if (opt.stats)
             fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
                     "state %.4f s\n", backend_name, t_read, t_step0, t_final);
@@ -840,6 +947,7 @@ int main(int argc, char **argv)
     broad_free(&r.b);
     free(r.send), free(r.scount), free(r.rcount), free(r.node), free(r.adj), free(r.active);
     free(r.node_of);
+    if (r.clock) free(r.clock->slowest), free(r.clock);
     MPI_Finalize();
     return 0;
 }

@@ -138,6 +138,31 @@ else
     else
         fail "mpi --stats" "$(head -c 300 "$M/st.err")"
     fi
+    # --stats times the steps' phases on every rank: 70 steps are gathered in a chunk of 64 and the
+    # rest; each phase's sum over the steps' slowest ranks is at least the ranks' mean, and equal to
+    # it on one rank, whose steps are all its own
+    tools/gen 3000 --fraction 0.2 --speed 0.5 --steps 70 --seed 5 > "$M/clock.in"
+    for p in 1 3; do
+        run_mpi "$p" 1 "$M/clock.in" --quiet --stats > /dev/null 2> "$M/clock.err"
+        verdict=$(grep "phases outside MPI calls" "$M/clock.err" | tr -d '(),;' | awk -v p="$p" '{
+            parts = 0; bad = ""
+            for (k = 1; k < NF - 1; k++)
+                if ($k ~ /^(halo|phase|choice|move|migration)$/ && $(k + 1) ~ /^[0-9.]+$/) {
+                    parts++
+                    if ($(k + 1) < $(k + 2) || (p == 1 && $(k + 1) != $(k + 2))) bad = bad " " $k
+                }
+            rank = $(NF - 4); got = $(NF - 3); of = $(NF - 1)
+            if (parts != 5) print "found " parts " phases"
+            else if (bad != "") print "slowest against mean wrong for" bad
+            else if (of != 70 || got < 1 || got > 70 || rank < 0 || rank >= p) print "steps " got " of " of ", rank " rank
+            else print "ok"
+        }')
+        if [ "$verdict" = ok ] && grep -q "phases inside MPI calls (the ranks' mean), seconds: halo" "$M/clock.err"; then
+            pass "mpi --stats: the steps' phases on $p rank(s), 70 steps"
+        else
+            fail "mpi --stats: the steps' phases on $p rank(s)" "${verdict:-no line}: $(grep phases "$M/clock.err")"
+        fi
+    done
     for s in mid_fast mid_overlap; do
         if run_mpi 3 1 "$M/$s.in" --quiet --check > /dev/null 2> "$M/ck.err"; then
             pass "mpi --check at 3 ranks: $s"
