@@ -67,7 +67,7 @@ echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS ST
 echo "part,program,ranks,threads,n,steps,best_loop_s,median_loop_s,best_wall_s,loop_particle_steps_per_s,bytes_per_step,rounds_per_step,largest_rank_mb,all_ranks_mb,work_mean_s,work_max_s,wait_mean_s"
 
 gas() { # N: the input of a gas of N disks (made once)
-    local f=$WORK/mpi_gas_$1.in
+    local f=$WORK/mpi_gas_$1_$STEPS.in # the steps in its name: a gas made for other steps is not reused
     [ -s "$f" ] || tools/gen "$1" --fraction 0.2 --speed 0.5 --steps "$STEPS" --seed 3 > "$f"
     echo "$f"
 }
@@ -119,6 +119,8 @@ run() {
         "$(stat_of "$err" 'outside MPI calls [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')" \
         "$(stat_of "$err" 'outside MPI calls [0-9.]* to \([0-9.]*\) s')" \
         "$(stat_of "$err" 'inside them [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')"
+    # mpi: where the last run's steps went, phase by phase (the steps' slowest rank against the mean)
+    [ "$prog" = omp ] || sed -n 's/^mpi: the steps. phases/# the last run'"'"'s phases/p' "$err"
 }
 
 summary=()
