@@ -245,7 +245,7 @@ typedef struct {
  * for its slowest rank at every exchange, so the phases' time on each step's slowest rank, summed over
  * the steps, against the ranks' mean shows what the lockstep costs phase by phase, and the rank that
  * was slowest in most steps points at a slower core. Rank 0 gathers the steps every CLOCK_CHUNK
- * steps: one reduction then, none inside a step. */
+ * steps: three small reductions then, none inside a step. */
 enum { PART_HALO, PART_FIND, PART_CHOOSE, PART_MOVE, PART_MIGRATE, STEP_PARTS };
 static const char *const part_name[STEP_PARTS] = {"halo", "broad phase", "choice", "move", "migration"};
 #define CLOCK_CHUNK 64
