@@ -1,19 +1,22 @@
 /* mpi.c: the MPI backend: the box cut into np vertical strips, one per rank (mpi.h), each rank holding
  * the disks whose centres lie in its strip and, during a step, copies of the disks of other strips
  * within reach of its own (the halo). A step (SPEC.md 3) on every rank:
- * 1. every rank knows the fastest velocity component (a maximum: exact; sent with the last step's
- *    migration), which sets the reach: two disks farther apart than 2r + 2 sqrt(2) vmax cannot meet
- *    within the step;
+ * 1. every rank knows a bound on the fastest speed (run_steps), which sets the reach: two disks
+ *    farther apart than 2r + twice that speed cannot meet within the step; a rank's neighbours are
+ *    the ranks whose strips lie within twice the reach of its own;
  * 2. each rank sends copies of its disks within reach of another strip to that strip's rank;
  * 3. omp's broad phase (omp_broad.c) finds the wall and pair events of the rank's disks and halo, on
  *    the rank's threads, over a grid that covers the strip and its halo;
  * 4. the ranks choose in rounds: an event is accepted once it is the smallest live event of both its
  *    disks (live: neither disk decided); after each round the owners send their disks' smallest keys
- *    and decisions to the ranks that hold copies. That is SPEC.md 3.3's greedy walk for any number of
- *    ranks and threads, and an event between disks of two ranks is decided alike on both;
+ *    and decisions to the ranks that hold copies; a rank's rounds end once none of its own disks has a
+ *    live event. That is SPEC.md 3.3's greedy walk for any number of ranks and threads, and an event between disks of
+ *    two ranks is decided alike on both;
  * 5. each rank moves its own disks in place (a pair of own disks together, a disk and a copy through
  *    pair_contact and finish_step for its side: copies keep the state at the start of the step), and
  *    disks that left the strip go to the rank of their new strip.
+ * Within a step a rank exchanges with its neighbours only (point to point), so it waits for them and
+ * not for every rank, and a step's messages do not grow with the number of ranks.
  * The choice and the move touch only the own disks with an event (nodes) and the halo's keys beyond
  * the disks themselves: a rank's step then reads and writes little more than its state, which on a
  * rank of 2.5e5 disks about fits a shared last-level cache's share.
@@ -48,6 +51,7 @@ const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | 
 
 int mpi_me, mpi_np;
 static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
+enum { TAG_HALO = 1, TAG_MIGRATE }; /* the steps' messages between neighbours */
 static double waited;       /* seconds in the steps' MPI calls: what the balance leaves out */
 
 double *mpi_cut;
@@ -180,6 +184,65 @@ static double *exchange(const double *out, const int *count, int width, int64_t 
     return exchange_known(out, count, width, got, rcount);
 }
 
+/* The neighbours of this rank's strip for a reach: the ranks lo .. hi around it (itself included)
+ * whose strips lie within twice the reach of its own. Every rank finds the same relation (the gap
+ * between strips a < b is cut[b] - cut[a + 1] on both), so it is symmetric; twice the reach makes it
+ * hold every strip that a disk within the reach of this one's can lie in, roundings included. */
+static void neighbours(double reach, int *lo, int *hi)
+{
+    int me = mpi_me;
+    *lo = *hi = me;
+    while (*lo > 0 && mpi_cut[me] - mpi_cut[*lo] <= 2 * reach) --*lo;
+    while (*hi < mpi_np - 1 && mpi_cut[*hi + 1] - mpi_cut[me + 1] <= 2 * reach) ++*hi;
+}
+
+/* Sends count[q] records of `width` doubles (packed in rank order in out) to each rank q of
+ * lo .. hi but this one (count is 0 elsewhere), every one of them a message even if empty, and
+ * returns theirs in rank order (*got records, rcount[q] from rank q): point to point with the
+ * neighbours only, so a rank waits for them and not for every rank. */
+static double *exchange_near(const double *out, const int *count, int width, int lo, int hi, int tag,
+                             int64_t *got, int *rcount)
+{
+    int n = hi - lo + 1;
+    MPI_Datatype t;
+    MPI_Type_contiguous(width, MPI_DOUBLE, &t);
+    MPI_Type_commit(&t);
+    MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
+    int64_t off = 0, total = 0;
+    for (int q = 0; q < lo; q++) off += count[q];
+    for (int q = lo; q <= hi; q++) {
+        req[q - lo] = MPI_REQUEST_NULL;
+        if (q != mpi_me) {
+            MPI_Isend(out + off * width, count[q], t, q, tag, MPI_COMM_WORLD, &req[q - lo]);
+            bytes_sent += (uint64_t)count[q] * (uint64_t)width * sizeof(double);
+        }
+        off += count[q];
+    }
+    double t0 = MPI_Wtime();
+    memset(rcount, 0, (size_t)mpi_np * sizeof *rcount);
+    for (int q = lo; q <= hi; q++) { /* the sizes first, then one buffer for all */
+        if (q == mpi_me) continue;
+        MPI_Status st;
+        MPI_Probe(q, tag, MPI_COMM_WORLD, &st);
+        MPI_Get_count(&st, t, &rcount[q]);
+        total += rcount[q];
+    }
+    double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
+    off = 0;
+    for (int q = lo; q <= hi; q++) {
+        req[n + q - lo] = MPI_REQUEST_NULL;
+        if (q == mpi_me) continue;
+        MPI_Irecv(in + off * width, rcount[q], t, q, tag, MPI_COMM_WORLD, &req[n + q - lo]);
+        off += rcount[q];
+    }
+    MPI_Waitall(2 * n, req, MPI_STATUSES_IGNORE);
+    waited += MPI_Wtime() - t0;
+    MPI_Type_free(&t);
+    free(req);
+    *got = total;
+    return in;
+}
+
 /* ---- the run ----------------------------------------------------------------------------------------- */
 
 /* A key of SPEC.md 3.3 on the wire and in the rounds: t = 2 (later than any event) for none. */
@@ -217,7 +280,17 @@ typedef struct {
     int64_t own, halo;
     int nt;
     double reach;     /* this step's */
-    real vmax;        /* this step's fastest velocity component, over all ranks */
+    int nlo, nhi;     /* this step's neighbours (neighbours()) */
+    double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
+    real own_vmax;    /* a bound on the own disks' fastest velocity component */
+    real vmax;        /* this step's fastest velocity component, over the own disks and the halo */
+    /* the fastest speed over all ranks, a step late: sent off as each step ends, read a step later */
+    MPI_Comm speed_comm;
+    MPI_Request speed_req[2];
+    double speed_mine[2], speed_all[2];
+    MPI_Comm keys_comm; /* the choice's rounds (their tags say whether a rank has more to send) */
+    Key *hbuf;        /* the halo's keys as received */
+    size_t hbuf_cap;
     /* the halo exchange: the own slots sent, rank by rank (scount), and the copies received */
     int32_t *send;
     int64_t nsend;
@@ -341,22 +414,30 @@ static void run_reserve(Run *r, int64_t n)
     r->cap = cap;
 }
 
-/* The fastest velocity component of the own disks. */
-static real own_vmax(const Run *r)
+/* The own disks' fastest velocity component into r->own_vmax, and their fastest speed. */
+static double own_speeds(Run *r)
 {
+    const Slots *s = &r->b.s;
     real vm = 0;
-    for (int64_t q = 0; q < r->own; q++) vm = fastest(vm, r->b.s.vx[q], r->b.s.vy[q]);
-    return vm;
+    double s2 = 0;
+    for (int64_t q = 0; q < r->own; q++) {
+        double vx = s->vx[q], vy = s->vy[q], v2 = vx * vx + vy * vy;
+        vm = fastest(vm, s->vx[q], s->vy[q]);
+        if (v2 > s2) s2 = v2;
+    }
+    r->own_vmax = vm;
+    return sqrt(s2);
 }
 
 /* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (a disk at
- * x to the strips of mpi_owner(x - reach) to mpi_owner(x + reach)). */
+ * x to the strips of mpi_owner(x - reach) to mpi_owner(x + reach), all of them neighbours). */
 static void halo_exchange(Run *r)
 {
     Slots *s = &r->b.s;
     int np = mpi_np;
-    /* vmax: over all ranks, found by the last migrate */
-    r->reach = (2 * (double)r->par.r + 2.83 * (double)r->vmax) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    /* two disks close in by at most twice the fastest speed */
+    r->reach = (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    neighbours(r->reach, &r->nlo, &r->nhi);
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
     for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
@@ -371,6 +452,9 @@ static void halo_exchange(Run *r)
             double x = s->x[k];
             if (x > in0 && x < in1) continue; /* within the strip, by more than the reach */
             int q0 = mpi_owner(x - r->reach), q1 = mpi_owner(x + r->reach);
+            if (q0 < r->nlo || q1 > r->nhi)
+                sim_fail("internal error: a disk within reach of strips %d to %d, beyond the neighbours %d to %d",
+                         q0, q1, r->nlo, r->nhi);
             for (int q = q0; q <= q1; q++) {
                 if (q == mpi_me) continue;
                 if (pass) r->send[at[q]++] = (int32_t)k;
@@ -382,10 +466,15 @@ static void halo_exchange(Run *r)
     double *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1) * D_LEN, sizeof *out);
     for (int64_t k = 0; k < r->nsend; k++) pack(s, r->send[k], out + k * D_LEN);
     int64_t got;
-    double *in = exchange(out, r->scount, D_LEN, &got, r->rcount);
+    double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, TAG_HALO, &got, r->rcount);
     run_reserve(r, r->own + got);
     s = &r->b.s;
-    for (int64_t k = 0; k < got; k++) unpack(s, r->own + k, in + k * D_LEN);
+    real vm = r->own_vmax; /* the grid's, over the disks this rank sees */
+    for (int64_t k = 0; k < got; k++) {
+        unpack(s, r->own + k, in + k * D_LEN);
+        vm = fastest(vm, s->vx[r->own + k], s->vy[r->own + k]);
+    }
+    r->vmax = vm;
     r->halo = got;
     free(in);
     free(out);
@@ -510,14 +599,51 @@ static inline const Key *other_key(const Run *r, int32_t o)
     return r->hkey ? &r->hkey[-1 - o] : &key_none;
 }
 
+/* The keys of one round to the neighbours that hold copies of this rank's disks or this rank of
+ * theirs, and theirs into hbuf, for those that have not sent their last (done: by neighbour). A rank
+ * whose own disks are all decided or without a live event sends its last keys (tag KEYS_LAST): they
+ * will not change, so its neighbours keep them and go on without it. Returns whether any came. */
+enum { KEYS_MORE = 1, KEYS_LAST };
+static int keys_round(Run *r, const Key *out, char *done, int last)
+{
+    int n = r->nhi - r->nlo + 1, posted = 0;
+    MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
+    char *from = sim_calloc((size_t)n, 1);
+    int64_t soff = 0, roff = 0;
+    for (int q = 0; q < r->nlo; q++) soff += r->scount[q], roff += r->rcount[q];
+    for (int q = r->nlo; q <= r->nhi; q++) {
+        int k = q - r->nlo;
+        req[k] = req[n + k] = MPI_REQUEST_NULL;
+        if (q != mpi_me && !done[k] && (r->scount[q] || r->rcount[q])) {
+            MPI_Irecv(r->hbuf + roff, 5 * r->rcount[q], MPI_DOUBLE, q, MPI_ANY_TAG, r->keys_comm, &req[n + k]);
+            MPI_Isend(out + soff, 5 * r->scount[q], MPI_DOUBLE, q, last ? KEYS_LAST : KEYS_MORE, r->keys_comm,
+                      &req[k]);
+            bytes_sent += (uint64_t)r->scount[q] * sizeof *out;
+            posted = from[k] = 1;
+        }
+        soff += r->scount[q], roff += r->rcount[q];
+    }
+    MPI_Status *st = sim_calloc(2 * (size_t)n, sizeof *st);
+    double t0 = MPI_Wtime();
+    MPI_Waitall(2 * n, req, st);
+    waited += MPI_Wtime() - t0;
+    for (int k = 0; k < n; k++)
+        if (from[k] && st[n + k].MPI_TAG == KEYS_LAST) done[k] = 1;
+    free(st), free(req), free(from);
+    return posted;
+}
+
 /* 4: the rounds. Each node's pick ends as its accepted event: an index into adj, -1 for its wall
- * event, -2 for none. */
+ * event, -2 for none. A rank goes on while its own disks have live events: it waits for its
+ * neighbours' keys only, never for all ranks. */
 static void choose(Run *r)
 {
     int64_t na = build_nodes(r);
     Node *node = r->node;
     r->hkey = NULL;
-    Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out), *in = NULL;
+    r->hbuf = omp_scratch_grow(r->hbuf, &r->hbuf_cap, (size_t)(r->halo ? r->halo : 1), sizeof *r->hbuf);
+    Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out);
+    char *done = sim_calloc((size_t)(r->nhi - r->nlo + 1), 1);
     for (;;) {
         /* each undecided own disk's smallest live event (a copy's decision may be a round late:
          * that only delays, as an event is accepted only when it is both disks' smallest) */
@@ -540,22 +666,16 @@ static void choose(Run *r)
             kq->t = best.t, kq->kind = best.kind, kq->i = best.i, kq->j = best.j;
             nd->pick = pick;
         }
-        int64_t live = 0, all;
+        int64_t live = 0;
         for (int64_t k = 0; k < na; k++) live += node[r->active[k]].pick != -2;
-        double t0 = MPI_Wtime();
-        MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
-        waited += MPI_Wtime() - t0;
-        if (all == 0) break;
-        r->rounds++;
         /* the owners' keys and decisions to the copies (as many as the halo's disks: known) */
         for (int64_t k = 0; k < r->nsend; k++) {
             int32_t v = r->node_of[r->send[k]];
             out[k] = v >= 0 ? node[v].key : key_none;
         }
-        int64_t got;
-        free(in);
-        in = (Key *)exchange_known((const double *)out, r->scount, 5, &got, r->rcount);
-        r->hkey = in;
+        if (keys_round(r, out, done, live == 0)) r->hkey = r->hbuf;
+        if (live == 0) break;
+        r->rounds++;
         /* accepted: the smallest live event of both its disks, decided alike by both owners */
 #pragma omp parallel for num_threads(r->nt) schedule(static)
         for (int64_t k = 0; k < na; k++) {
@@ -577,10 +697,8 @@ static void choose(Run *r)
         }
         na = kept;
     }
-    /* own disks left without a live event move freely */
-    for (int64_t k = 0; k < na; k++) node[r->active[k]].pick = -2;
     r->hkey = NULL;
-    free(in);
+    free(done);
     free(out);
 }
 
@@ -644,8 +762,10 @@ static void move(Run *r)
     r->events += events;
 }
 
-/* Disks that left the strip go to the rank of their new strip. */
-static void migrate(Run *r)
+/* Disks that left the strip go to the rank of their new strip: a neighbour (a disk moves at most
+ * twice the fastest speed at the step's start, within the reach), or any rank where the cuts moved
+ * (moved). The fastest speed over the moved disks, leavers too, is sent off to all ranks (speed). */
+static void migrate(Run *r, int moved, int speed)
 {
     Slots *s = &r->b.s;
     int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count);
@@ -653,14 +773,21 @@ static void migrate(Run *r)
     int64_t moving = 0, keep;
     /* the leavers' slots, ascending, and their ranks (in cell_of, free between steps): few */
     int32_t *leaver = r->b.cell_of, *dest = NULL;
-    double vm = own_vmax(r); /* over all the moved disks, those about to leave too */
+    r->speed_mine[speed] = own_speeds(r);
+    MPI_Iallreduce(&r->speed_mine[speed], &r->speed_all[speed], 1, MPI_DOUBLE, MPI_MAX, r->speed_comm,
+                   &r->speed_req[speed]);
     if (np > 1)
         for (int64_t q = 0; q < r->own; q++) {
             int o = mpi_owner(s->x[q]);
             if (o != mpi_me) count[o]++, leaver[moving++] = (int32_t)q;
         }
     dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
-    for (int64_t k = 0; k < moving; k++) dest[k] = mpi_owner(s->x[leaver[k]]);
+    for (int64_t k = 0; k < moving; k++) {
+        dest[k] = mpi_owner(s->x[leaver[k]]);
+        if (!moved && (dest[k] < r->nlo || dest[k] > r->nhi))
+            sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
+                     r->nhi);
+    }
     double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
     int64_t *at = sim_calloc((size_t)np, sizeof *at);
     for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
@@ -679,24 +806,17 @@ static void migrate(Run *r)
         if (s->wi) s->wi[q] = s->wi[from];
         lo++;
     }
-    /* the counts, and with them the fastest velocity component of the moved disks (a maximum: the
-     * same whichever rank holds a disk), which sets the next step's reach */
-    double *head = sim_calloc(2 * (size_t)np, sizeof *head), *rhead = sim_calloc(2 * (size_t)np, sizeof *rhead);
-    for (int q = 0; q < np; q++) head[2 * q] = count[q], head[2 * q + 1] = vm;
-    double t0 = MPI_Wtime();
-    MPI_Alltoall(head, 2, MPI_DOUBLE, rhead, 2, MPI_DOUBLE, MPI_COMM_WORLD);
-    waited += MPI_Wtime() - t0;
-    for (int q = 0; q < np; q++) {
-        rcount[q] = (int)rhead[2 * q];
-        if (rhead[2 * q + 1] > vm) vm = rhead[2 * q + 1];
-    }
-    r->vmax = (real)vm;
-    free(head), free(rhead);
     int64_t got;
-    double *in = exchange_known(out, count, D_LEN, &got, rcount);
+    double *in = moved ? exchange(out, count, D_LEN, &got, rcount)
+                       : exchange_near(out, count, D_LEN, r->nlo, r->nhi, TAG_MIGRATE, &got, rcount);
     run_reserve(r, keep + got);
     s = &r->b.s;
-    for (int64_t k = 0; k < got; k++) unpack(s, keep + k, in + k * D_LEN);
+    real vm = r->own_vmax; /* own_speeds' over the disks before they left: still a bound */
+    for (int64_t k = 0; k < got; k++) {
+        unpack(s, keep + k, in + k * D_LEN);
+        vm = fastest(vm, s->vx[keep + k], s->vy[keep + k]);
+    }
+    r->own_vmax = vm;
     r->own = keep + got;
     r->halo = 0;
     free(in), free(out), free(at), free(count), free(rcount), free(dest);
@@ -743,14 +863,16 @@ static void reorder_own(Run *r)
  * the last steps cost its rank per disk (busy: MPI calls left out): a rank on a slower core, or with a
  * denser part of the box, gets a narrower strip. The disks that the new cuts put in another strip go
  * there in the next migrate; the events found do not depend on the cuts, so neither do the bytes. */
-static void balance(Run *r)
+static int balance(Run *r)
 {
     double *h = sim_calloc((size_t)mpi_cut_bins(), sizeof *h);
     double wt = r->own ? r->busy / (double)r->own : 0;
     for (int64_t q = 0; q < r->own; q++) mpi_cut_add(h, (double)r->b.s.x[q], r->par.L, wt);
-    r->moves += mpi_place_cuts(h, r->busy, r->par.L, BALANCE_SLACK);
+    int moved = mpi_place_cuts(h, r->busy, r->par.L, BALANCE_SLACK);
+    r->moves += moved;
     r->busy = 0;
     free(h);
+    return moved;
 }
 
 static Local view(const Run *r)
@@ -766,13 +888,25 @@ static double run_steps(Run *r, RunStats *st)
     uint64_t bytes0 = bytes_sent;
     double waited0 = waited;
     int64_t every = r->opt->balance;
-    double vm = own_vmax(r), all; /* the first step's fastest component; migrate finds the others' */
-    MPI_Allreduce(&vm, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-    r->vmax = (real)all;
+    /* the fastest speed: at the first step's start exactly; then migrate sends each step's off as it
+     * ends, and the next step but one reads it. A speed grows at most by sqrt(2) in a step (two
+     * disks' kinetic energy is shared between them), so the step after a known speed moves no disk
+     * faster than sqrt(2) times it, and no rank waits on all ranks within a step. */
+    double known = own_speeds(r);
+    MPI_Allreduce(MPI_IN_PLACE, &known, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    r->speed_req[0] = r->speed_req[1] = MPI_REQUEST_NULL;
     StepClock *c = r->clock;
     for (int64_t sub = 1; sub <= last; sub++) {
         double ts = MPI_Wtime(), w0 = waited;
         if (c) clock_start(c);
+        if (sub >= 3) { /* the speed at the last step's start, sent off as the step before it ended */
+            int o = (int)(sub & 1);
+            double tw = MPI_Wtime();
+            MPI_Wait(&r->speed_req[o], MPI_STATUS_IGNORE);
+            waited += MPI_Wtime() - tw;
+            known = r->speed_all[o];
+        }
+        r->speed = sub == 1 ? known : known * 1.41422;
         halo_exchange(r);
         if (c) clock_end(c, PART_HALO);
         find_events(r, sub);
@@ -782,8 +916,8 @@ static double run_steps(Run *r, RunStats *st)
         move(r);
         if (c) clock_end(c, PART_MOVE);
         r->busy += MPI_Wtime() - ts - (waited - w0);
-        if (every && mpi_np > 1 && sub % every == 0) balance(r);
-        migrate(r);
+        int moved = every && mpi_np > 1 && sub % every == 0 && balance(r);
+        migrate(r, moved, (int)(sub & 1));
         if (sub % REORDER_EVERY == 1) reorder_own(r);
         if (c) {
             clock_end(c, PART_MIGRATE);
@@ -796,6 +930,7 @@ static double run_steps(Run *r, RunStats *st)
         }
         if (mpi_me == 0) io_progress(r->out, sub / k);
     }
+    MPI_Waitall(2, r->speed_req, MPI_STATUSES_IGNORE);
     double secs = MPI_Wtime() - t0;
     r->bytes_steps = bytes_sent - bytes0; /* output's traffic aside */
     r->waited_steps = waited - waited0;
@@ -882,6 +1017,8 @@ int main(int argc, char **argv)
         unpack(&r.b.s, q, d);
     }
     slots_free(&l.s);
+    MPI_Comm_dup(MPI_COMM_WORLD, &r.speed_comm);
+    MPI_Comm_dup(MPI_COMM_WORLD, &r.keys_comm);
     r.scount = sim_calloc((size_t)mpi_np, sizeof *r.scount);
     r.rcount = sim_calloc((size_t)mpi_np, sizeof *r.rcount);
 
@@ -908,10 +1045,10 @@ int main(int argc, char **argv)
     /* --stats: the steps' traffic between ranks, and each rank's peak memory (the largest and rank 0's) */
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
-    uint64_t mine[3] = {r.bytes_steps, (uint64_t)ru.ru_maxrss, (uint64_t)r.own}, sum[3], most[3], least[3];
-    MPI_Reduce(mine, sum, 3, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(mine, most, 3, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
-    MPI_Reduce(mine, least, 3, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
+    uint64_t mine[4] = {r.bytes_steps, (uint64_t)ru.ru_maxrss, (uint64_t)r.own, r.rounds}, sum[4], most[4], least[4];
+    MPI_Reduce(mine, sum, 4, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, most, 4, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, least, 4, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
     /* the step loop split into work and waiting, per rank: the work growing with the ranks is the
      * machine shared (memory, caches); the waiting, the slowest rank of each step and the exchanges */
     double split[2] = {st.seconds - r.waited_steps, r.waited_steps}, split_sum[2], split_most[2], split_least[2];
@@ -923,11 +1060,11 @@ int main(int argc, char **argv)
         int64_t subs = r.par.steps * r.par.substeps;
         if (opt.stats)
             fprintf(stderr,
-                    "%s: %d ranks x %d threads; %llu rounds of the choice (%.3g a step); %.4g bytes sent "
-                    "between ranks a step; peak memory: largest rank %.1f MB, rank 0 %.1f MB, all ranks "
-                    "%.1f MB\n",
-                    backend_name, mpi_np, r.nt, (unsigned long long)r.rounds,
-                    subs ? (double)r.rounds / (double)subs : 0.0, subs ? (double)sum[0] / (double)subs : 0.0,
+                    "%s: %d ranks x %d threads; %llu rounds of the choice on the rank with the most (%.3g a "
+                    "step); %.4g bytes sent between ranks a step; peak memory: largest rank %.1f MB, rank 0 "
+                    "%.1f MB, all ranks %.1f MB\n",
+                    backend_name, mpi_np, r.nt, (unsigned long long)most[3],
+                    subs ? (double)most[3] / (double)subs : 0.0, subs ? (double)sum[0] / (double)subs : 0.0,
                     (double)most[1] / 1024, (double)mine[1] / 1024, (double)sum[1] / 1024);
         if (opt.stats)
             fprintf(stderr, "%s: the cuts between strips moved %lld times (--balance %lld); disks a rank at "
@@ -946,7 +1083,9 @@ int main(int argc, char **argv)
     }
     broad_free(&r.b);
     free(r.send), free(r.scount), free(r.rcount), free(r.node), free(r.adj), free(r.active);
-    free(r.node_of);
+    free(r.node_of), free(r.hbuf);
+    MPI_Comm_free(&r.speed_comm);
+    MPI_Comm_free(&r.keys_comm);
     if (r.clock) free(r.clock->slowest), free(r.clock);
     MPI_Finalize();
     return 0;
