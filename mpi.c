@@ -281,6 +281,7 @@ typedef struct {
     int nt;
     double reach;     /* this step's */
     int nlo, nhi;     /* this step's neighbours (neighbours()) */
+    int most_near;    /* the most neighbours in any step (--stats) */
     double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
     real own_vmax;    /* a bound on the own disks' fastest velocity component */
     real vmax;        /* this step's fastest velocity component, over the own disks and the halo */
@@ -438,6 +439,7 @@ static void halo_exchange(Run *r)
     /* two disks close in by at most twice the fastest speed */
     r->reach = (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
     neighbours(r->reach, &r->nlo, &r->nhi);
+    if (r->nhi - r->nlo > r->most_near) r->most_near = r->nhi - r->nlo;
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
     for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
@@ -1045,10 +1047,11 @@ int main(int argc, char **argv)
     /* --stats: the steps' traffic between ranks, and each rank's peak memory (the largest and rank 0's) */
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
-    uint64_t mine[4] = {r.bytes_steps, (uint64_t)ru.ru_maxrss, (uint64_t)r.own, r.rounds}, sum[4], most[4], least[4];
-    MPI_Reduce(mine, sum, 4, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(mine, most, 4, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
-    MPI_Reduce(mine, least, 4, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
+    uint64_t mine[5] = {r.bytes_steps, (uint64_t)ru.ru_maxrss, (uint64_t)r.own, r.rounds, (uint64_t)r.most_near};
+    uint64_t sum[5], most[5], least[5];
+    MPI_Reduce(mine, sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, most, 5, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
+    MPI_Reduce(mine, least, 5, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
     /* the step loop split into work and waiting, per rank: the work growing with the ranks is the
      * machine shared (memory, caches); the waiting, the slowest rank of each step and the exchanges */
     double split[2] = {st.seconds - r.waited_steps, r.waited_steps}, split_sum[2], split_most[2], split_least[2];
@@ -1068,8 +1071,9 @@ int main(int argc, char **argv)
                     (double)most[1] / 1024, (double)mine[1] / 1024, (double)sum[1] / 1024);
         if (opt.stats)
             fprintf(stderr, "%s: the cuts between strips moved %lld times (--balance %lld); disks a rank at "
-                    "the end %llu to %llu\n", backend_name, (long long)r.moves, (long long)opt.balance,
-                    (unsigned long long)least[2], (unsigned long long)most[2]);
+                    "the end %llu to %llu; neighbours a rank exchanged with in a step: up to %llu\n",
+                    backend_name, (long long)r.moves, (long long)opt.balance, (unsigned long long)least[2],
+                    (unsigned long long)most[2], (unsigned long long)most[4]);
         if (opt.stats)
             fprintf(stderr, "%s: a rank's step loop outside MPI calls %.4f to %.4f s (mean %.4f), inside them "
                     "%.4f to %.4f s (mean %.4f)\n", backend_name, split_least[0], split_most[0],

@@ -6,6 +6,7 @@
 # - random placement (--seed), standard input, --dump17, --substeps 2, --pressure (the pressure line
 #   too), --stats, --check;
 # - the strips' cuts: by count (a gas crowded in one corner shared out), moved every step (--balance);
+#   neighbourhoods wider than the adjacent strips;
 # - the input read in byte ranges by every rank: files whose lines fall on the ranges' edges, blank
 #   lines, CRLF;
 # - --output FILE: the same bytes in FILE, written by every rank at its offset;
@@ -99,6 +100,18 @@ else
     tools/gen 400 --speed 0.5 --fast 0.005 --steps 200 --mode print > "$M/fast_few.in"
     ./seq "$M/fast_few.in" --quiet > "$M/fast_few.ref"
     ranks "two fast disks crossing the strips" "$M/fast_few.ref" "2 5 8" "$M/fast_few.in"
+
+    # a step's messages go to the neighbours only: the strips within twice the reach, here more than
+    # the two adjacent ones (8 ranks on a gas of 600 disks: strips narrower than twice the reach),
+    # with seq's bytes
+    if run_mpi 8 1 inputs/dense_gas.in --stats --quiet > "$M/near.out" 2> "$M/near.err" &&
+        cmp -s "$M/near.out" outputs/dense_gas.out &&
+        near=$(sed -n 's/.*exchanged with in a step: up to \([0-9]*\)$/\1/p' "$M/near.err") &&
+        [ -n "$near" ] && [ "$near" -ge 3 ] && [ "$near" -le 7 ]; then
+        pass "mpi: neighbours beyond the adjacent strips ($near at 8 ranks), seq's bytes"
+    else
+        fail "mpi: neighbours beyond the adjacent strips" "neighbours '${near:-}'; $(head -c 300 "$M/near.err")"
+    fi
 
     # the cuts between the strips: placed by count at the start, and with --balance K moved by the
     # ranks' measured times every K steps (disks migrate by the moved cuts); a gas crowded into the
