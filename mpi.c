@@ -10,8 +10,8 @@
  * 4. the ranks choose in rounds: an event is accepted once it is the smallest live event of both its
  *    disks (live: neither disk decided); after each round the owners send their disks' smallest keys
  *    and decisions to the ranks that hold copies; a rank's rounds end once none of its own disks has a
- *    live event. That is SPEC.md 3.3's greedy walk for any number of ranks and threads, and an event between disks of
- *    two ranks is decided alike on both;
+ *    live event. That is SPEC.md 3.3's greedy walk for any number of ranks and threads, and an event
+ *    between disks of two ranks is decided alike on both;
  * 5. each rank moves its own disks in place (a pair of own disks together, a disk and a copy through
  *    pair_contact and finish_step for its side: copies keep the state at the start of the step), and
  *    disks that left the strip go to the rank of their new strip.
@@ -315,9 +315,10 @@ typedef struct {
     StepClock *clock; /* --stats: the steps' phases */
 } Run;
 
-/* --stats: a step's phases timed on every rank, outside MPI calls and inside them. Each step waits
- * for its slowest rank at every exchange, so the phases' time on each step's slowest rank, summed over
- * the steps, against the ranks' mean shows what the lockstep costs phase by phase, and the rank that
+/* --stats: a step's phases timed on every rank, outside MPI calls and inside them. A rank waits for
+ * its neighbours at every exchange, and they for theirs, so the phases' time on each step's slowest
+ * rank, summed over the steps, against the ranks' mean shows what the ranks' unequal speeds can cost
+ * phase by phase (the ranks are not in lockstep: the sum may exceed the step loop), and the rank that
  * was slowest in most steps points at a slower core. Rank 0 gathers the steps every CLOCK_CHUNK
  * steps: three small reductions then, none inside a step. */
 enum { PART_HALO, PART_FIND, PART_CHOOSE, PART_MOVE, PART_MIGRATE, STEP_PARTS };
@@ -764,9 +765,9 @@ static void move(Run *r)
     r->events += events;
 }
 
-/* Disks that left the strip go to the rank of their new strip: a neighbour (a disk moves at most
- * twice the fastest speed at the step's start, within the reach), or any rank where the cuts moved
- * (moved). The fastest speed over the moved disks, leavers too, is sent off to all ranks (speed). */
+/* Disks that left the strip go to the rank of their new strip: a neighbour (a disk moves less than
+ * the reach in a step), or any rank where the cuts moved (moved). The fastest speed over the moved
+ * disks, leavers too, is sent off to all ranks (into slot `speed` of run_steps' two). */
 static void migrate(Run *r, int moved, int speed)
 {
     Slots *s = &r->b.s;
@@ -1053,7 +1054,7 @@ int main(int argc, char **argv)
     MPI_Reduce(mine, most, 5, MPI_UINT64_T, MPI_MAX, 0, MPI_COMM_WORLD);
     MPI_Reduce(mine, least, 5, MPI_UINT64_T, MPI_MIN, 0, MPI_COMM_WORLD);
     /* the step loop split into work and waiting, per rank: the work growing with the ranks is the
-     * machine shared (memory, caches); the waiting, the slowest rank of each step and the exchanges */
+     * machine shared (memory, caches); the waiting, the neighbours' slower steps and the exchanges */
     double split[2] = {st.seconds - r.waited_steps, r.waited_steps}, split_sum[2], split_most[2], split_least[2];
     MPI_Reduce(split, split_sum, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     MPI_Reduce(split, split_most, 2, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
