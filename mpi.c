@@ -607,7 +607,7 @@ static inline const Key *other_key(const Run *r, int32_t o)
  * whose own disks are all decided or without a live event sends its last keys (tag KEYS_LAST): they
  * will not change, so its neighbours keep them and go on without it. Returns whether any came. */
 enum { KEYS_MORE = 1, KEYS_LAST };
-static int keys_round(Run *r, const Key *out, char *done, int last)
+static int keys_round(Run *r, const Key *out, char *done, char *hdone, int last)
 {
     int n = r->nhi - r->nlo + 1, posted = 0;
     MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
@@ -630,8 +630,16 @@ static int keys_round(Run *r, const Key *out, char *done, int last)
     double t0 = MPI_Wtime();
     MPI_Waitall(2 * n, req, st);
     waited += MPI_Wtime() - t0;
-    for (int k = 0; k < n; k++)
-        if (from[k] && st[n + k].MPI_TAG == KEYS_LAST) done[k] = 1;
+    roff = 0;
+    for (int q = 0; q < r->nlo; q++) roff += r->rcount[q];
+    for (int k = 0; k < n; k++) {
+        int q = r->nlo + k;
+        if (from[k] && st[n + k].MPI_TAG == KEYS_LAST) {
+            done[k] = 1;
+            memset(hdone + roff, 1, (size_t)r->rcount[q]); /* its copies' keys are final */
+        }
+        roff += r->rcount[q];
+    }
     free(st), free(req), free(from);
     return posted;
 }
@@ -647,6 +655,8 @@ static void choose(Run *r)
     r->hbuf = omp_scratch_grow(r->hbuf, &r->hbuf_cap, (size_t)(r->halo ? r->halo : 1), sizeof *r->hbuf);
     Key *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1), sizeof *out);
     char *done = sim_calloc((size_t)(r->nhi - r->nlo + 1), 1);
+    char *hdone = sim_calloc((size_t)(r->halo ? r->halo : 1), 1); /* by copy: its owner sent its last */
+    int64_t stuck = 0;
     for (;;) {
         /* each undecided own disk's smallest live event (a copy's decision may be a round late:
          * that only delays, as an event is accepted only when it is both disks' smallest) */
@@ -676,22 +686,28 @@ static void choose(Run *r)
             int32_t v = r->node_of[r->send[k]];
             out[k] = v >= 0 ? node[v].key : key_none;
         }
-        if (keys_round(r, out, done, live == 0)) r->hkey = r->hbuf;
+        if (keys_round(r, out, done, hdone, live == 0)) r->hkey = r->hbuf;
         if (live == 0) break;
         r->rounds++;
         /* accepted: the smallest live event of both its disks, decided alike by both owners */
-#pragma omp parallel for num_threads(r->nt) schedule(static)
+#pragma omp parallel for num_threads(r->nt) schedule(static) reduction(+ : stuck)
         for (int64_t k = 0; k < na; k++) {
             Node *nd = &node[r->active[k]];
-            int32_t p = nd->pick;
+            int32_t p = nd->pick, o = p >= 0 ? r->adj[p].other : 0;
             nd->acc = 0;
             if (p == -1) {
                 nd->acc = 1;
             } else if (p >= 0) {
-                const Key *ko = other_key(r, r->adj[p].other);
+                const Key *ko = other_key(r, o);
                 nd->acc = ko->decided == 0 && key_same(ko, &nd->key);
+                /* an undecided copy whose owner has ended its rounds had no live event there: this
+                 * rank found an event that the owner did not, and would wait for it forever */
+                stuck += !nd->acc && o < 0 && ko->decided == 0 && hdone[-1 - o];
             }
         }
+        if (stuck)
+            sim_fail("internal error: %lld events with copies that their owners did not find (the halos "
+                     "disagree)", (long long)stuck);
         int64_t kept = 0;
         for (int64_t k = 0; k < na; k++) {
             Node *nd = &node[r->active[k]];
@@ -701,7 +717,7 @@ static void choose(Run *r)
         na = kept;
     }
     r->hkey = NULL;
-    free(done);
+    free(hdone), free(done);
     free(out);
 }
 

@@ -6,7 +6,8 @@
 # - random placement (--seed), standard input, --dump17, --substeps 2, --pressure (the pressure line
 #   too), --stats, --check;
 # - the strips' cuts: by count (a gas crowded in one corner shared out), moved every step (--balance);
-#   neighbourhoods wider than the adjacent strips;
+#   neighbourhoods wider than the adjacent strips; a speed grown by sqrt(2) in a step, whose next
+#   step's pair across the cut only the grown reach finds;
 # - the input read in byte ranges by every rank: files whose lines fall on the ranges' edges, blank
 #   lines, CRLF;
 # - --output FILE: the same bytes in FILE, written by every rank at its offset;
@@ -100,6 +101,14 @@ else
     tools/gen 400 --speed 0.5 --fast 0.005 --steps 200 --mode print > "$M/fast_few.in"
     ./seq "$M/fast_few.in" --quiet > "$M/fast_few.ref"
     ranks "two fast disks crossing the strips" "$M/fast_few.ref" "2 5 8" "$M/fast_few.in"
+
+    # the reach comes from the fastest speed a step late, times sqrt(2), the most a speed can grow in
+    # a step: here disk 0's speed grows by sqrt(2) in step 1 (all of disk 1's, met along their normal,
+    # added to its own, at right angles), and in step 2 it meets disk 2 across the cut between the two
+    # strips, farther from the cut than 2r plus twice the first step's fastest speed
+    printf '6\n100\n1\n3\nprint\n0 38.625 51.375 2.75 -2.75\n1 37.210786437626904 47.210786437626904 2.75 2.75\n2 57.125 50 -3.875 0\n3 43 10 0 0\n4 80 10 0 0\n5 90 10 0 0\n' > "$M/grow.in"
+    ./seq "$M/grow.in" --quiet > "$M/grow.ref"
+    ranks "a speed grown by sqrt(2), then a pair across the strips" "$M/grow.ref" "2 3" "$M/grow.in"
 
     # a step's messages go to the neighbours only: the strips within twice the reach, here more than
     # the two adjacent ones (8 ranks on a gas of 600 disks: strips narrower than twice the reach),
