@@ -611,18 +611,20 @@ static int keys_round(Run *r, const Key *out, char *done, char *hdone, int last)
 {
     int n = r->nhi - r->nlo + 1, posted = 0;
     MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
-    char *from = sim_calloc((size_t)n, 1);
+    int64_t *from = sim_calloc((size_t)n, sizeof *from); /* where each one's keys land, -1: none came */
     int64_t soff = 0, roff = 0;
     for (int q = 0; q < r->nlo; q++) soff += r->scount[q], roff += r->rcount[q];
     for (int q = r->nlo; q <= r->nhi; q++) {
         int k = q - r->nlo;
         req[k] = req[n + k] = MPI_REQUEST_NULL;
+        from[k] = -1;
         if (q != mpi_me && !done[k] && (r->scount[q] || r->rcount[q])) {
             MPI_Irecv(r->hbuf + roff, 5 * r->rcount[q], MPI_DOUBLE, q, MPI_ANY_TAG, r->keys_comm, &req[n + k]);
             MPI_Isend(out + soff, 5 * r->scount[q], MPI_DOUBLE, q, last ? KEYS_LAST : KEYS_MORE, r->keys_comm,
                       &req[k]);
             bytes_sent += (uint64_t)r->scount[q] * sizeof *out;
-            posted = from[k] = 1;
+            from[k] = roff;
+            posted = 1;
         }
         soff += r->scount[q], roff += r->rcount[q];
     }
@@ -630,16 +632,11 @@ static int keys_round(Run *r, const Key *out, char *done, char *hdone, int last)
     double t0 = MPI_Wtime();
     MPI_Waitall(2 * n, req, st);
     waited += MPI_Wtime() - t0;
-    roff = 0;
-    for (int q = 0; q < r->nlo; q++) roff += r->rcount[q];
-    for (int k = 0; k < n; k++) {
-        int q = r->nlo + k;
-        if (from[k] && st[n + k].MPI_TAG == KEYS_LAST) {
+    for (int k = 0; k < n; k++)
+        if (from[k] >= 0 && st[n + k].MPI_TAG == KEYS_LAST) {
             done[k] = 1;
-            memset(hdone + roff, 1, (size_t)r->rcount[q]); /* its copies' keys are final */
+            memset(hdone + from[k], 1, (size_t)r->rcount[r->nlo + k]); /* its copies' keys are final */
         }
-        roff += r->rcount[q];
-    }
     free(st), free(req), free(from);
     return posted;
 }
