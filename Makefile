@@ -1,6 +1,9 @@
 # Builds the three backends of the particle-collision simulator and runs the test suite.
 # make            seq and omp (and cuda where nvcc exists)
-# make test       the whole suite (tests/run.sh); ends with "N passed, N failed"
+# make test       the quick suite (tests/run.sh): every backend and feature at small sizes, about a
+#                 minute on 2 cores; ends with "N passed, N failed"
+# make test-all   every check (tests/run.sh --all): the long matrices, 8 mpi ranks, kill trials,
+#                 the bench smoke runs
 # make golden     regenerate outputs/ from seq (on purpose only)
 # make PRECISION=float   only the single-precision builds seq_f32, omp_f32 (and cuda_f32)
 
@@ -20,7 +23,7 @@ PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda) $(if $(HAV
 PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
-.PHONY: all test golden bench accuracy plots clean tools demo
+.PHONY: all test test-all golden bench accuracy plots clean tools demo
 ifeq ($(PRECISION),float)
 all: $(PROGRAMS_F32)
 else
@@ -33,22 +36,20 @@ ifneq ($(HAVE_MPICC),yes)
 	@echo "mpi skipped: $(MPICC) not found (Debian: apt-get install openmpi-bin libopenmpi-dev)"
 endif
 
-# the layers below the backends: state.c (messages, memory, the state's arrays), io.c (the driver)
-io.o: io.c io.h common.h exact.h Makefile
-	$(CC) $(CFLAGS) -c io.c -o $@
+# the layers below the backends (io.h names them): state and physics, the --exact model, the I/O layer
+# and driver; every backend links them
+CORE = state exact output place input checkpoint io
+CORE_SRC = $(CORE:=.c)
+HEADERS = common.h exact.h io.h io_internal.h
+BASE = $(CORE:=.o)
+BASE_F32 = $(CORE:=_f32.o)
 
-io_f32.o: io.c io.h common.h exact.h Makefile
-	$(CC) $(CFLAGS) -DSIM_FLOAT -c io.c -o $@
+$(BASE): %.o: %.c $(HEADERS) Makefile
+	$(CC) $(CFLAGS) -c $< -o $@
 
-state.o: state.c common.h Makefile
-	$(CC) $(CFLAGS) -c state.c -o $@
+$(BASE_F32): %_f32.o: %.c $(HEADERS) Makefile
+	$(CC) $(CFLAGS) -DSIM_FLOAT -c $< -o $@
 
-state_f32.o: state.c common.h Makefile
-	$(CC) $(CFLAGS) -DSIM_FLOAT -c state.c -o $@
-
-BASE = io.o state.o
-BASE_F32 = io_f32.o state_f32.o
-HEADERS = common.h io.h exact.h
 OMP_SRC = omp.c omp_broad.c omp_paths.c omp_exact.c omp_team.c
 OMP_H = omp_step.h omp_lanes.h omp_team.h
 
@@ -58,7 +59,7 @@ seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
 omp_f32: $(OMP_SRC) $(BASE_F32) $(HEADERS) $(OMP_H) Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT $(OMP_SRC) $(BASE_F32) -o $@ $(LDLIBS)
 
-cuda_f32: cuda.cu $(BASE_F32) common.h io.h Makefile
+cuda_f32: cuda.cu $(BASE_F32) $(HEADERS) Makefile
 	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu $(BASE_F32) -o $@ $(LDLIBS)
 
 seq: seq.c $(BASE) $(HEADERS) Makefile
@@ -69,23 +70,23 @@ omp: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
 
 # the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler);
 # omp's broad phase inside each rank
-MPI_SRC = mpi.c mpi_io.c omp_broad.c omp_paths.c omp_team.c io.c state.c
+MPI_SRC = mpi_comm.c mpi_io.c mpi.c omp_broad.c omp_paths.c omp_team.c $(CORE_SRC)
 mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h Makefile
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) $(MPI_SRC) -o $@ $(LDLIBS)
 
-cuda: cuda.cu $(BASE) common.h io.h Makefile
+cuda: cuda.cu $(BASE) $(HEADERS) Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu $(BASE) -o $@ $(LDLIBS)
 
 # seq with address and undefined-behaviour checks, for the hard cases
-seq_san: seq.c io.c state.c $(HEADERS) Makefile
-	$(CC) $(SANFLAGS) seq.c io.c state.c -o $@ $(LDLIBS)
+seq_san: seq.c $(CORE_SRC) $(HEADERS) Makefile
+	$(CC) $(SANFLAGS) seq.c $(CORE_SRC) -o $@ $(LDLIBS)
 
 # omp under ThreadSanitizer (tests/t_62_tsan.sh), built by clang with LLVM's OpenMP runtime (libomp),
 # whose Archer tool tells the sanitizer about OpenMP's own synchronisation (gcc's libgomp would give
 # false reports); needs clang and libomp-dev
 TSAN_CC ?= clang
-omp_tsan: $(OMP_SRC) io.c state.c $(HEADERS) $(OMP_H) Makefile
-	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp $(OMP_SRC) io.c state.c -o $@ $(LDLIBS)
+omp_tsan: $(OMP_SRC) $(CORE_SRC) $(HEADERS) $(OMP_H) Makefile
+	$(TSAN_CC) -std=c99 -O1 -g -ffp-contract=off -fsanitize=thread -fopenmp $(OMP_SRC) $(CORE_SRC) -o $@ $(LDLIBS)
 
 # omp with the portable C alone (SIM_NO_SIMD: no SSE2, AVX2 or AVX-512F code, as other processors
 # build it), for tests/t_72_broad.sh
@@ -100,11 +101,14 @@ tools/gen: tools/gen.c Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) $< -o $@ $(LDLIBS)
 
 # the formatter check calls io.c's own io_format_line
-tools/fmtcheck: tools/fmtcheck.c $(BASE) common.h io.h Makefile
+tools/fmtcheck: tools/fmtcheck.c $(BASE) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) tools/fmtcheck.c $(BASE) -o $@ $(LDLIBS)
 
 test: all seq_san
 	@bash tests/run.sh
+
+test-all: all seq_san
+	@bash tests/run.sh --all
 
 golden: seq
 	@for f in inputs/*.in; do ./seq "$$f" --quiet > outputs/$$(basename "$$f" .in).out || exit 1; done
@@ -117,15 +121,10 @@ bench: all
 accuracy: all
 	./bench.sh accuracy
 
-# figures from the committed bench/*.summary.csv and bench/accuracy.csv (needs gnuplot: apt-get install
-# gnuplot-nox)
-# sweeps run in parts (the CPU's N = 1e6 again with longer runs; the H100's in ./bench.sh gpu-sweep): a
-# point in several files is taken from the later one
-GPU_SUMMARIES = bench/gpu_h100.summary.csv \
-    $(patsubst %,bench/gpu_h100_%.summary.csv,threads cuda 1e7_random 1e7 1e8 1e8b)
+# the figures REPORT.md shows, from the committed bench/cpu*.summary.csv and bench/accuracy.csv (needs
+# gnuplot: apt-get install gnuplot-nox); the CPU's N = 1e6 points come from their longer runs
 plots:
 	@./bench.sh plots --merge bench/cpu bench/cpu.summary.csv bench/cpu_1e6.summary.csv
-	@./bench.sh plots --merge bench/gpu_h100 $(GPU_SUMMARIES)
 	@if [ -f bench/accuracy.csv ]; then ./bench.sh accuracy --plot bench/accuracy.csv; fi
 
 # the viewer's demo: a gas whose few fast disks heat it, every step printed (viewer/demo.out, 33 MB)
@@ -137,4 +136,4 @@ demo: omp
 	@echo "  python3 -m http.server 8000   # in this folder; then http://localhost:8000/viewer/index.html?in=demo.in&src=demo.out"
 
 clean:
-	rm -f seq omp cuda mpi seq_san omp_tsan $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
+	rm -f seq omp cuda mpi seq_san omp_tsan omp_portable $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out

@@ -118,6 +118,9 @@ extern const char *sim_program; /* how messages name the program ("seq", "omp", 
 void sim_fail(const char *fmt, ...) SIM_FAILS; /* "program: message" on stderr, exit status 1 */
 void *sim_calloc(size_t count, size_t size); /* zeroed memory, or sim_fail */
 void *sim_realloc(void *ptr, size_t count, size_t size); /* realloc to count items, or sim_fail */
+/* Grows *ptr to hold need items of size bytes (geometrically, *cap the items it holds); sim_fail when
+ * memory runs out. */
+void *sim_grow(void *ptr, size_t *cap, size_t need, size_t size);
 /* sim_calloc on a cache line's boundary (64 bytes; freed by free): for arrays of per-thread records
  * padded to whole lines, which malloc's 16-byte alignment would let straddle two lines each, so that
  * neighbouring threads' records shared one. */

@@ -51,10 +51,7 @@
 #include <utility>
 #include <vector>
 
-extern "C" const char backend_name[] = "cuda" SIM_SUFFIX;
-/* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
-extern "C" const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_CHECKPOINT | SIM_FEATURE_STEP0;
-extern "C" const char backend_options[] = "";
+static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
 
 #define CUDA_CHECK(call)                                                                             \
     do {                                                                                             \
@@ -1601,7 +1598,7 @@ static double host_vmax(const Sim *sim, int64_t n)
 {
     double part_max[64] = {0}, m = 0;
     VmaxJob j = {sim, n, n < 65536 ? 1 : 64, part_max};
-    backend_parallel(0, j.parts, vmax_part, &j);
+    cuda_parallel(0, j.parts, vmax_part, &j);
     for (int64_t k = 0; k < j.parts; k++) m = fmax(m, part_max[k]);
     return m;
 }
@@ -2136,7 +2133,7 @@ static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t 
     CUDA_CHECK(cudaGraphLaunch(c->graph[b], c->stream));
 }
 
-/* The host threads of backend_parallel: started once, then woken for each call (the output is written
+/* The host threads of cuda_parallel: started once, then woken for each call (the output is written
  * in rounds of a few MB, some 800 calls for a state of 1e8 disks), up to 16 with the calling thread. */
 struct HostPool {
     std::mutex lock;
@@ -2170,7 +2167,7 @@ struct HostPool {
 /* never destroyed: a thread that ends the program (a failed write) must not wait for itself */
 static HostPool &host_pool = *new HostPool;
 
-extern "C" void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     unsigned hw = std::thread::hardware_concurrency();
     int64_t nt = threads > 0 ? threads : hw > 1 ? (int64_t)hw : 1;
@@ -2317,7 +2314,7 @@ typedef struct {
 } Batch;
 
 /* Creating CUDA's context takes a few hundred milliseconds: it is started beside the reading of the
- * input, and awaited by backend_run (or at exit, before the thread object goes). */
+ * input, and awaited by cuda_run (or at exit, before the thread object goes). */
 static std::thread cuda_warm;
 
 static void cuda_warm_join(void)
@@ -2325,7 +2322,7 @@ static void cuda_warm_join(void)
     if (cuda_warm.joinable()) cuda_warm.join();
 }
 
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
+static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
 {
     if (par->steps == 0) return 0;
     if (par->n > INT32_MAX / 2) sim_fail("at most %d disks on the GPU", INT32_MAX / 2);
@@ -2486,7 +2483,7 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
 }
 
 /* With steps to run, the context is created while the particle lines are read. */
-extern "C" void backend_prepare(const Params *par)
+static void cuda_prepare(const Params *par)
 {
     if (par->steps > 0 && !cuda_warm.joinable()) {
         cuda_warm = std::thread([]() { (void)cudaFree(0); });
@@ -2497,9 +2494,16 @@ extern "C" void backend_prepare(const Params *par)
 /* The output is flushed and every device buffer freed when io_main returns: _exit leaves the context's
  * teardown to the driver, which reclaims it with the process (the runtime's own exit handlers take a
  * large part of a second on some machines). */
+/* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
+static const Backend cuda_backend = {
+    "cuda" SIM_SUFFIX, "",
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_CHECKPOINT | SIM_FEATURE_STEP0,
+    cuda_run, cuda_prepare, cuda_parallel,
+};
+
 int main(int argc, char **argv)
 {
-    int rc = io_main(argc, argv);
+    int rc = io_main(argc, argv, &cuda_backend);
     fflush(NULL);
     _exit(rc);
 }

@@ -1,4 +1,5 @@
-/* exact.h: the event-driven model of --exact, shared by seq.c (all pairs) and omp_exact.c (grid).
+/* exact.h: the event-driven model of --exact (its code in exact.c), shared by seq.c (all pairs) and
+ * omp_exact.c (grid).
  *
  * SPEC.md's step lets each disk collide at most once and stops it at the next wall. --exact instead
  * runs the elastic dynamics exactly, up to rounding: within each unit step every collision happens, in
@@ -40,8 +41,6 @@
 
 #include "common.h"
 
-#include <stdlib.h>
-
 /* Events of one disk within one step beyond which the run stops: only a cascade that no longer
  * advances in time (possible from overlapping starts) gets there in practice. */
 #define EXACT_MAX_STEP_EVENTS (1u << 20)
@@ -72,215 +71,35 @@ typedef struct {
 
 /* ==== the disks ====================================================================================== */
 
-/* The slack covers the rounding of c = dd - sigma2 at a contact: coordinates up to L carry errors of a
- * few eps L each, which move dd by about 2 * 2r * eps * L apiece; 64 of them are allowed. It never
- * exceeds r^2 (centres 1.73 r apart), so that deep overlaps pass through even where L / r is so large
- * that rounding swamps the radius. */
-static inline void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
-{
-    int64_t n = p->n;
-    d->sim = sim;
-    real slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r), most = p->r * p->r;
-    d->slack = slack < most ? slack : most;
-    d->t = sim_calloc((size_t)n, sizeof *d->t);
-    d->ver = sim_calloc((size_t)n, sizeof *d->ver);
-    d->step_events = sim_calloc((size_t)n, sizeof *d->step_events);
-    /* the last partners outlive a step (a checkpoint keeps them): the Sim holds them */
-    if (!sim->last) {
-        sim->last = sim_calloc((size_t)n, sizeof *sim->last);
-        for (int64_t i = 0; i < n; i++) sim->last[i] = -1;
-    }
-    d->last = sim->last;
-}
-
+/* The per-disk state of --exact for sim (sim->last kept where a checkpoint brought it), and the slack
+ * that still counts as touching. */
+void exact_alloc(ExactDisks *d, Sim *sim, const Params *p);
 /* Stops the run before its first step if a disk alone would cross the box more often within one step
  * than EXACT_MAX_STEP_EVENTS allows (as the random placement's speeds up to L/(8r) can when L/r is
  * huge): such a step could not be run event by event. */
-static inline void exact_check_speeds(const Sim *s, const Params *p)
-{
-    double span = (double)p->hi - (double)p->lo;
-    for (int64_t i = 0; i < p->n; i++) {
-        double crossings = (fabs((double)s->vx[i]) + fabs((double)s->vy[i])) / span;
-        if (crossings > EXACT_MAX_STEP_EVENTS)
-            sim_fail("--exact: disk %lld would hit the walls about %.3g times within one step (more than "
-                    "%u events of one disk per step)",
-                    (long long)i, crossings, EXACT_MAX_STEP_EVENTS);
-    }
-}
-
-static inline void exact_free(ExactDisks *d)
-{
-    free(d->t);
-    free(d->ver);
-    free(d->step_events);
-}
+void exact_check_speeds(const Sim *s, const Params *p);
+void exact_free(ExactDisks *d);
 
 /* Time of disk i's next wall event, or -1 if none comes by the end of the step. */
-static inline real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i)
-{
-    const Sim *s = d->sim;
-    real dt = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
-                       wall_time(s->y[i], s->vy[i], p->lo, p->hi));
-    real te = d->t[i] + dt;
-    return te <= 1 ? te : -1;
-}
-
-/* Where disks i < j stand at their common clock tc, and the flight dt from there to contact. */
-typedef struct {
-    real tc, dt;
-    real xi, yi, xj, yj;
-} ExactMeet;
-
-/* Returns 1 and fills m if disks i < j touch by the end of the step. */
-static inline int exact_meet(const ExactDisks *d, const Params *p, int64_t i, int64_t j, ExactMeet *m)
-{
-    const Sim *s = d->sim;
-    if (d->last[i] == j && d->last[j] == i) return 0;
-    real ti = d->t[i], tj = d->t[j];
-    real tc = ti < tj ? tj : ti;
-    m->tc = tc;
-    m->xi = s->x[i] + s->vx[i] * (tc - ti);
-    m->yi = s->y[i] + s->vy[i] * (tc - ti);
-    m->xj = s->x[j] + s->vx[j] * (tc - tj);
-    m->yj = s->y[j] + s->vy[j] * (tc - tj);
-    real dx = m->xj - m->xi, dy = m->yj - m->yi;
-    if (dx * dx + dy * dy - p->sigma2 < -d->slack) return 0;
-    m->dt = pair_time_within(m->xi, m->yi, s->vx[i], s->vy[i], m->xj, m->yj, s->vx[j], s->vy[j],
-                             p->sigma2, 1 - tc);
-    return m->dt >= 0 && tc + m->dt <= 1;
-}
-
+real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i);
 /* Time of the pair event of disks i < j, or -1 if none comes by the end of the step. */
-static inline real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j)
-{
-    ExactMeet m;
-    return exact_meet(d, p, i, j, &m) ? m.tc + m.dt : -1;
-}
-
-/* One more event of disk i: its version, its step budget and the count c (p or w). */
-static inline void exact_count(ExactDisks *d, int64_t i, int32_t *c)
-{
-    d->ver[i]++;
-    if (++d->step_events[i] > EXACT_MAX_STEP_EVENTS)
-        sim_fail("--exact: disk %lld collided more than %u times within one step (a cascade that "
-                "does not advance in time); stopping",
-                (long long)i, EXACT_MAX_STEP_EVENTS);
-    if (*c == INT32_MAX)
-        sim_fail("--exact: the collision count of disk %lld exceeds %d", (long long)i, INT32_MAX);
-    ++*c;
-}
-
-/* Processes event e (valid: predicted from the disks' current versions). */
-static inline void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
-{
-    Sim *s = d->sim;
-    real lo = p->lo, hi = p->hi;
-    int64_t i = e->i, j = e->j;
-    if (i == j) {
-        real dt = min_time(wall_time(s->x[i], s->vx[i], lo, hi), wall_time(s->y[i], s->vy[i], lo, hi));
-        real vx0 = s->vx[i], vy0 = s->vy[i];
-        wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], dt, lo, hi);
-        if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
-        s->x[i] = clamp_coord(s->x[i], lo, hi);
-        s->y[i] = clamp_coord(s->y[i], lo, hi);
-        d->t[i] = e->t;
-        d->last[i] = -1;
-        exact_count(d, i, &s->wc[i]);
-        return;
-    }
-    ExactMeet m;
-    exact_meet(d, p, i, j, &m);
-    s->x[i] = m.xi + s->vx[i] * m.dt;
-    s->y[i] = m.yi + s->vy[i] * m.dt;
-    s->x[j] = m.xj + s->vx[j] * m.dt;
-    s->y[j] = m.yj + s->vy[j] * m.dt;
-    pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
-    s->x[i] = clamp_coord(s->x[i], lo, hi);
-    s->y[i] = clamp_coord(s->y[i], lo, hi);
-    s->x[j] = clamp_coord(s->x[j], lo, hi);
-    s->y[j] = clamp_coord(s->y[j], lo, hi);
-    d->t[i] = d->t[j] = e->t;
-    d->last[i] = (int32_t)j;
-    d->last[j] = (int32_t)i;
-    exact_count(d, i, &s->pc[i]);
-    exact_count(d, j, &s->pc[j]);
-}
-
+real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j);
+/* Whether e was predicted from its disks' current versions (else it is stale and dropped). */
+int exact_valid(const ExactDisks *d, const ExactEvent *e);
+/* Processes event e (valid). */
+void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e);
 /* The end of the step for disk i: flight to t = 1, clocks back to 0 for the next step. */
-static inline void exact_finish(ExactDisks *d, const Params *p, int64_t i)
-{
-    Sim *s = d->sim;
-    real rest = 1 - d->t[i];
-    s->x[i] = clamp_coord(s->x[i] + s->vx[i] * rest, p->lo, p->hi);
-    s->y[i] = clamp_coord(s->y[i] + s->vy[i] * rest, p->lo, p->hi);
-    d->t[i] = 0;
-    d->step_events[i] = 0;
-}
+void exact_finish(ExactDisks *d, const Params *p, int64_t i);
 
 /* ==== the event heap ================================================================================ */
 
-static inline int exact_before(const ExactEvent *a, const ExactEvent *b)
-{
-    return event_before(a->t, a->i != a->j, a->i, a->j, b->t, b->i != b->j, b->i, b->j);
-}
-
-static inline int exact_valid(const ExactDisks *d, const ExactEvent *e)
-{
-    return d->ver[e->i] == e->vi && d->ver[e->j] == e->vj;
-}
-
-static inline void heap_reserve(ExactHeap *h, size_t need)
-{
-    if (need <= h->cap) return;
-    size_t c = h->cap ? h->cap : 1024;
-    while (c < need) c *= 2;
-    ExactEvent *grown = realloc(h->e, c * sizeof *grown);
-    if (!grown) sim_fail("out of memory for %zu events", c);
-    h->e = grown;
-    h->cap = c;
-}
-
-static inline void heap_sift_down(ExactHeap *h, size_t k)
-{
-    ExactEvent x = h->e[k];
-    for (;;) {
-        size_t c = 2 * k + 1;
-        if (c >= h->len) break;
-        if (c + 1 < h->len && exact_before(&h->e[c + 1], &h->e[c])) c++;
-        if (!exact_before(&h->e[c], &x)) break;
-        h->e[k] = h->e[c];
-        k = c;
-    }
-    h->e[k] = x;
-}
-
+/* Room for need events in h. */
+void exact_heap_reserve(ExactHeap *h, size_t need);
 /* Restores the heap order of an array filled in any order. */
-static inline void heap_build(ExactHeap *h)
-{
-    for (size_t k = h->len / 2; k-- > 0;) heap_sift_down(h, k);
-}
-
+void exact_heap_build(ExactHeap *h);
 /* Adds the event (t, i, j) predicted from the disks' current versions (j == i: wall). */
-static inline void heap_push(ExactHeap *h, const ExactDisks *d, real t, int64_t i, int64_t j)
-{
-    heap_reserve(h, h->len + 1);
-    ExactEvent x = {t, (int32_t)i, (int32_t)j, d->ver[i], d->ver[j]};
-    size_t k = h->len++;
-    while (k > 0) {
-        size_t up = (k - 1) / 2;
-        if (!exact_before(&x, &h->e[up])) break;
-        h->e[k] = h->e[up];
-        k = up;
-    }
-    h->e[k] = x;
-}
-
+void exact_heap_push(ExactHeap *h, const ExactDisks *d, real t, int64_t i, int64_t j);
 /* Removes the smallest event into *e. */
-static inline void heap_pop(ExactHeap *h, ExactEvent *e)
-{
-    *e = h->e[0];
-    h->e[0] = h->e[--h->len];
-    if (h->len) heap_sift_down(h, 0);
-}
+void exact_heap_pop(ExactHeap *h, ExactEvent *e);
 
 #endif /* EXACT_H */

@@ -1,10 +1,10 @@
-/* io.h: the driver's side of the program: options, the backend interface and io.c's services.
+/* io.h: the I/O layer and driver as the backends see it: options, the backend interface and the
+ * services of output.c, place.c, input.c, checkpoint.c and io.c.
  *
- * The layers, bottom up: common.h and state.c (state, physics, messages and memory), exact.h (the
- * --exact model), io.h and io.c (options, input, output, checkpoints, the driver), then the backends
- * (seq.c, omp.c with omp_paths.c and omp_exact.c, cuda.cu), which implement the interface below and
- * call io.c's services. Nothing calls upwards, but for the driver reaching its backend through that
- * interface.
+ * The layers, bottom up: common.h and state.c (state, physics, messages and memory), exact.h and
+ * exact.c (the --exact model), the I/O layer (io_internal.h lists its files), then the backends
+ * (seq.c; omp.c with its omp_*.c; cuda.cu; mpi.c with mpi_comm.c and mpi_io.c). Each file calls only
+ * those below it: the driver reaches its backend through the Backend that the backend's main hands it.
  */
 #ifndef IO_H
 #define IO_H
@@ -61,36 +61,45 @@ typedef struct {
 
 typedef struct Output Output;
 
-/* ---- the backend interface: each of seq.c, omp.c and cuda.cu defines these ----------------------- */
+/* ---- the backend interface: each of seq.c, omp.c, cuda.cu and mpi.c describes itself in a Backend,
+ * which its main hands to io_main (or io_use_backend); the I/O layer calls a backend only through it. */
 
-extern const char backend_name[];    /* program name used in messages: "seq", "omp", "cuda" */
-extern const char backend_options[]; /* backend-specific lines for --help ("" if none) */
-extern const unsigned backend_features; /* which of the SIM_FEATURE_ options the backend supports */
 #define SIM_FEATURE_SUBSTEPS 1u
 #define SIM_FEATURE_PRESSURE 2u
 #define SIM_FEATURE_EXACT 4u
 #define SIM_FEATURE_CHECKPOINT 8u /* --checkpoint and --resume */
 #define SIM_FEATURE_STEP0 16u     /* perf mode: the backend writes step 0 (io_write_step0) beside its steps */
 #define SIM_FEATURE_OUTPUT 32u    /* --output FILE: the backend writes what stdout would get into FILE */
-/* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the velocities
- * by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state after steps
- * 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall reflection adds
- * wall_impulse to the disk's wi. On return sim holds the state after the last step, counts included.
- * Returns 0, or non-zero after printing its own error message. */
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
-/* Called once the input's header is read, before its particle lines: a backend may start slow set-up
- * there that runs beside the reading (cuda creates its context when there are steps to run). */
-void backend_prepare(const Params *par);
-/* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's default;
- * seq: one, in order). The tasks must not depend on each other's order: io.c parses the particle lines
- * of the input in independent chunks this way (1e8 lines take minutes on one thread). */
-void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
+#define SIM_FEATURE_THREADS 64u   /* --threads, --check and --broad (omp's broad phase) */
+#define SIM_FEATURE_LANES 128u    /* --lanes and --keep (omp's paths) */
+#define SIM_FEATURE_BALANCE 256u  /* --balance (mpi's cuts) */
 
-/* ---- io.c: everything untimed ---------------------------------------------------------------------- */
+typedef struct {
+    const char *name;    /* program name used in messages: "seq", "omp", "cuda", "mpi" (+ SIM_SUFFIX) */
+    const char *options; /* backend-specific lines for --help ("" if none) */
+    unsigned features;   /* which of the SIM_FEATURE_ options the backend supports */
+    /* Runs par->steps steps on sim, each as par->substeps sub-steps (the driver has divided the
+     * velocities by K, so a sub-step is the SPEC.md step unchanged). In print mode it hands the state
+     * after steps 1..S-1 (sub-steps K, 2K, ...) to io_write_lines. When sim->wi is set, every wall
+     * reflection adds wall_impulse to the disk's wi. On return sim holds the state after the last
+     * step, counts included. Returns 0, or non-zero after printing its own error message. */
+    int (*run)(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
+    /* NULL, or called once the input's header is read, before its particle lines: slow set-up that
+     * runs beside the reading (cuda creates its context when there are steps to run). */
+    void (*prepare)(const Params *par);
+    /* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's
+     * default; seq: one, in order). The tasks must not depend on each other's order: the input's
+     * pieces and chunks and the output's blocks of lines go through it. */
+    void (*parallel)(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
+} Backend;
 
-/* The whole program: options, input, step 0, backend_run, final state, timing. Each backend's main
- * is just `return io_main(argc, argv);`. */
-int io_main(int argc, char **argv);
+/* ---- the I/O layer: everything untimed ------------------------------------------------------------ */
+
+/* The whole program: options, input, step 0, b->run, final state, timing. Each backend's main is just
+ * `return io_main(argc, argv, &its_backend);`. */
+int io_main(int argc, char **argv, const Backend *b);
+/* For a backend that drives itself (mpi): b is the backend the I/O layer's calls below serve. */
+void io_use_backend(const Backend *b);
 
 /* Upper bound on the bytes of one output line (a %.8f real can take 300+ digits). */
 #define IO_LINE_MAX 1600
@@ -102,7 +111,7 @@ size_t io_format_line(char *dst, int64_t step, int64_t i, const Sim *sim, int wi
  * block of the state (mpi: a rank's block of indices) formats it without a whole-state Sim. */
 size_t io_format_disk(char *dst, int64_t step, int64_t index, const Sim *sim, int64_t k, int with_counts,
                       int dump17);
-/* Writes a whole state's lines (0 .. n-1), formatted on the backend's threads (backend_parallel) while
+/* Writes a whole state's lines (0 .. n-1), formatted on the backend's threads (Backend.parallel) while
  * the lines before are written: step 0, each printed step and the final state (with counts) of every
  * backend go through it or, inside omp's parallel region, through the TextJob below. */
 void io_write_lines(Output *out, int64_t step, const Sim *sim, int64_t n, int with_counts);
@@ -134,7 +143,7 @@ void io_write_bytes(Output *out, const char *bytes, size_t len);
 int io_parse_real(const char *s, double *out);
 int io_dump17(const Output *out);
 /* What lines multiply velocities by: K while the state holds v / K (--substeps), else 1. io_main sets
- * it around backend_run itself; a backend that drives itself (mpi) sets it on every rank that formats. */
+ * it around Backend.run itself; a backend that drives itself (mpi) sets it on every rank that formats. */
 void io_set_velocity_scale(real k);
 int io_threads(const Output *out); /* --threads, 0 if not given */
 /* Shows a progress line on a terminal once a run has taken a few seconds; cheap to call every step. */
@@ -155,7 +164,7 @@ void io_write_step0(Output *out, const Sim *sim);
  * returns once sim's disks 0 .. m-1 hold it. The driver then writes no final state of its own. */
 void io_write_final(Output *out, const Sim *sim, void (*await)(void *ctx, int64_t lines), void *ctx);
 
-/* ---- io.c's services for a backend that drives itself (mpi: every rank runs its own main) --------- */
+/* ---- services for a backend that drives itself (mpi: every rank runs its own main) ---------------- */
 
 /* io_main's pieces, so that such a backend goes through the same options, messages and report. */
 /* The command line into opt (sim_fail, or exit(0) after --help, on what io_main would refuse). */
@@ -171,7 +180,7 @@ void io_output_close(Output *out);
 void io_report(Output *out, const Params *par, const Options *opt, const RunStats *st, double run_s,
                double impulse);
 /* The whole input as io_main reads it (or the disks it places), failing with seq's one-line message on
- * bad input; backend_prepare is left to the caller. */
+ * bad input; Backend.prepare is left to the caller. */
 void io_read_input(const Options *opt, Params *par, Sim *sim);
 /* Reading a regular file in pieces (mpi: each rank its own byte range). io_header_span: the bytes of
  * text[0, size) through the newline of the header's 5th record, or 0 when they do not hold it whole

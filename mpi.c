@@ -36,95 +36,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char backend_name[] = "mpi" SIM_SUFFIX;
-const char backend_options[] =
-    "  --threads N  OpenMP threads per rank (default 1: one rank a core)\n"
-    "  --check      also test every pair of a rank's disks and halo each step (O(N^2)); for testing\n"
-    "  --broad B    the broad phase on one rank: grid, paths, mixed or auto (default); with several\n"
-    "               ranks each rank's strip uses the grid\n"
-    "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
-    "               ranks' standard output through itself, at some 100 MB/s)\n"
-    "  --balance K  every K steps, move the cuts between strips so that each rank has as much\n"
-    "               work as measured (default 0: cuts placed by count at the start only)\n"
-    "run as: mpirun -np P mpi INPUT [options]\n";
-const unsigned backend_features = SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT;
 
-int mpi_me, mpi_np;
 static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
 enum { TAG_HALO = 1, TAG_MIGRATE }; /* the steps' messages between neighbours */
 static double waited;       /* seconds in the steps' MPI calls: what the balance leaves out */
-
-double *mpi_cut;
-
-#define CUT_BINS 256 /* histogram bins a rank (up to 4096 ranks) */
-
-int64_t mpi_cut_bins(void)
-{
-    return (int64_t)CUT_BINS * (mpi_np < 4096 ? mpi_np : 4096);
-}
-
-void mpi_cut_add(double *h, double x, double L, double w)
-{
-    int64_t bins = mpi_cut_bins();
-    double c = x / L * (double)bins;
-    h[c > 0 ? (c < (double)bins ? (int64_t)c : bins - 1) : 0] += w;
-}
-
-int mpi_place_cuts(const double *h, double load, double L, double slack)
-{
-    int np = mpi_np;
-    int64_t bins = mpi_cut_bins();
-    double *all = NULL, most = 0, *cut = sim_calloc((size_t)np + 2, sizeof *cut);
-    if (mpi_me == 0) all = sim_calloc((size_t)bins, sizeof *all);
-    MPI_Reduce(h, all, (int)bins, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(&load, &most, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
-    if (mpi_me == 0) { /* rank 0 places them: the same cuts on every rank */
-        double total = 0, acc = 0;
-        for (int64_t k = 0; k < bins; k++) total += all[k];
-        if (!mpi_cut || (total > 0 && most > slack * total / np)) {
-            cut[np + 1] = 1; /* moved */
-            int q = 1;
-            for (int64_t k = 0; k < bins && q < np && total > 0; k++) {
-                while (q < np && acc + all[k] >= total * q / np) { /* within bin k, linearly */
-                    double f = all[k] > 0 ? (total * q / np - acc) / all[k] : 0;
-                    cut[q++] = ((double)k + f) * L / (double)bins;
-                }
-                acc += all[k];
-            }
-            for (; q < np; q++) cut[q] = total > 0 ? L : L * q / np; /* nothing weighed: equal strips */
-            cut[np] = L;
-        }
-    }
-    MPI_Bcast(cut, np + 2, MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    int moved = cut[np + 1] != 0;
-    if (moved) {
-        if (!mpi_cut) mpi_cut = sim_calloc((size_t)np + 1, sizeof *mpi_cut);
-        memcpy(mpi_cut, cut, (size_t)(np + 1) * sizeof *cut);
-    }
-    free(all), free(cut);
-    return moved;
-}
-
-int mpi_owner(double x)
-{
-    if (x >= mpi_cut[mpi_me] && x < mpi_cut[mpi_me + 1]) return mpi_me; /* most disks stay */
-    int lo = 0, hi = mpi_np - 1; /* the last q with cut[q] <= x (0 below the box, np - 1 above) */
-    while (lo < hi) {
-        int mid = (lo + hi + 1) / 2;
-        if (mpi_cut[mid] <= x) lo = mid;
-        else hi = mid - 1;
-    }
-    return lo;
-}
-
-void local_reserve(Local *l, int64_t n)
-{
-    if (n <= l->cap) return;
-    int64_t cap = l->cap ? l->cap : 1024;
-    while (cap < n) cap *= 2;
-    slots_resize(&l->s, cap, l->with_wi);
-    l->cap = cap;
-}
 
 /* ---- disks on the wire: D_LEN doubles each (indices, counts and reals are exact in a double) ---- */
 
@@ -142,26 +57,6 @@ static void unpack(Slots *s, int64_t q, const double *d)
     s->vx[q] = (real)d[D_VX], s->vy[q] = (real)d[D_VY];
     s->pc[q] = (int32_t)d[D_PC], s->wc[q] = (int32_t)d[D_WC];
     if (s->wi) s->wi[q] = d[D_WI];
-}
-
-void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
-{
-    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
-    int64_t total = 0, off = 0;
-    for (int q = 0; q < np; q++) {
-        if (off > INT_MAX || total > INT_MAX) sim_fail("internal error: more than 2^31 records for one rank");
-        sd[q] = (int)off, rd[q] = (int)total;
-        off += count[q], total += rcount[q];
-    }
-    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
-    MPI_Datatype t;
-    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
-    MPI_Type_commit(&t);
-    MPI_Alltoallv(out, count, sd, t, in, rcount, rd, t, MPI_COMM_WORLD);
-    MPI_Type_free(&t);
-    free(sd), free(rd);
-    *got = total;
-    return in;
 }
 
 /* mpi_alltoallv of records of `width` doubles within a step, its bytes and seconds counted. */
@@ -393,14 +288,14 @@ static void clock_report(const StepClock *c)
     for (int q = 1; q < mpi_np; q++)
         if (c->slowest[q] > c->slowest[top]) top = q;
     fprintf(stderr, "%s: the steps' phases outside MPI calls, on each step's slowest rank (the ranks' mean), "
-            "seconds:", backend_name);
+            "seconds:", sim_program);
     for (int ph = 0; ph < STEP_PARTS; ph++)
         fprintf(stderr, " %s %.4f (%.4f)%s", part_name[ph], c->most[ph], c->mean[ph],
                 ph + 1 < STEP_PARTS ? "," : ";");
     fprintf(stderr, " the slowest rank in most steps: rank %d (%lld of %lld steps)\n", top,
             (long long)c->slowest[top], (long long)c->steps);
     fprintf(stderr, "%s: the steps' phases inside MPI calls (the ranks' mean), seconds: halo %.4f, choice %.4f, "
-            "migration %.4f\n", backend_name, c->inside[PART_HALO] / mpi_np, c->inside[PART_CHOOSE] / mpi_np,
+            "migration %.4f\n", sim_program, c->inside[PART_HALO] / mpi_np, c->inside[PART_CHOOSE] / mpi_np,
             c->inside[PART_MIGRATE] / mpi_np);
 }
 
@@ -448,7 +343,7 @@ static void halo_exchange(Run *r)
         if (pass) {
             at = sim_calloc((size_t)np, sizeof *at);
             for (int q = 1; q < np; q++) at[q] = at[q - 1] + r->scount[q - 1];
-            r->send = omp_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
+            r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         }
         double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
         for (int64_t k = 0; k < r->own; k++) {
@@ -958,36 +853,40 @@ static double run_steps(Run *r, RunStats *st)
     return secs;
 }
 
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
-{
-    (void)sim, (void)par, (void)opt, (void)out, (void)stats;
-    sim_fail("internal error: mpi runs through its own main");
-}
-
-void backend_prepare(const Params *par)
-{
-    (void)par;
-}
-
-void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
-{
-    int nt = threads > 0 ? threads : 1;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
-    for (int64_t k = 0; k < tasks; k++) task(ctx, k);
-}
-
 /* Scales the own disks' velocities by f (a power of two: exact), for --substeps. */
 static void scale_own(Run *r, real f)
 {
     for (int64_t q = 0; q < r->own; q++) r->b.s.vx[q] = r->b.s.vx[q] * f, r->b.s.vy[q] = r->b.s.vy[q] * f;
 }
 
+static int mpi_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
+{
+    (void)sim, (void)par, (void)opt, (void)out, (void)stats;
+    sim_fail("internal error: mpi runs through its own main");
+}
+
+static const Backend mpi_backend = {
+    "mpi" SIM_SUFFIX,
+    "  --threads N  OpenMP threads per rank (default 1: one rank a core)\n"
+    "  --check      also test every pair of a rank's disks and halo each step (O(N^2)); for testing\n"
+    "  --broad B    the broad phase on one rank: grid, paths, mixed or auto (default); with several\n"
+    "               ranks each rank's strip uses the grid\n"
+    "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
+    "               ranks' standard output through itself, at some 100 MB/s)\n"
+    "  --balance K  every K steps, move the cuts between strips so that each rank has as much\n"
+    "               work as measured (default 0: cuts placed by count at the start only)\n"
+    "run as: mpirun -np P mpi INPUT [options]\n",
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT | SIM_FEATURE_THREADS |
+        SIM_FEATURE_BALANCE,
+    mpi_run, NULL, mpi_parallel,
+};
+
 int main(int argc, char **argv)
 {
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &mpi_me);
     MPI_Comm_size(MPI_COMM_WORLD, &mpi_np);
-    sim_program = backend_name;
+    io_use_backend(&mpi_backend);
     /* rank 0 parses first, so that a bad option is reported once; the others then parse the same
      * arguments, which cannot fail */
     Options opt;
@@ -1080,22 +979,22 @@ int main(int argc, char **argv)
                     "%s: %d ranks x %d threads; %llu rounds of the choice on the rank with the most (%.3g a "
                     "step); %.4g bytes sent between ranks a step; peak memory: largest rank %.1f MB, rank 0 "
                     "%.1f MB, all ranks %.1f MB\n",
-                    backend_name, mpi_np, r.nt, (unsigned long long)most[3],
+                    sim_program, mpi_np, r.nt, (unsigned long long)most[3],
                     subs ? (double)most[3] / (double)subs : 0.0, subs ? (double)sum[0] / (double)subs : 0.0,
                     (double)most[1] / 1024, (double)mine[1] / 1024, (double)sum[1] / 1024);
         if (opt.stats)
             fprintf(stderr, "%s: the cuts between strips moved %lld times (--balance %lld); disks a rank at "
                     "the end %llu to %llu; neighbours a rank exchanged with in a step: up to %llu\n",
-                    backend_name, (long long)r.moves, (long long)opt.balance, (unsigned long long)least[2],
+                    sim_program, (long long)r.moves, (long long)opt.balance, (unsigned long long)least[2],
                     (unsigned long long)most[2], (unsigned long long)most[4]);
         if (opt.stats)
             fprintf(stderr, "%s: a rank's step loop outside MPI calls %.4f to %.4f s (mean %.4f), inside them "
-                    "%.4f to %.4f s (mean %.4f)\n", backend_name, split_least[0], split_most[0],
+                    "%.4f to %.4f s (mean %.4f)\n", sim_program, split_least[0], split_most[0],
                     split_sum[0] / mpi_np, split_least[1], split_most[1], split_sum[1] / mpi_np);
         if (r.clock) clock_report(r.clock);
         if (opt.stats)
             fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
-                    "state %.4f s\n", backend_name, t_read, t_step0, t_final);
+                    "state %.4f s\n", sim_program, t_read, t_step0, t_final);
         io_report(r.out, &r.par, &opt, &st, run_s, impulse);
         io_output_close(r.out);
     }

@@ -1,4 +1,5 @@
-/* mpi.h: what the MPI backend's steps (mpi.c) and its distributed input and output (mpi_io.c) share.
+/* mpi.h: the MPI backend's files: mpi_comm.c (ranks, cuts, exchanges), mpi_io.c (distributed input and
+ * output) and mpi.c (the steps and main), each calling only those before it.
  *
  * The box is cut into np vertical strips, one per rank: rank q owns the disks whose centres lie in
  * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The cuts are placed at equal counts of disks as the input
@@ -26,22 +27,25 @@ typedef struct {
     int with_wi;
 } Local;
 
-/* mpi.c: grows l to hold n disks (contents kept); the strip (rank) of a centre x */
+/* mpi_comm.c: grows l to hold n disks (contents kept); the strip (rank) of a centre x */
 void local_reserve(Local *l, int64_t n);
 int mpi_owner(double x);
 
-/* mpi.c: sends count[q] records of `size` bytes to each rank q (packed in rank order in out) and
+/* mpi_comm.c: sends count[q] records of `size` bytes to each rank q (packed in rank order in out) and
  * returns what arrives, in rank order (*got records), rank q sending rcount[q] (one MPI_Alltoallv;
  * a rank's displacements must stay below 2^31 records). */
 void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got);
 
-/* mpi.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
+/* mpi_comm.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
  * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
  * rank) at equal shares of the total weight: always the first time or with slack 0, else only where
  * the largest of the ranks' loads exceeds slack times their mean. Returns whether the cuts moved. */
 int64_t mpi_cut_bins(void);
 void mpi_cut_add(double *h, double x, double L, double w);
 int mpi_place_cuts(const double *h, double load, double L, double slack);
+/* mpi_comm.c: task(ctx, k) for k in [0, tasks) on the rank's `threads` OpenMP threads (the Backend's
+ * parallel: the input's chunks, the output's blocks) */
+void mpi_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx);
 
 /* ---- mpi_io.c: collective calls (every rank calls them, in the same order) ---------------------- */
 

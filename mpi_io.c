@@ -371,7 +371,6 @@ void mpi_read_input(const Options *opt, Params *par, Local *l)
     *par = h.par;
     par->substeps = opt->substeps;
     par->first_step = 0;
-    backend_prepare(par);
     l->own = l->halo = 0;
     if (h.mode == HEAD_FILE && read_particles(opt, &h, par, l)) {
         /* no particle lines: rank 0 places the disks as io.c does (and says so) */
@@ -456,7 +455,7 @@ void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t ste
     gather_block(par, l, &blk, &lo, &m);
     int64_t pieces = (m + TEXT_PIECE - 1) / TEXT_PIECE;
     Format f = {sim_calloc((size_t)pieces, sizeof(TextBlock)), &blk, step, lo, m, with_counts, how[0]};
-    backend_parallel(how[1], pieces, format_task, &f);
+    mpi_parallel(how[1], pieces, format_task, &f);
     sim_free(&blk);
     if (out_fd >= 0) {
         write_at_offset(f.t, pieces);

@@ -31,8 +31,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char backend_name[] = "omp" SIM_SUFFIX;
-const char backend_options[] =
+static const char omp_options[] =
     "  --threads N  OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
     "  --check      also test every pair each step (with --exact: each time window; O(N^2)) and\n"
     "               stop with a message if the broad phase missed an event; for testing\n"
@@ -44,8 +43,6 @@ const char backend_options[] =
     "  --keep K     in a mixed step, keep only a fast disk's first K events with slow disks\n"
     "               (1 to 64, 0: all; default 8); a step where that would change the outcome\n"
     "               is found again keeping twice as many\n";
-const unsigned backend_features =
-    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT;
 
 #define SEQ_FINISH 1024  /* disks still undecided at which the rounds end in a sequential walk */
 #define SMALL_CHOICE 1024 /* pair events up to which a step's choice runs on one thread */
@@ -411,7 +408,7 @@ static void sort_events(SeqEvent *a, size_t n, SeqEvent *tmp)
  * accepted when its disks are still free. */
 static void walk_events(Work *w, size_t len)
 {
-    w->fin_tmp = omp_grow(w->fin_tmp, &w->fin_tmp_cap, len, sizeof *w->fin_tmp);
+    w->fin_tmp = sim_grow(w->fin_tmp, &w->fin_tmp_cap, len, sizeof *w->fin_tmp);
     sort_events(w->fin, len, w->fin_tmp);
     for (size_t u = 0; u < len; u++) {
         const SeqEvent *e = &w->fin[u];
@@ -432,7 +429,7 @@ static void finish_sequential(Work *w)
         for (int64_t k = 0; k < w->th[t].n_active; k++) {
             int32_t v = w->active[w->th[t].lo + k];
             const Node *nd = &w->node[v];
-            w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+            w->fin = sim_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
             if (nd->wall_t >= 0) {
                 SeqEvent e = {nd->wall_t, 0, nd->id, nd->id, v, v};
                 w->fin[len++] = e;
@@ -441,7 +438,7 @@ static void finish_sequential(Work *w)
             for (int32_t a = nd->lo; a < nd->lo + nd->cnt; a++) {
                 const Adj *ad = &w->adj[a];
                 if (ad->other_id < nd->id || w->node[ad->other].taken) continue;
-                w->fin = omp_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
+                w->fin = sim_grow(w->fin, &w->fin_cap, len + 1, sizeof *w->fin);
                 SeqEvent e = {ad->t, 1, nd->id, ad->other_id, v, ad->other};
                 w->fin[len++] = e;
             }
@@ -881,7 +878,7 @@ static void print_phases(const Broad *b, int nt)
     static const char *name[PHASES] = {"plan", "binning", "pairs", "choice", "move",
                                        "waiting at barriers", "output and the final order"};
     double all = 0;
-    fprintf(stderr, "%s: the step loop's phases, mean of %d threads:", backend_name, nt);
+    fprintf(stderr, "%s: the step loop's phases, mean of %d threads:", sim_program, nt);
     for (int k = 0; k < PHASES; k++) {
         double mean = 0;
         for (int t = 0; t < nt; t++) mean += b->th[t].phase_s[k] / nt;
@@ -918,12 +915,7 @@ static void slots_fill(Work *w, int tid)
 #pragma omp barrier
 }
 
-void backend_prepare(const Params *par)
-{
-    (void)par;
-}
-
-void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+static void omp_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     int nt = threads > 0 ? threads : omp_get_max_threads();
     team_start(nt);
@@ -931,7 +923,7 @@ void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
 }
 
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
+static int omp_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
     if (opt->threads > 0) omp_set_num_threads(opt->threads);
     omp_set_dynamic(0);
@@ -993,20 +985,20 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
         fprintf(stderr,
                 "%s: broad phase: grid in %lld, paths in %lld, mixed in %lld of %lld steps; paths: "
                 "%.4g cells visited and %.4g pairs of visits overlapping in time per particle-step\n",
-                backend_name, (long long)(steps - w.path_steps - w.mixed_steps),
+                sim_program, (long long)(steps - w.path_steps - w.mixed_steps),
                 (long long)w.path_steps, (long long)w.mixed_steps, (long long)steps,
                 ps > 0 ? visits / ps : 0.0, ps > 0 ? overlaps / ps : 0.0);
         if (ps > 0)
-            fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", backend_name,
+            fprintf(stderr, "%s: paths: pairs of visits screened %d at a time\n", sim_program,
                     paths_lanes(w.b.paths));
         if (w.path_steps > 0)
             fprintf(stderr, "%s: the choice on one thread beside the moves in %lld of %lld steps\n",
-                    backend_name, (long long)w.aside_steps, (long long)steps);
+                    sim_program, (long long)w.aside_steps, (long long)steps);
         if (w.mixed_steps)
             fprintf(stderr,
                     "%s: mixed steps: %llu times a fast disk's events with slow disks trimmed to "
                     "its first %d (0: all, by the end); %lld steps found again keeping more\n",
-                    backend_name, (unsigned long long)trimmed, w.b.keep, (long long)w.refound);
+                    sim_program, (unsigned long long)trimmed, w.b.keep, (long long)w.refound);
         print_phases(&w.b, w.nt);
     }
     broad_free(&w.b);
@@ -1024,7 +1016,14 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     return 0;
 }
 
+static const Backend omp_backend = {
+    "omp" SIM_SUFFIX, omp_options,
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT |
+        SIM_FEATURE_THREADS | SIM_FEATURE_LANES,
+    omp_run, NULL, omp_parallel,
+};
+
 int main(int argc, char **argv)
 {
-    return io_main(argc, argv);
+    return io_main(argc, argv, &omp_backend);
 }

@@ -41,17 +41,6 @@ static void range_of(int64_t n, int tid, int nt, int64_t *from, int64_t *to)
 
 /* ==== buffers ========================================================================================= */
 
-void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap) return ptr;
-    size_t c = *cap ? *cap : 64;
-    while (c < need) c *= 2;
-    void *p = realloc(ptr, c * size);
-    if (!p) sim_fail("out of memory (%zu x %zu bytes)", c, size);
-    *cap = c;
-    return p;
-}
-
 void slots_resize(Slots *s, int64_t n, int with_wi)
 {
     s->x = sim_realloc(s->x, (size_t)n, sizeof *s->x);
@@ -324,7 +313,7 @@ static inline int32_t span_cell(const Span *sp, const Plan *pl)
 /* A fast disk's slot (as it will be) goes to this thread's list. */
 static void note_fast(BroadThread *th, int32_t slot)
 {
-    th->fast = omp_grow(th->fast, &th->fast_cap, th->fast_len + 1, sizeof *th->fast);
+    th->fast = sim_grow(th->fast, &th->fast_cap, th->fast_len + 1, sizeof *th->fast);
     th->fast[th->fast_len++] = slot;
 }
 

@@ -145,7 +145,7 @@ static void bin_disks(XWork *w, real t0)
 
 static inline void buf_add(ExactHeap *b, const ExactDisks *d, real t, int64_t i, int64_t j)
 {
-    heap_reserve(b, b->len + 1);
+    exact_heap_reserve(b, b->len + 1);
     ExactEvent e = {t, (int32_t)i, (int32_t)j, d->ver[i], d->ver[j]};
     b->e[b->len++] = e;
 }
@@ -161,7 +161,7 @@ static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, 
     real t = exact_wall_time(d, p, i);
     if (t >= 0 && t <= t1) {
         if (from_lower) buf_add(b, d, t, i, i);
-        else heap_push(b, d, t, i, i);
+        else exact_heap_push(b, d, t, i, i);
     }
     int64_t g = w->g, c = w->cell_of[i], cx = c % g, cy = c / g;
     for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
@@ -176,7 +176,7 @@ static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, 
             t = exact_pair_time(d, p, a, bb);
             if (t < 0 || t > t1) continue;
             if (from_lower) buf_add(b, d, t, a, bb);
-            else heap_push(b, d, t, a, bb);
+            else exact_heap_push(b, d, t, a, bb);
         }
     }
     return tests;
@@ -239,14 +239,14 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
     }
     size_t total = 0;
     for (int t = 0; t < w->nt; t++) total += w->th[t].buf.len;
-    heap_reserve(&w->heap, total);
+    exact_heap_reserve(&w->heap, total);
     w->heap.len = 0;
     for (int t = 0; t < w->nt; t++) {
         if (w->th[t].buf.len)
             memcpy(w->heap.e + w->heap.len, w->th[t].buf.e, w->th[t].buf.len * sizeof *w->heap.e);
         w->heap.len += w->th[t].buf.len;
     }
-    heap_build(&w->heap);
+    exact_heap_build(&w->heap);
     double clock1 = sim_clock();
 
     /* the events in key order, as seq.c processes them */
@@ -254,7 +254,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
     int early = 0;
     while (w->heap.len && w->heap.e[0].t <= t1) {
         ExactEvent e;
-        heap_pop(&w->heap, &e);
+        exact_heap_pop(&w->heap, &e);
         if (!exact_valid(&w->d, &e)) continue;
         exact_apply(&w->d, p, &e);
         events++;
@@ -310,7 +310,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     st->seconds = sim_clock() - t0;
     if (opt->stats)
         fprintf(stderr, "%s: --exact: %llu windows; %.6f s in their starts (parallel), %.6f s in "
-                "their event loops (sequential)\n", backend_name, (unsigned long long)w.windows,
+                "their event loops (sequential)\n", sim_program, (unsigned long long)w.windows,
                 w.start_s, w.loop_s);
 
     for (int t = 0; t < w.nt; t++) {

@@ -392,7 +392,7 @@ static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, cons
     int64_t i = c0[0], j = c0[1];
     if (pp->tile_of[c0[0]] == pp->tile_of[c1[0]] && pp->tile_of[c0[1]] == pp->tile_of[c1[1]]) {
         Bucket *q = bk + (size_t)pp->tile_of[j] * (size_t)gt + (size_t)pp->tile_of[i];
-        if (q->len + (size_t)m > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + (size_t)m, sizeof *q->e);
+        if (q->len + (size_t)m > q->cap) q->e = sim_grow(q->e, &q->cap, q->len + (size_t)m, sizeof *q->e);
         Entry *e = q->e;
         size_t len = q->len;
         for (int64_t k = 0; k < m; k++) {
@@ -409,7 +409,7 @@ static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, cons
     for (int64_t k = 0; k < m; k++) {
         int in = box_cell(pp, &x, T, i, j, ea, eb, dt);
         Bucket *q = bk + (size_t)pp->tile_of[j] * (size_t)gt + (size_t)pp->tile_of[i];
-        if (q->len == q->cap) q->e = omp_grow(q->e, &q->cap, q->len + 1, sizeof *q->e);
+        if (q->len == q->cap) q->e = sim_grow(q->e, &q->cap, q->len + 1, sizeof *q->e);
         q->e[q->len] = x;
         q->len += in;
         int wrap = i == c1[0];
@@ -450,7 +450,7 @@ static void path_lines(const Paths *pp, Entry x, double T, const double *c, cons
             if (end > u1) end = u1;
             Bucket *q = line + (size_t)pp->tile_of[u0] * (size_t)ti;
             size_t cnt = (size_t)(end - u0 + 1);
-            if (q->len + cnt > q->cap) q->e = omp_grow(q->e, &q->cap, q->len + cnt, sizeof *q->e);
+            if (q->len + cnt > q->cap) q->e = sim_grow(q->e, &q->cap, q->len + cnt, sizeof *q->e);
             Entry *e = q->e + q->len;
             int32_t key = (int32_t)(lpart + (int64_t)pp->in_tile[u0] * si) * pp->pl.bins;
             for (size_t k = 0; k < cnt; k++) {
@@ -665,7 +665,7 @@ static void keep_first(Found *mine, size_t from, int k, int32_t q)
     memcpy(mine->ev + from, best, (size_t)k * sizeof *best);
     mine->len = from + (size_t)k;
     if (mine->trim_len == mine->trim_cap)
-        mine->trim = omp_grow(mine->trim, &mine->trim_cap, mine->trim_len + 1, sizeof *mine->trim);
+        mine->trim = sim_grow(mine->trim, &mine->trim_cap, mine->trim_len + 1, sizeof *mine->trim);
     PairEvent c = best[k];
     c.a = q;
     mine->trim[mine->trim_len++] = c;
@@ -932,10 +932,10 @@ static void scratch_grow(Scratch *sc, size_t need)
     float **f[6] = {&sc->t0, &sc->t1, &sc->x, &sc->y, &sc->vx, &sc->vy};
     for (int k = 0; k < 6; k++) {
         size_t cap = sc->v_cap;
-        *f[k] = omp_grow(*f[k], &cap, need, sizeof **f[k]);
+        *f[k] = sim_grow(*f[k], &cap, need, sizeof **f[k]);
     }
-    sc->slot = omp_grow(sc->slot, &sc->v_cap, need, sizeof *sc->slot);
-    sc->item = omp_grow(sc->item, &sc->item_cap, need, sizeof *sc->item);
+    sc->slot = sim_grow(sc->slot, &sc->v_cap, need, sizeof *sc->slot);
+    sc->item = sim_grow(sc->item, &sc->item_cap, need, sizeof *sc->item);
 }
 
 /* Phase B for one tile: its entries (from every thread's bucket) counted into its cells and, within
@@ -945,7 +945,7 @@ static void tile_sweep(Paths *pp, int64_t tile, int nt, const Slots *s, const re
                        const Params *p, Scratch *sc, Found *mine)
 {
     int64_t tc = pp->pl.tc, cells = tc * tc, keys = cells * pp->pl.bins;
-    sc->start = omp_grow(sc->start, &sc->start_cap, (size_t)keys + 1, sizeof *sc->start);
+    sc->start = sim_grow(sc->start, &sc->start_cap, (size_t)keys + 1, sizeof *sc->start);
     int32_t *start = sc->start;
     memset(start, 0, ((size_t)keys + 1) * sizeof *start);
     size_t total = 0;
@@ -1010,7 +1010,7 @@ static int load_cmp(const void *pa, const void *pb)
  * small tiles and the threads finish together. Every thread computes the same order for itself. */
 static const int64_t *tile_order(Paths *pp, Scratch *sc, int nt)
 {
-    sc->order = omp_grow(sc->order, &sc->order_cap, 2 * (size_t)pp->pl.tiles, sizeof *sc->order);
+    sc->order = sim_grow(sc->order, &sc->order_cap, 2 * (size_t)pp->pl.tiles, sizeof *sc->order);
     int64_t *o = sc->order;
     for (int64_t k = 0; k < pp->pl.tiles; k++) {
         int64_t load = 0;

@@ -65,23 +65,20 @@ typedef struct {
     int64_t step;  /* the step being found (broad_find) */
 } Found;
 
-/* Grows *ptr to hold need items of size bytes (geometrically); sim_fail when memory runs out. */
-void *omp_grow(void *ptr, size_t *cap, size_t need, size_t size);
-
-/* omp_grow for a buffer whose contents need not be kept: no copy on the way. */
+/* sim_grow for a buffer whose contents need not be kept: no copy on the way. */
 static inline void *omp_scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap) return ptr;
     free(ptr);
     *cap = 0;
-    return omp_grow(NULL, cap, need, size);
+    return sim_grow(NULL, cap, need, size);
 }
 
 /* A pair event of disks i and j (original indices) in slots a and b, and the marks of both slots
  * (another thread may mark either one in the same step). */
 static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a, int32_t b)
 {
-    if (f->len == f->cap) f->ev = omp_grow(f->ev, &f->cap, f->len + 1, sizeof *f->ev);
+    if (f->len == f->cap) f->ev = sim_grow(f->ev, &f->cap, f->len + 1, sizeof *f->ev);
     PairEvent e = {t, i, j, a, b};
     f->ev[f->len++] = e;
     if (f->mark) {
@@ -97,7 +94,7 @@ static inline void found_push(Found *f, real t, int32_t i, int32_t j, int32_t a,
 static inline void found_wall(Found *f, real t, int32_t q)
 {
     if (f->wall_len == f->wall_cap)
-        f->wall = omp_grow(f->wall, &f->wall_cap, f->wall_len + 1, sizeof *f->wall);
+        f->wall = sim_grow(f->wall, &f->wall_cap, f->wall_len + 1, sizeof *f->wall);
     WallEvent e = {t, q};
     f->wall[f->wall_len++] = e;
 }

@@ -11,11 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char backend_name[] = "seq" SIM_SUFFIX;
-const char backend_options[] = "";
-const unsigned backend_features =
-    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT;
-
 typedef struct {
     real t;  /* time of the event within the step, 0..1 */
     int kind;  /* 0: wall, 1: pair */
@@ -126,13 +121,13 @@ static uint64_t exact_predict(const ExactDisks *d, const Params *p, int64_t i, i
 {
     uint64_t tests = 0;
     real t = exact_wall_time(d, p, i);
-    if (t >= 0) heap_push(h, d, t, i, i);
+    if (t >= 0) exact_heap_push(h, d, t, i, i);
     for (int64_t k = 0; k < p->n; k++) {
         if (k == i || k == skip) continue;
         int64_t a = k < i ? k : i, b = k < i ? i : k;
         tests++;
         t = exact_pair_time(d, p, a, b);
-        if (t >= 0) heap_push(h, d, t, a, b);
+        if (t >= 0) exact_heap_push(h, d, t, a, b);
     }
     return tests;
 }
@@ -149,16 +144,16 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
         h.len = 0;
         for (int64_t i = 0; i < par->n; i++) {
             real t = exact_wall_time(&d, par, i);
-            if (t >= 0) heap_push(&h, &d, t, i, i);
+            if (t >= 0) exact_heap_push(&h, &d, t, i, i);
             for (int64_t j = i + 1; j < par->n; j++) {
                 t = exact_pair_time(&d, par, i, j);
-                if (t >= 0) heap_push(&h, &d, t, i, j);
+                if (t >= 0) exact_heap_push(&h, &d, t, i, j);
             }
         }
         st->pair_tests += (uint64_t)par->n * (uint64_t)(par->n - 1) / 2;
         while (h.len) {
             ExactEvent e;
-            heap_pop(&h, &e);
+            exact_heap_pop(&h, &e);
             if (!exact_valid(&d, &e)) continue;
             exact_apply(&d, par, &e);
             st->events++;
@@ -176,12 +171,8 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
     return 0;
 }
 
-void backend_prepare(const Params *par)
-{
-    (void)par;
-}
-
-void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
+/* One thread: the tasks in order. */
+static void seq_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
 {
     (void)threads;
     for (int64_t k = 0; k < tasks; k++) task(ctx, k);
@@ -189,7 +180,7 @@ void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_
 
 /* ==== the step of SPEC.md ============================================================================ */
 
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
+static int seq_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *st)
 {
     if (opt->exact) return exact_run(sim, par, out, st);
     EventList events = {NULL, 0, 0};
@@ -213,7 +204,13 @@ int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, Ru
     return 0;
 }
 
+static const Backend seq_backend = {
+    "seq" SIM_SUFFIX, "",
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT,
+    seq_run, NULL, seq_parallel,
+};
+
 int main(int argc, char **argv)
 {
-    return io_main(argc, argv);
+    return io_main(argc, argv, &seq_backend);
 }

@@ -56,6 +56,17 @@ void *sim_realloc(void *ptr, size_t count, size_t size)
     return p;
 }
 
+void *sim_grow(void *ptr, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap) return ptr;
+    size_t c = *cap ? *cap : 64;
+    while (c < need) c *= 2;
+    void *p = realloc(ptr, c * size);
+    if (!p) sim_fail("out of memory (%zu x %zu bytes)", c, size);
+    *cap = c;
+    return p;
+}
+
 double sim_clock(void)
 {
     struct timespec ts;

@@ -3,6 +3,10 @@
 
 TMP=${TMP:-tests/tmp}
 mkdir -p "$TMP"
+PASSED=0 FAILED=0 SKIPPED=0
+
+# SUITE=quick (make test) runs each file's small cases; SUITE=all (make test-all) every case.
+all_suite() { [ "${SUITE:-quick}" = all ]; }
 
 pass() { PASSED=$((PASSED + 1)); echo "PASS $1"; }
 fail() { FAILED=$((FAILED + 1)); echo "FAIL $1${2:+: $2}"; }

@@ -1,16 +1,74 @@
 #!/usr/bin/env bash
-# tests/run.sh: the whole suite (make test). Runs every tests/t_*.sh in name order (or only the files
-# named as arguments), each adding PASS/FAIL/SKIP lines, and ends with "N passed, N failed". Exits
-# non-zero on any failure.
+# tests/run.sh [--all] [FILE...]: the test suites. Without --all the quick one (make test): every
+# backend and feature at small sizes; with --all everything (make test-all). Runs every tests/t_*.sh
+# (or only the files named), each in a process of its own with a scratch folder of its own
+# (tests/tmp/NAME), as many at once as the machine has cores (TEST_JOBS=N sets it); prints each
+# file's PASS/FAIL/SKIP lines in name order once it ends, with its seconds, then "N passed, N failed".
+# Exits non-zero on any failure.
 set -u
 cd "$(dirname "$0")/.."
-PASSED=0 FAILED=0 SKIPPED=0
-. tests/lib.sh
+SUITE=quick
+if [ "${1:-}" = --all ]; then
+    SUITE=all
+    shift
+fi
+export SUITE
 if [ $# -eq 0 ]; then set -- tests/t_*.sh; fi
-for t in "$@"; do
-    echo "== $t"
-    . "$t"
+jobs=${TEST_JOBS:-$(nproc 2> /dev/null || echo 1)}
+logs=tests/tmp/logs
+rm -rf "$logs"
+mkdir -p "$logs"
+
+run_file() { # FILE: its lines into $logs/NAME.log, its totals (passed failed skipped) into $logs/NAME.n
+    local name
+    name=$(basename "$1" .sh)
+    rm -rf "tests/tmp/$name"
+    # TMP is the file's own (not exported: Open MPI would take it for its session folder)
+    bash -c 'TMP=$3; start=$SECONDS; . tests/lib.sh; . "$1"; echo "$PASSED $FAILED $SKIPPED $((SECONDS - start))" > "$2"' \
+        run "$1" "$logs/$name.n" "tests/tmp/$name" > "$logs/$name.log" 2>&1
+}
+
+# start the files that took longest last time first (tests/tmp/times; a file not timed yet counts
+# as long), at most $jobs at a time, so that no long file starts last
+times=tests/tmp/times
+order=$(for t in "$@"; do
+    echo "$(awk -v n="$(basename "$t" .sh)" '$1 == n { s = $2 } END { print (s == "" ? 999 : s) }' "$times" 2> /dev/null || echo 999) $t"
+done | sort -s -k1,1nr | cut -d' ' -f2-)
+running=0
+for t in $order; do
+    if [ "$running" -ge "$jobs" ]; then
+        wait -n
+        running=$((running - 1))
+    fi
+    run_file "$t" &
+    running=$((running + 1))
 done
-echo "$SKIPPED skipped"
+wait
+
+PASSED=0 FAILED=0 SKIPPED=0
+for t in "$@"; do
+    name=$(basename "$t" .sh)
+    secs=""
+    [ -f "$logs/$name.n" ] && read -r p f s secs < "$logs/$name.n"
+    echo "== $t${secs:+ ($secs s)}"
+    cat "$logs/$name.log"
+    if [ -n "$secs" ]; then
+        PASSED=$((PASSED + p)) FAILED=$((FAILED + f)) SKIPPED=$((SKIPPED + s))
+    else
+        FAILED=$((FAILED + 1))
+        echo "FAIL $t: ended before its last check (see the lines above)"
+    fi
+done
+# this run's seconds a file, beside the other files' last
+{
+    for t in "$@"; do
+        name=$(basename "$t" .sh)
+        [ -f "$logs/$name.n" ] && echo "$name $(awk '{ print $4 }' "$logs/$name.n")"
+    done
+    awk -v names=" $(for t in "$@"; do printf '%s ' "$(basename "$t" .sh)"; done)" \
+        'index(names, " " $1 " ") == 0' "$times" 2> /dev/null
+} > "$times.new"
+mv "$times.new" "$times"
+echo "$SKIPPED skipped ($SUITE suite)"
 echo "$PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]

@@ -1,5 +1,10 @@
 # bench.sh --quick runs on this machine and writes well-formed CSVs: provenance lines, the column header,
-# rows with the header's field count and sane numbers, and a summary with one row per point.
+# rows with the header's field count and sane numbers, and a summary with one row per point. The whole
+# suite only: half a minute of benchmark runs.
+if ! all_suite; then
+    skip "bench.sh smoke runs" "make test-all runs them"
+    return
+fi
 bench_csv=$TMP/bench.csv
 bench_sum=$TMP/bench.summary.csv
 if ./bench.sh --quick -o "$bench_csv" > "$TMP/bench.log" 2>&1; then
@@ -82,11 +87,12 @@ targets_in_turn() {
     fi
 }
 
-# BASE_REV: HEAD's omp, built from git
-if git rev-parse --verify -q HEAD > /dev/null 2>&1; then
+# BASE_REV: HEAD's omp, built from git (where this folder is a git checkout's top: a copy of the tree
+# inside another checkout would build that one)
+if [ "$(git rev-parse --show-toplevel 2> /dev/null)" = "$(pwd -P)" ]; then
     targets_in_turn BASE_REV=HEAD "$TMP/targets.log" BASE_REV=HEAD WORK="$TMP/targets"
 else
-    skip "bench.sh targets BASE_REV" "not a git checkout"
+    skip "bench.sh targets BASE_REV" "this folder is not a git checkout"
 fi
 
 # BASE_DIR: a folder of sources (here a copy of this tree's), where there is no git; a folder without

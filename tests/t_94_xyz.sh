@@ -206,7 +206,7 @@ fi
 # ase.io.read(..., index=':', format='extxyz') on three conversions: frame and atom counts, positions
 # and velocities (to 1e-8 relative) against the output's tokens, z = vz = 0, the cell diag(L, L, 2r),
 # pbc off, Time, ids, radii, and the counts on the last frame only. ASE goes into a virtual
-# environment under $TMP (ignored by git), made once and reused; no network or no venv is a SKIP.
+# environment under tests/tmp (ignored by git), made once and reused; no network or no venv is a SKIP.
 cat > "$X/ase_check.py" <<'PY'
 import sys
 import numpy as np
@@ -262,10 +262,14 @@ try:
 except AssertionError as e:
     sys.exit(' '.join(str(e).split()))
 PY
-VENV=$TMP/xyz_venv
+# (the environment lives beside the test files' own folders, which every run empties; the quick suite
+# uses it where an earlier run made it, and leaves the 20 s install to make test-all)
+VENV=tests/tmp/ase_venv
 ase_reason=""
 if ! python3 -c 'import venv, ensurepip' > /dev/null 2>&1; then
     ase_reason="python3 has no venv (or ensurepip) module"
+elif ! all_suite && ! "$VENV/bin/python" -c 'import ase' > /dev/null 2>&1; then
+    ase_reason="ASE not installed yet (make test-all installs it into $VENV)"
 elif ! "$VENV/bin/python" -c 'import ase' > /dev/null 2>&1; then
     rm -rf "$VENV"
     if ! timeout 120 python3 -m venv "$VENV" > "$X/venv.log" 2>&1; then

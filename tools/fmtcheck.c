@@ -1,9 +1,9 @@
-/* tools/fmtcheck.c: checks io.c's exact %.8f formatter against the C library's printf, and its reader of
+/* tools/fmtcheck.c: checks output.c's exact %.8f formatter against the C library's printf, and its reader of
  * reals (io_parse_real) against strtod.
  *
  * usage: tools/fmtcheck [COUNT]   (COUNT random doubles of each kind, default 1000000)
  *
- * Links io.o and formats one-disk states with io_format_line, four reals per line, comparing each line
+ * Links the I/O layer's objects and formats one-disk states with io_format_line, four reals per line, comparing each line
  * with snprintf("%lld %lld %.8f %.8f %.8f %.8f\n"). Values: random bit patterns (every magnitude,
  * subnormals, both signs), random values near 1, dyadic values k/2^n, exact decimal ties at the 8th
  * digit (odd multiples of 2^-9), carries (x.999999995...), -0.0, tiny negatives, huge values, the
@@ -18,27 +18,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-const char backend_name[] = "fmtcheck";
-const char backend_options[] = "";
-const unsigned backend_features = 0;
-
-void backend_prepare(const Params *par)
-{
-    (void)par;
-}
-
-void backend_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)
-{
-    (void)threads;
-    for (int64_t k = 0; k < tasks; k++) task(ctx, k);
-}
-
-int backend_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
-{
-    (void)sim, (void)par, (void)opt, (void)out, (void)stats;
-    return 1;
-}
 
 static uint64_t rng = 0x243f6a8885a308d3u;
 

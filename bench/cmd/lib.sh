@@ -28,12 +28,16 @@ build_revision() {
 
 # build_source FILE OUT LOG: an earlier cuda.cu (say from `git show REV:cuda.cu`) built as OUT against this
 # tree's objects, with the Makefile's flags: a copy of the tree without git history cannot build a
-# revision (build_revision). The build's output goes to LOG. Non-zero status when it fails.
+# revision (build_revision). The earlier file must use this tree's io.h (a Backend handed to io_main).
+# The build's output goes to LOG. Non-zero status when it fails.
 build_source() {
+    local objects
+    objects=$(make_var BASE)
     mkdir -p "$(dirname "$2")"
-    make io.o state.o > /dev/null || return
-    # shellcheck disable=SC2046
-    $(make_var NVCC) $(make_var NVCCFLAGS) -Xcompiler -ffp-contract=off -I. "$1" io.o state.o -o "$2" -lm > "$3" 2>&1
+    # shellcheck disable=SC2086
+    make $objects > /dev/null || return
+    # shellcheck disable=SC2046,SC2086
+    $(make_var NVCC) $(make_var NVCCFLAGS) -Xcompiler -ffp-contract=off -I. "$1" $objects -o "$2" -lm > "$3" 2>&1
 }
 
 # machine_provenance LOAD CORES: the '#' lines of a results file that name the tree (REVISION, or git),
