@@ -65,6 +65,13 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
+#define ENTRY_BYTES (16 + 3 * 8 + 2 * sizeof(real2) + 16 + sizeof(float4)) /* an entry's share (cuda_open) */
+#define EVENTS_PER_DISK 4         /* the first event list holds n / 4 (+ 4096) where steps have one slice
+                                     (cuda_run; a gas of fraction 0.4 finds some n / 4.4 a step); a step that
+                                     finds more is run again with room for them all */
+#define GROWTH 1.25               /* buffers grown to a plan's need are grown this much beyond it */
+#define SLICES_AHEAD 2.0          /* the first entries of a scene of several slices: for twice its first
+                                     plan's (its fastest disks speed up as collisions spread the speeds) */
 #define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
 #define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
 #ifndef SLICE_COST
@@ -243,7 +250,7 @@ static __host__ __device__ int window_start(int w, int F, int W, int K)
 typedef struct {
     int64_t n;
     double L, r;
-    int max_slices;   /* K never exceeds this: entry_cap / n, capped */
+    int max_slices;   /* K never exceeds this: what the device holds entries for, capped */
     int64_t cell_cap; /* cells (slices x g^2) count and start hold */
 } GridLimits;
 
@@ -397,7 +404,7 @@ typedef struct {
     const int32_t *lev;        /* levels > 1: level l's list at l n */
     int64_t n;
     uint32_t nl[LEVELS];       /* disks of each level */
-    uint32_t base[LEVELS + 1]; /* entries before each level's; base[levels]: all (32 bits: entry_cap) */
+    uint32_t base[LEVELS + 1]; /* entries before each level's; base[levels]: all (32 bits: cuda_open's limits) */
 } WindowDisks;
 
 /* Entry e of a window: its disk's slot, its level, its first slice (a multiple of 2^l), its row of
@@ -451,7 +458,7 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
 {
     WindowEntry x;
     if (d.levels == 1) {
-        /* a 32-bit division (entry_cap), and none for one slice */
+        /* a 32-bit division (entries below 2^31), and none for one slice */
         int64_t kl = d.kw == 1 ? 0 : (int64_t)((uint32_t)e / (uint32_t)d.na), i = e - kl * d.na;
         x.s = d.act ? d.act[i] : i;
         x.l = 0;
@@ -820,7 +827,7 @@ __global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_
  * order is row by row, so the row above lies wholly before p: what is left is the rest of p's own row
  * (from p + 1 to the end of the cell to its right) and the three cells of the row below, two contiguous
  * runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
- * (entry_cap, cell_cap).
+ * (cuda_open's limits).
  *
  * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
  * near_path where K > 1 (the warp then tests those passed together). A sparse one (the gas)
@@ -1482,7 +1489,11 @@ typedef struct {
     int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
     Entries en;                          /* K > 1 only */
     GridLimits lim;
-    int64_t entry_cap;   /* entries the key arrays hold */
+    int64_t entry_cap;   /* entries the key arrays hold (buffers_grow) */
+    int64_t cell_held;   /* cells the cell table holds, its last (+1) included */
+    int64_t copy_cap;    /* entries the copies (en) hold: none while every step has one slice */
+    int slices_held;     /* the buffers of steps of several slices are there (wall_win, act, lev, level_of) */
+    int64_t grown;       /* times buffers_grow ran (--stats): after the first, each waited for the device */
     Grid *grid;          /* the current step's grid, fitted on the device */
     uint64_t *wall_hi, *best_hi, *best_lo;
     uint64_t *wall_win;  /* the wall event as the current window's choice sees it (K > 1) */
@@ -1616,7 +1627,12 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->n = n;
     c->par = *par;
     CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, 0));
+
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
+    /* no kernel here keeps a stack frame (nvcc -Xptxas -v): the default 1 KB a thread reserves some
+     * 270 MB of local memory on an H100 (1 KB x 2048 threads x 132 multiprocessors) */
+    (void)cudaDeviceSetLimit(cudaLimitStackSize, 64);
+    cudaGetLastError();
     /* the pair search's runs in shared memory beyond its static arrays (past 48 KB in all) */
     CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
                                     (int)RUN_BYTES));
@@ -1653,25 +1669,20 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->best_hi = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->best_lo = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
     c->partner = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
-    c->wall_win = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
-    c->act[0] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
-    c->act[1] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
-    c->lev = (int32_t *)dev_alloc((size_t)n * LEVELS * 4, "the event keys");
-    c->level_of = (uint8_t *)dev_alloc((size_t)n, "the event keys");
     events_alloc(c, ev_cap);
     c->counts = (unsigned long long *)dev_alloc(WMAX * (MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&c->ctl_host, 2 * sizeof(Control)));
-    /* Entries take up to ENTRY_MEMORY of what is left, at most MAX_SLICES per disk: per entry, four
-     * 4-byte keys, three cells of count and start, and (K > 1) a copy of the disk. More entries allow
-     * more slices, hence fewer pair tests, in fast scenes of millions of disks. Entry and cell indices
-     * stay below 2^31. */
+    /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
+     * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
+     * state bounds only the slices a plan may take: up to ENTRY_MEMORY of it for entries (per entry,
+     * four 4-byte keys, three cells of count and start, and with K > 1 a copy of the disk), at most
+     * MAX_SLICES per disk. Entry and cell indices stay below 2^31. */
     size_t free_b = 0, total_b = 0;
     CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
-    double entry_bytes = 16 + 3 * 8 + 2 * sizeof(real2) + 16 + sizeof(float4);
-    double afford = ENTRY_MEMORY * (double)free_b / entry_bytes;
+    double afford = ENTRY_MEMORY * (double)free_b / ENTRY_BYTES;
     int64_t cap = n * MAX_SLICES;
     if ((double)cap > afford) cap = (int64_t)afford;
     if (cap > INT32_MAX) cap = INT32_MAX;
@@ -1680,30 +1691,10 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     lim->L = par->L;
     lim->r = par->r;
     lim->max_slices = cap / n >= 1 ? (int)(cap / n) : 1;
-    c->entry_cap = n * lim->max_slices;
-    lim->cell_cap = 3 * c->entry_cap > (1LL << 22) ? 3 * c->entry_cap : (1LL << 22);
+    int64_t entry_most = n * lim->max_slices;
+    lim->cell_cap = 3 * entry_most > (1LL << 22) ? 3 * entry_most : (1LL << 22);
     if (lim->cell_cap > INT32_MAX - 1) lim->cell_cap = INT32_MAX - 1;
-    size_t ne = (size_t)c->entry_cap;
-    c->keys = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    c->rank = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    c->keys_sorted = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    c->order = (uint32_t *)dev_alloc(ne * 4, "the cell keys");
-    size_t nc = (size_t)lim->cell_cap + 1;
-    c->count = (uint32_t *)dev_alloc(nc * 4, "the cell table");
-    c->start = (uint32_t *)dev_alloc(nc * 4, "the cell table");
-    CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, (int64_t)nc, c->stream));
-    c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
     c->tile_sums = (uint32_t *)dev_alloc(SCAN_TILES * sizeof(uint32_t), "the cell table");
-    CUDA_CHECK(cudaMemsetAsync(c->count, 0, nc * 4, c->stream)); /* the short scans keep it clear */
-    c->dirty = 0;
-    if (lim->max_slices > 1) {
-        c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
-        c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
-        c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
-        c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
-        c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
-        c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
-    }
     if ((par->print && par->steps > 1) || checkpoints) {
         size_t bytes = (size_t)n * (4 * sizeof(real) + (checkpoints ? 2 * sizeof(int32_t) : 0));
         c->out_dev = (real *)dev_alloc((size_t)n * 4 * sizeof(real), "the print buffer");
@@ -1729,6 +1720,19 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     start.vmax = speed_bits(vmax);
     CUDA_CHECK(cudaMemcpy(c->ctl, &start, sizeof start, cudaMemcpyHostToDevice));
     c->cur = 0;
+}
+
+/* The device memory the run's buffers hold (--stats), from their sizes. */
+static double buffer_bytes(const Cuda *c)
+{
+    double n = (double)c->n;
+    double b = n * (2 * (4 * sizeof(real) + 4) + 2 * 4 + 3 * 8 + 4);          /* states, pc, wc, keys, partner */
+    b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
+    b += 16.0 * (double)c->entry_cap + 8.0 * (double)c->cell_held;            /* entries and cells */
+    b += (double)c->copy_cap * (2 * sizeof(real2) + 4 + 4 + 8 + sizeof(float4)); /* entry copies */
+    if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */
+    if (c->out_dev) b += n * 4 * sizeof(real);                                /* the print buffer */
+    return b + (double)c->scan_tmp_bytes + SCAN_TILES * 4;
 }
 
 static void cuda_close(Cuda *c)
@@ -1891,6 +1895,92 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
         pl.choose_blocks[w] = b < most ? (int64_t)b : (int64_t)most;
     }
     return pl;
+}
+
+/* The entries, cells and copies a plan's steps may take at most (its windows' largest). */
+static void plan_needs(const Cuda *c, const Plan *pl, int64_t *entries, int64_t *cells, int64_t *copies)
+{
+    int64_t e = 0, cl = 0;
+    for (int w = 0; w < pl->W; w++) {
+        e = pl->went[w] > e ? pl->went[w] : e;
+        cl = pl->wcells[w] + 1 > cl ? pl->wcells[w] + 1 : cl;
+    }
+    *entries = e > c->n ? e : c->n;
+    *cells = cl;
+    *copies = pl->K > 1 ? *entries : 0;
+}
+
+/* Whether the buffers hold what the plan's steps may take. */
+static bool buffers_fit(const Cuda *c, const Plan *pl)
+{
+    int64_t entries, cells, copies;
+    plan_needs(c, pl, &entries, &cells, &copies);
+    return entries <= c->entry_cap && cells <= c->cell_held && copies <= c->copy_cap &&
+           (pl->K == 1 || c->slices_held);
+}
+
+/* Grows the buffers to what the plan's steps may take (the first time exactly for steps of one slice,
+ * SLICES_AHEAD beyond for several; later GROWTH beyond; within cuda_open's limits), with no step in
+ * flight: the kernels of every batch launched so far are done with them. The cell table
+ * comes back cleared, as the short scans keep it. A run's buffers thereby follow its scene: a gas takes
+ * one entry and two cells a disk, a fast scene as many as its slices need. */
+static void buffers_grow(Cuda *c, const Plan *pl)
+{
+    int64_t entries, cells, copies, n = c->n;
+    plan_needs(c, pl, &entries, &cells, &copies);
+    CUDA_CHECK(cudaStreamSynchronize(c->stream));
+    c->grown++;
+    int64_t most_entries = n * c->lim.max_slices, most_cells = c->lim.cell_cap + 1;
+    if (entries > c->entry_cap || copies > c->copy_cap) {
+        double ahead = c->entry_cap || c->copy_cap ? GROWTH : pl->K > 1 ? SLICES_AHEAD : 1;
+        int64_t e = (int64_t)((double)entries * ahead);
+        e = e < most_entries ? e : most_entries;
+        e = e > entries ? e : entries;
+        if (entries > c->entry_cap) {
+            cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
+            c->keys = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
+            c->rank = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
+            c->keys_sorted = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
+            c->order = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
+            c->entry_cap = e;
+        }
+        if (copies > c->copy_cap) {
+            cudaFree(c->en.pos), cudaFree(c->en.vel), cudaFree(c->en.id), cudaFree(c->en.slot);
+            cudaFree(c->en.wall), cudaFree(c->en.mid);
+            size_t ne = (size_t)e;
+            c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
+            c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
+            c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
+            c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
+            c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
+            c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
+            c->copy_cap = e;
+        }
+    }
+    if (cells > c->cell_held) {
+        double ahead = c->cell_held ? GROWTH : pl->K > 1 ? SLICES_AHEAD : 1;
+        int64_t nc = (int64_t)((double)cells * ahead);
+        nc = nc < most_cells ? nc : most_cells;
+        nc = nc > cells ? nc : cells;
+        cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp);
+        c->count = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
+        c->start = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
+        c->scan_tmp_bytes = 0;
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, nc, c->stream));
+        c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
+        CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)nc * 4, c->stream));
+        c->dirty = 0;
+        c->cell_held = nc;
+    }
+    if (pl->K > 1 && !c->slices_held) {
+        c->wall_win = (uint64_t *)dev_alloc((size_t)n * 8, "the event keys");
+        c->act[0] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+        c->act[1] = (int32_t *)dev_alloc((size_t)n * 4, "the event keys");
+        c->lev = (int32_t *)dev_alloc((size_t)n * LEVELS * 4, "the event keys");
+        c->level_of = (uint8_t *)dev_alloc((size_t)n, "the event keys");
+        c->slices_held = 1;
+    }
+    CUDA_CHECK(cudaStreamSynchronize(c->stream));
 }
 
 #ifndef LOOP_BLOCKS
@@ -2355,7 +2445,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     }
     double h1 = sim_clock();
     Cuda c;
-    cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / 2 + 4096,
+    cuda_open(&c, sim, par, known, opt->stats, hook && atoll(hook) > 0 ? atoll(hook) : par->n / EVENTS_PER_DISK + 4096,
               opt->checkpoint != NULL);
     double h2 = sim_clock();
     Control last_read, prev_read;           /* the newest control record read back, and the one before */
@@ -2374,6 +2464,15 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     int window = first_window(par->n);
     const char *window_hook = getenv("SIM_CUDA_WINDOW");
     if (window_hook && atoi(window_hook) >= 0) window = atoi(window_hook);
+    /* the first plan's buffers before the clock starts, as cuda_open's; a scene of several slices a
+     * step finds up to some n / 2 pair events a step (a gas some n / 15), so its event list starts so */
+    Plan first = plan_for(&c, known * plan_scale[0], rounds, found, window);
+    if (first.K > 1 && !(hook && atoll(hook) > 0) && c.ev_cap < par->n / 2 + 4096) {
+        cudaFree(c.ev[0]);
+        cudaFree(c.ev[1]);
+        events_alloc(&c, par->n / 2 + 4096);
+    }
+    buffers_grow(&c, &first);
     CUDA_CHECK(cudaDeviceSynchronize());
     double t0 = sim_clock();
     /* --substeps K: every sub-step is a SPEC.md step; states are handed out after whole steps */
@@ -2386,10 +2485,20 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
         /* the first batch is one step, read back before the next is launched: its counts set the
          * rounds of all later batches (a dense scene's first batches would otherwise leave the
          * finish millions of events, and a dilute scene's would run rounds with nothing left) */
-        if (flying < (prev_read.steps ? 2 : 1) && next <= last) {
+        bool launch = flying < (prev_read.steps ? 2 : 1) && next <= last;
+        Plan pl;
+        if (launch) {
+            pl = plan_for(&c, known * plan_scale[batches % 2], rounds, found, window);
+            /* a plan that needs larger buffers waits for the batches in flight, which use them */
+            if (!buffers_fit(&c, &pl)) {
+                if (flying == 0) buffers_grow(&c, &pl);
+                else launch = false;
+            }
+        }
+        if (launch) {
             int b = (head + flying) % 2;
             Batch *bt = &batch[b];
-            Plan pl = plan_for(&c, known * plan_scale[batches++ % 2], rounds, found, window);
+            batches++;
             bt->first = next;
             bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
             if (!prev_read.steps) bt->last = next;
@@ -2473,7 +2582,13 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     double h3b = sim_clock();
     state_download_and_write(&c, sim, out);
     double h4 = sim_clock();
-    if (c.timed) phase_report(&c, &last_read);
+    if (c.timed) {
+        phase_report(&c, &last_read);
+        double used = buffer_bytes(&c);
+        fprintf(stderr, "cuda: device memory of the run's buffers %.1f MB (%.0f bytes a disk): entries for %lld, "
+                "cells %lld, entry copies %lld; grown %lld times\n", used / 1e6, used / (double)par->n,
+                (long long)c.entry_cap, (long long)c.cell_held, (long long)c.copy_cap, (long long)c.grown);
+    }
     cuda_close(&c);
     if (c.timed)
         fprintf(stderr, "cuda: host side (s): waiting for the context %.3f, allocations and upload %.3f, "
@@ -2482,11 +2597,35 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     return 0;
 }
 
-/* With steps to run, the context is created while the particle lines are read. */
+/* The device memory a run of n disks takes at the least: what cuda_open allocates, and the buffers of
+ * steps of one slice (buffers_grow). Steps of several slices take more, as their plans need. */
+static double bytes_needed(const Params *par, int print_buffer)
+{
+    double n = (double)par->n;
+    double state = 2 * (4 * sizeof(real) + 4) + 2 * 4; /* two state buffers (pos, vel, id); pc, wc */
+    double keys = 3 * 8 + 4;                           /* wall_hi, best_hi, best_lo; partner */
+    double events = 2 * sizeof(PairEvent) * (n / EVENTS_PER_DISK + 4096) / n;
+    double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, keys_sorted, order; count, start */
+    return n * (state + keys + events + entries + (print_buffer ? 4 * sizeof(real) : 0));
+}
+
+/* With steps to run, the context is created while the particle lines are read; then a run that the
+ * device cannot hold is stopped with the size it needs, as the input is still being read (nothing has
+ * gone to stdout). _exit: the exit handlers would wait for this very thread. */
 static void cuda_prepare(const Params *par)
 {
     if (par->steps > 0 && !cuda_warm.joinable()) {
-        cuda_warm = std::thread([]() { (void)cudaFree(0); });
+        double need = bytes_needed(par, par->print && par->steps > 1);
+        cuda_warm = std::thread([need, par]() {
+            size_t free_b = 0, total_b = 0;
+            if (cudaFree(0) != cudaSuccess || cudaMemGetInfo(&free_b, &total_b) != cudaSuccess) return;
+            if (need <= (double)free_b) return;
+            fprintf(stderr, "%s: %lld disks need at least %.2f GB of GPU memory (%.0f bytes a disk); the GPU "
+                    "has %.2f GB free of %.2f GB\n", sim_program, (long long)par->n, need / 1e9, need / (double)par->n,
+                    (double)free_b / 1e9, (double)total_b / 1e9);
+            fflush(stderr);
+            _exit(1);
+        });
         atexit(cuda_warm_join);
     }
 }

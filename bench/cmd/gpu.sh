@@ -22,6 +22,15 @@
 #                            (./bench.sh targets); BASE_SRC=FILE also times an earlier tree's cuda.cu (say
 #                            from `git show REV:cuda.cu`), built against this tree's objects, beside each run;
 #                            OMP_TOO=0 leaves omp out
+#   ./bench.sh gpu-goals   each of cuda's goals with its figure, one line `# goal: ...` each: the step
+#                            loop on the gas of 1e7 and (GOALS_BIG=1) of 1e8, the dense gas of 1e7, the
+#                            random scene at 32000 (200 steps) and 1e6 (10 steps); device memory a disk
+#                            (nvidia-smi's peak during the run less its reading before) at 1e7 and 1e8;
+#                            the whole process on the gas of 1e7 with S = 50 (text in and out).
+#                            BASE_SRC=FILE times an earlier cuda.cu beside each run; GOALS_SCENES picks
+#                            scenes (GOALS_SCENES=none GOALS_BIG=1: the gas of 1e8 alone)
+#   ./bench.sh gpu-bytes   DRAM bytes a particle-step, kernel by kernel, under Nsight Compute, on the gas
+#                            of 1e7 (BYTES_N), beside the 80-byte floor
 #   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -216,6 +225,24 @@ do_kernels() {
         || tail -5 "$OUT/kernels_full.txt"
 }
 
+# DRAM bytes a particle-step, kernel by kernel, under Nsight Compute on the gas of 1e7 (BYTES_N):
+# every kernel of steps 3 and 4 (kernel by kernel, SIM_CUDA_GRAPH=0; caches flushed before each, so
+# each kernel's reads come from DRAM as in a step whose state outgrows L2), beside the 80-byte floor
+# (a disk's 40 bytes read and written once a step).
+do_bytes() {
+    local n=${BYTES_N:-10000000} ncu
+    ncu=$(command -v ncu || echo /usr/local/cuda/bin/ncu)
+    [ -x "$ncu" ] || { echo "ncu not found"; return 1; }
+    [ -s "$DATA/bytes_$n.in" ] || tools/gen "$n" --fraction 0.2 --speed 0.5 --steps 5 > "$DATA/bytes_$n.in"
+    SIM_CUDA_GRAPH=0 "$ncu" --csv --page raw --cache-control all --clock-control none \
+        --metrics gpu__time_duration.sum,dram__bytes_read.sum,dram__bytes_write.sum \
+        --launch-skip "${BYTES_SKIP:-40}" --launch-count "${BYTES_COUNT:-60}" \
+        --log-file "$DATA/bytes.raw" ./cuda "$DATA/bytes_$n.in" --quiet > /dev/null 2> "$OUT/bytes_ncu.err" \
+        || { tail -5 "$OUT/bytes_ncu.err" "$DATA/bytes.raw"; return 1; }
+    sed -n '/"ID"/,$p' "$DATA/bytes.raw" > "$OUT/bytes_raw.csv"
+    python3 tools/ncu_kernels.py "$OUT/bytes_raw.csv" "$n" | tee "$OUT/bytes.csv"
+}
+
 # BASE_SRC=FILE: an earlier cuda.cu built as $DATA/base/cuda (build_source).
 build_base_source() {
     BASE=$DATA/base
@@ -250,8 +277,106 @@ do_targets() {
     fi
 }
 
+
+# peak_memory COMMAND...: runs COMMAND (stdout to /dev/null, stderr to $DATA/err) while nvidia-smi
+# samples the device's used memory every 20 ms; prints the peak less the reading before the run, MB
+peak_memory() {
+    local idle peak pid
+    idle=$(nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits -i 0)
+    nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits -i 0 -lms 20 > "$DATA/mem.log" &
+    pid=$!
+    "$@" > /dev/null 2> "$DATA/err"
+    kill "$pid" 2> /dev/null
+    wait "$pid" 2> /dev/null || true
+    peak=$(sort -n "$DATA/mem.log" | tail -1)
+    echo $((peak - idle))
+}
+
+# goal WHAT FIGURE TARGET OP: one line, met or missed (OP: ge or le)
+goal() {
+    local verdict
+    verdict=$(awk -v f="$2" -v t="$3" -v op="$4" 'BEGIN { ok = op == "ge" ? f >= t : f <= t; print ok ? "met" : "MISSED" }')
+    echo "# goal: $1: $2 (target $([ "$4" = ge ] && echo ">=" || echo "<=") $3): $verdict" | tee -a "$CSV"
+}
+
+# best_rate LABEL N PROGRAM ARGS...: the best step-loop rate of two runs after a warm-up
+best_rate() {
+    local label=$1 n=$2 prog=$3 best=0 r
+    shift 3
+    "$prog" "$@" > /dev/null 2>&1 || true
+    for _ in 1 2; do
+        time_one "$label" "$n" "$prog" "$@" --stats > /dev/null
+        r=$(tail -1 "$CSV" | cut -d, -f5)
+        best=$(awk -v a="$best" -v b="${r:-0}" 'BEGIN { print (b + 0 > a + 0) ? b : a }')
+    done
+    echo "$best"
+}
+
+do_goals() {
+    [ -n "${BASE_SRC:-}" ] && build_base_source
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" >> "$CSV"
+    echo "label,program,N,seconds,particle_steps_per_s,stats" >> "$CSV"
+    local scenes=${GOALS_SCENES:-gas_10000000 dense_10000000 random_32000 random_1000000} f n rate mem
+    [ -s "$DATA/gas_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/gas_10000000.in"
+    [ -s "$DATA/dense_10000000.in" ] || tools/gen 10000000 --fraction 0.4 --speed 0.5 --steps 20 > "$DATA/dense_10000000.in"
+    printf '32000\n20000\n1\n200\nperf\n' > "$DATA/random_32000.in"
+    printf '1000000\n20000\n1\n10\nperf\n' > "$DATA/random_1000000.in"
+    if [ "${GOALS_BIG:-0}" = 1 ]; then
+        [ -s "$DATA/gas_100000000.in" ] || tools/gen 100000000 --fraction 0.2 --speed 0.5 --steps 10 > "$DATA/gas_100000000.in"
+        scenes="$scenes gas_100000000"
+    fi
+    for f in $scenes; do
+        [ "$f" = none ] && continue
+        n=${f#*_}
+        if [ "$n" -ge 100000000 ]; then # one run, output to /dev/null: its text alone is some 15 GB
+            ./cuda "$DATA/$f.in" --stats > /dev/null 2> "$DATA/err" || true
+            rate=$(sed -nE 's/.* ([0-9.e+]+) particle-steps\/s.*/\1/p' "$DATA/err")
+        else
+            rate=$(best_rate "$f" "$n" ./cuda "$DATA/$f.in")
+        fi
+        grep -E 'phase|round|window|refused|memory' "$DATA/err" | sed "s/^/# $f: /" >> "$CSV"
+        case $f in
+        gas_*) goal "$f step loop, particle-steps/s" "$rate" 1.2e10 ge ;;
+        dense_*) goal "$f step loop, particle-steps/s" "$rate" 1e10 ge ;;
+        random_32000) goal "$f (200 steps) step loop, particle-steps/s" "$rate" 3e8 ge ;;
+        random_1000000) goal "$f (10 steps) step loop, particle-steps/s" "$rate" 5e8 ge ;;
+        esac
+        if [ -n "${BASE:-}" ] && [ "$n" -lt 100000000 ]; then
+            NAME=cuda_base best_rate "$f" "$n" "$BASE/cuda" "$DATA/$f.in" | sed "s/^/# $f cuda_base best: /" >> "$CSV"
+        fi
+        case $f in gas_*)
+            mem=$(peak_memory ./cuda "$DATA/$f.in" --quiet)
+            goal "$f device memory, bytes a disk" "$(awk -v m="$mem" -v n="$n" 'BEGIN { printf "%.0f", m * 1048576 / n }')" 200 le ;;
+        esac
+    done
+    [ "${GOALS_SCENES:-}" = none ] && return
+    # the whole process with text in and out: the gas of 1e7, 50 steps
+    [ -s "$DATA/gas50_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas50_10000000.in"
+    ./cuda "$DATA/gas50_10000000.in" > /dev/null 2>&1
+    local t0 t1 best=999
+    for _ in 1 2 3; do
+        t0=$(date +%s.%N)
+        ./cuda "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
+        t1=$(date +%s.%N)
+        best=$(awk -v a="$best" -v t0="$t0" -v t1="$t1" 'BEGIN { b = t1 - t0; printf "%.3f", (b < a) ? b : a }')
+    done
+    goal "gas_10000000 S = 50, whole process with text in and out, seconds" "$best" 1.0 le
+    if [ -n "${BASE:-}" ]; then
+        best=999
+        for _ in 1 2 3; do
+            t0=$(date +%s.%N)
+            "$BASE/cuda" "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
+            t1=$(date +%s.%N)
+            best=$(awk -v a="$best" -v t0="$t0" -v t1="$t1" 'BEGIN { b = t1 - t0; printf "%.3f", (b < a) ? b : a }')
+        done
+        echo "# gas_10000000 S = 50, whole process, cuda_base best: $best s" | tee -a "$CSV"
+    fi
+}
+
 case ${1:-all} in
 check) do_check ;;
+goals) do_goals ;;
+bytes) do_bytes ;;
 memcheck) do_memcheck ;;
 perf) do_perf ;;
 profile) do_profile ;;
@@ -260,6 +385,6 @@ targets) do_targets ;;
 host) do_host ;;
 big) do_big ;;
 all) timeout 300 bash "$0" check || true; timeout 240 bash "$0" perf ;;
-*) echo "usage: $0 check|memcheck|perf|host|big|profile|kernels|targets|all" >&2; exit 2 ;;
+*) echo "usage: $0 check|memcheck|perf|host|big|profile|kernels|targets|goals|bytes|all" >&2; exit 2 ;;
 esac
 [ -f "$CSV" ] && tail -30 "$CSV" || true
