@@ -69,31 +69,51 @@ typedef struct {
     real xi, yi, xj, yj;
 } ExactMeet;
 
-/* Returns 1 and fills m if disks i < j touch by the end of the step. In the periodic box the centres
- * at tc are brought into [0, L) and the pair is predicted from their nearest images (SPEC.md 7); two
- * disks whose last events were with each other may meet again there, through another image, once
- * they have parted (by more than the slack): only at their contact are they left alone. */
+/* The flight from tc until two disks whose centres differ by (dx, dy) at tc touch, within rest, or -1:
+ * none where they overlap deeper than the slack, or (partners: their last events were with each other)
+ * while they still touch. */
+static real meet_image(const ExactDisks *d, const Params *p, real dx, real dy, real dvx, real dvy, real rest,
+                       int partners)
+{
+    real c = dx * dx + dy * dy - p->sigma2;
+    if (c < -d->slack || (partners && c < d->slack)) return -1;
+    return pair_time_rel(dx, dy, dvx, dvy, p->sigma2, rest);
+}
+
+/* Returns 1 and fills m if disks i < j touch by the end of the step. In the periodic box (SPEC.md 7a)
+ * the centres at tc are brought into [0, L) and the pair meets by the earliest of its images within
+ * one box of the nearest (those the rest of the step can bring within 2r: for most pairs the nearest
+ * alone); two disks whose last events were with each other may then meet again through another
+ * image, though not where they still touch. */
 static int exact_meet(const ExactDisks *d, const Params *p, int64_t i, int64_t j, ExactMeet *m)
 {
     const Sim *s = d->sim;
     int partners = d->last[i] == j && d->last[j] == i;
     if (partners && !p->periodic) return 0;
     real ti = d->t[i], tj = d->t[j];
-    real tc = ti < tj ? tj : ti;
+    real tc = ti < tj ? tj : ti, rest = 1 - tc;
     m->tc = tc;
     m->xi = s->x[i] + s->vx[i] * (tc - ti);
     m->yi = s->y[i] + s->vy[i] * (tc - ti);
     m->xj = s->x[j] + s->vx[j] * (tc - tj);
     m->yj = s->y[j] + s->vy[j] * (tc - tj);
-    real dx = m->xj - m->xi, dy = m->yj - m->yi;
+    real dx = m->xj - m->xi, dy = m->yj - m->yi, dvx = s->vx[j] - s->vx[i], dvy = s->vy[j] - s->vy[i];
     if (p->periodic) {
         m->xi = wrap_coord(m->xi, p->L), m->yi = wrap_coord(m->yi, p->L);
         m->xj = wrap_coord(m->xj, p->L), m->yj = wrap_coord(m->yj, p->L);
         dx = wrap_delta(m->xj - m->xi, p->L, p->half), dy = wrap_delta(m->yj - m->yi, p->L, p->half);
     }
-    real c = dx * dx + dy * dy - p->sigma2;
-    if (c < -d->slack || (partners && c < d->slack)) return 0;
-    m->dt = pair_time_rel(dx, dy, s->vx[j] - s->vx[i], s->vy[j] - s->vy[i], p->sigma2, 1 - tc);
+    m->dt = meet_image(d, p, dx, dy, dvx, dvy, rest, partners);
+    /* images one box over: each axis within reach (2r plus the axis' flight, twice over: no rounding
+     * can skip one that meets); the earliest, the nearest first on a tie */
+    real far_x = 4 * p->r + 2 * SIM_FABS(dvx) * rest, far_y = 4 * p->r + 2 * SIM_FABS(dvy) * rest;
+    for (int kx = -1; p->periodic && kx <= 1; kx++)
+        for (int ky = -1; ky <= 1; ky++) {
+            real ex = dx + (real)kx * p->L, ey = dy + (real)ky * p->L;
+            if ((!kx && !ky) || SIM_FABS(ex) > far_x || SIM_FABS(ey) > far_y) continue;
+            real t = meet_image(d, p, ex, ey, dvx, dvy, rest, partners);
+            if (t >= 0 && (m->dt < 0 || t < m->dt)) m->dt = t;
+        }
     return m->dt >= 0 && tc + m->dt <= 1;
 }
 

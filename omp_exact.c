@@ -296,7 +296,8 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
             early = 1;
             break;
         }
-        st->pair_tests += predict_near(w, e.i, e.j, 0, t1, &w->heap);
+        /* as seq.c: the pair again (once) in the periodic box, where it may meet through another image */
+        st->pair_tests += predict_near(w, e.i, p->periodic ? -1 : e.j, 0, t1, &w->heap);
         if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap);
     }
     st->events += events;

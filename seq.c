@@ -169,7 +169,9 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
             if (!exact_valid(&d, &e)) continue;
             exact_apply(&d, par, &e);
             st->events++;
-            st->pair_tests += exact_predict(&d, par, e.i, e.j, &h);
+            /* its disks against every other, and each other (once) where they may meet again: in the
+             * periodic box, through another image */
+            st->pair_tests += exact_predict(&d, par, e.i, par->periodic ? -1 : e.j, &h);
             if (e.j != e.i) st->pair_tests += exact_predict(&d, par, e.j, e.i, &h);
         }
         for (int64_t i = 0; i < par->n; i++) exact_finish(&d, par, i);
