@@ -4,7 +4,7 @@
 #                 minute on 2 cores; ends with "N passed, N failed"
 # make test-all   every check (tests/run.sh --all): the long matrices, 8 mpi ranks, kill trials,
 #                 the bench smoke runs
-# make golden     regenerate outputs/ from seq (on purpose only)
+# make golden     regenerate outputs/ (and outputs/periodic/, run with --periodic) from seq (on purpose only)
 # make PRECISION=float   only the single-precision builds seq_f32, omp_f32 (and cuda_f32)
 
 CC ?= cc
@@ -110,8 +110,12 @@ test: all seq_san
 test-all: all seq_san
 	@bash tests/run.sh --all
 
+# inputs/periodic/: scenes of the periodic box (SPEC.md 7), run with --periodic (the input format has
+# no mark of it)
 golden: seq
 	@for f in inputs/*.in; do ./seq "$$f" --quiet > outputs/$$(basename "$$f" .in).out || exit 1; done
+	@for f in inputs/periodic/*.in; do \
+		./seq "$$f" --periodic --quiet > outputs/periodic/$$(basename "$$f" .in).out || exit 1; done
 	@echo "outputs/ regenerated from seq"
 
 bench: all

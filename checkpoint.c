@@ -15,12 +15,13 @@
 #include <unistd.h>
 
 /* A checkpoint file: "DISKSCKP", format version, bytes of a real (8: double, 4: float), then the run
- * (n, L, r, S, the step reached, K, print, exact, pressure, dump17), then x, y, vx, vy (velocities per
- * step, as in the output), the counts p and w, the wall impulses (with --pressure), the partners of
- * the disks' last events (--exact), and a checksum of everything before it. Native byte order: it is
- * read back by the same programs on the same kind of machine. */
+ * (n, L, r, S, the step reached, K, print, exact, pressure, dump17; from format 2 on also periodic and
+ * the periodic box's virial sums so far), then x, y, vx, vy (velocities per step, as in the output),
+ * the counts p and w, the wall (or virial) impulses (with --pressure), the partners of the disks' last
+ * events (--exact), and a checksum of everything before it. Native byte order: it is read back by the
+ * same programs on the same kind of machine. Format 1 (no periodic box) is still read. */
 #define CK_MAGIC "DISKSCKP"
-#define CK_VERSION 1u
+#define CK_VERSION 2u
 
 typedef struct {
     char magic[8];
@@ -28,6 +29,12 @@ typedef struct {
     int64_t n, steps, step, substeps;
     double L, r;
     int32_t print, exact, pressure, dump17;
+} CkHeader1; /* format 1, the start of every later one */
+
+typedef struct {
+    CkHeader1 h;
+    int32_t periodic, pad;
+    Virial virial;
 } CkHeader;
 
 /* The checksum: the bytes as 64-bit words, each mixed in by a bijection of the running value (so any
@@ -145,15 +152,18 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     w->path = tmp;
     w->fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (w->fd < 0) sim_fail("cannot write the checkpoint %s: %s", tmp, strerror(errno));
-    CkHeader h;
-    memset(&h, 0, sizeof h);
-    memcpy(h.magic, CK_MAGIC, 8);
-    h.version = CK_VERSION;
-    h.real_bytes = (uint32_t)sizeof(real);
-    h.n = par->n, h.steps = par->steps, h.step = step, h.substeps = par->substeps;
-    h.L = (double)par->L, h.r = (double)par->r;
-    h.print = par->print, h.exact = out->opt->exact, h.pressure = sim->wi != NULL, h.dump17 = out->dump17;
-    ck_put(w, &h, sizeof h);
+    CkHeader hd;
+    CkHeader1 *h = &hd.h;
+    memset(&hd, 0, sizeof hd);
+    memcpy(h->magic, CK_MAGIC, 8);
+    h->version = CK_VERSION;
+    h->real_bytes = (uint32_t)sizeof(real);
+    h->n = par->n, h->steps = par->steps, h->step = step, h->substeps = par->substeps;
+    h->L = (double)par->L, h->r = (double)par->r;
+    h->print = par->print, h->exact = out->opt->exact, h->pressure = sim->wi != NULL, h->dump17 = out->dump17;
+    hd.periodic = par->periodic;
+    hd.virial = out->virial;
+    ck_put(w, &hd, sizeof hd);
     ck_put_reals(w, sim->x, par->n, 1);
     ck_put_reals(w, sim->y, par->n, 1);
     ck_put_reals(w, sim->vx, par->n, io_velocity_scale());
@@ -161,7 +171,7 @@ void io_checkpoint(Output *out, const Sim *sim, int64_t step)
     ck_put(w, sim->pc, (size_t)par->n * sizeof *sim->pc);
     ck_put(w, sim->wc, (size_t)par->n * sizeof *sim->wc);
     if (sim->wi) ck_put(w, sim->wi, (size_t)par->n * sizeof *sim->wi);
-    if (h.exact) ck_put(w, sim->last, (size_t)par->n * sizeof *sim->last);
+    if (h->exact) ck_put(w, sim->last, (size_t)par->n * sizeof *sim->last);
     uint64_t hash = ck_hash_end(&w->hash);
     ck_put(w, &hash, sizeof hash);
     ck_flush(w);
@@ -207,27 +217,35 @@ void checkpoint_probe(const char *path)
 /* The run and the state of a checkpoint, for --resume: the options that shape the dynamics (K, exact,
  * pressure) and the output (print, dump17) come from it; anything wrong with the file is refused
  * before a byte of output. */
-void checkpoint_read(Options *opt, Params *par, Sim *sim)
+void checkpoint_read(Options *opt, Params *par, Sim *sim, Virial *vir)
 {
     const char *path = opt->resume;
     int fd = open(path, O_RDONLY);
     if (fd < 0) sim_fail("%s: cannot open the checkpoint (%s)", path, strerror(errno));
     struct stat st;
     if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) sim_fail("%s: not a checkpoint (not a regular file)", path);
-    CkHeader h;
+    CkHeader hd;
+    CkHeader1 h;
+    memset(&hd, 0, sizeof hd);
     if (read(fd, &h, sizeof h) != (ssize_t)sizeof h || memcmp(h.magic, CK_MAGIC, 8) != 0)
         sim_fail("%s: not a checkpoint (it does not start with %s)", path, CK_MAGIC);
-    if (h.version != CK_VERSION)
-        sim_fail("%s: a checkpoint of format %u; this program reads format %u", path, h.version, CK_VERSION);
+    if (h.version != CK_VERSION && h.version != 1)
+        sim_fail("%s: a checkpoint of format %u; this program reads formats 1 and %u", path, h.version, CK_VERSION);
+    size_t hsize = h.version == 1 ? sizeof h : sizeof hd; /* format 1: no periodic box */
+    hd.h = h;
+    if (hsize > sizeof h &&
+        read(fd, (char *)&hd + sizeof h, hsize - sizeof h) != (ssize_t)(hsize - sizeof h))
+        sim_fail("%s: a checkpoint cut short in its header", path);
     if (h.real_bytes != sizeof(real))
         sim_fail("%s: a checkpoint of %s precision; %s computes in %s", path, h.real_bytes == 8 ? "double" : "single",
                 sim_program, sizeof(real) == 8 ? "double" : "single");
     if (h.n < 1 || h.n > SIM_MAX_N || h.steps < 0 || h.step < 1 || h.step >= h.steps || h.substeps < 1 ||
-        h.substeps > 1024 || (h.substeps & (h.substeps - 1)) || !(h.L > 0) || !(h.r > 0))
+        h.substeps > 1024 || (h.substeps & (h.substeps - 1)) || !(h.L > 0) || !(h.r > 0) ||
+        (hd.periodic != 0 && hd.periodic != 1))
         sim_fail("%s: a checkpoint with impossible values (N = %lld, step %lld of %lld, K = %lld)", path,
                 (long long)h.n, (long long)h.step, (long long)h.steps, (long long)h.substeps);
     uint64_t n = (uint64_t)h.n;
-    uint64_t want = sizeof h + n * (4 * sizeof(real) + 2 * sizeof(int32_t)) + (h.pressure ? n * sizeof(double) : 0) +
+    uint64_t want = hsize + n * (4 * sizeof(real) + 2 * sizeof(int32_t)) + (h.pressure ? n * sizeof(double) : 0) +
                     (h.exact ? n * sizeof(int32_t) : 0) + 8;
     if ((uint64_t)st.st_size != want)
         sim_fail("%s: a checkpoint of %lld bytes, where its header calls for %llu (cut short or extended)", path,
@@ -238,11 +256,13 @@ void checkpoint_read(Options *opt, Params *par, Sim *sim)
         sim_fail("%s: a checkpoint of a --pressure run, which %s does not support", path, sim_program);
     if (h.substeps > 1 && !(io_backend->features & SIM_FEATURE_SUBSTEPS))
         sim_fail("%s: a checkpoint of a --substeps run, which %s does not support", path, sim_program);
+    if (hd.periodic && !(io_backend->features & SIM_FEATURE_PERIODIC))
+        sim_fail("%s: a checkpoint of a --periodic run, which %s does not support", path, sim_program);
     if (sim_alloc(sim, h.n)) sim_fail("%s: not enough memory for the particles (N = %lld)", path, (long long)h.n);
     if (h.pressure) sim->wi = sim_calloc(n, sizeof *sim->wi);
     if (h.exact) sim->last = sim_calloc(n, sizeof *sim->last);
     CkHash hash = {0, {0}, 0};
-    ck_hash(&hash, &h, sizeof h);
+    ck_hash(&hash, &hd, hsize);
     void *arrays[8] = {sim->x, sim->y, sim->vx, sim->vy, sim->pc, sim->wc, sim->wi, sim->last};
     size_t sizes[8] = {sizeof(real), sizeof(real), sizeof(real), sizeof(real), 4, 4, 8, 4};
     for (int a = 0; a < 8; a++) {
@@ -261,9 +281,12 @@ void checkpoint_read(Options *opt, Params *par, Sim *sim)
     if (read(fd, &stored, sizeof stored) != (ssize_t)sizeof stored || stored != ck_hash_end(&hash))
         sim_fail("%s: the checkpoint's checksum does not match its contents (damaged)", path);
     close(fd);
+    /* the centres as SPEC.md 1 or, in the periodic box, 7 allows them */
+    real lo = hd.periodic ? 0 : (real)h.r, hi = hd.periodic ? (real)h.L : (real)h.L - (real)h.r;
     for (int64_t i = 0; i < h.n; i++)
-        if (!(sim->x[i] >= (real)h.r && sim->x[i] <= (real)h.L - (real)h.r && sim->y[i] >= (real)h.r &&
-              sim->y[i] <= (real)h.L - (real)h.r && sim->pc[i] >= 0 && sim->wc[i] >= 0 &&
+        if (!(sim->x[i] >= lo && sim->y[i] >= lo && (hd.periodic ? sim->x[i] < hi && sim->y[i] < hi
+                                                                 : sim->x[i] <= hi && sim->y[i] <= hi) &&
+              sim->pc[i] >= 0 && sim->wc[i] >= 0 &&
               (!sim->last || (sim->last[i] >= -1 && sim->last[i] < h.n && sim->last[i] != i))))
             sim_fail("%s: disk %lld of the checkpoint is outside the box or has impossible counts", path, (long long)i);
     par->n = h.n;
@@ -271,12 +294,15 @@ void checkpoint_read(Options *opt, Params *par, Sim *sim)
     par->r = (real)h.r;
     par->steps = h.steps;
     par->print = h.print;
+    par->periodic = hd.periodic;
     params_derive(par);
     par->first_step = h.step;
     opt->substeps = (int)h.substeps;
     opt->exact = h.exact;
     opt->pressure = h.pressure;
+    opt->periodic = hd.periodic;
     opt->dump17 = h.dump17;
+    *vir = hd.virial;
     if (!opt->quiet)
         fprintf(stderr, "%s: resuming %s at step %lld of %lld\n", sim_program, path, (long long)h.step,
                 (long long)h.steps);

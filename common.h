@@ -35,6 +35,7 @@ extern "C" {
 typedef float real;
 #define SIM_SQRT sqrtf
 #define SIM_FABS fabsf
+#define SIM_FMOD fmodf
 #define SIM_EPS 1.1920929e-7 /* FLT_EPSILON */
 #define SIM_PRECISION "float"
 #define SIM_SUFFIX "_f32" /* of program names: seq_f32, omp_f32, cuda_f32 */
@@ -42,6 +43,7 @@ typedef float real;
 typedef double real;
 #define SIM_SQRT sqrt
 #define SIM_FABS fabs
+#define SIM_FMOD fmod
 #define SIM_EPS 2.220446049250313e-16 /* DBL_EPSILON */
 #define SIM_PRECISION "double"
 #define SIM_SUFFIX ""
@@ -86,6 +88,8 @@ typedef struct {
     real sigma2;   /* squared contact distance: (r + r) * (r + r) */
     int64_t substeps; /* K: sub-steps per step (--substeps), a power of two; 1 is SPEC.md */
     int64_t first_step; /* steps already run: 0, or the step of the checkpoint a run resumes from */
+    int periodic;  /* --periodic: no walls, opposite edges joined (SPEC.md 7); lo and hi unused */
+    real half;     /* L / 2: the nearest-image bound of SPEC.md 7 */
 } Params;
 
 /* The fields of Params that follow from L and r. */
@@ -94,6 +98,7 @@ static inline void params_derive(Params *p)
     p->lo = p->r;
     p->hi = p->L - p->r;
     p->sigma2 = (p->r + p->r) * (p->r + p->r);
+    p->half = p->L / 2;
 }
 
 /* ---- state: structure of arrays, n entries each -------------------------------------------------- */
@@ -103,7 +108,8 @@ typedef struct {
     real *vx, *vy;   /* velocities, length per step */
     int32_t *pc;     /* collisions with other disks so far (<= S x K, checked; --exact checks its own) */
     int32_t *wc;     /* collisions with walls so far */
-    double *wi;      /* --pressure: wall impulse received so far (unit mass x velocity); else NULL */
+    double *wi;      /* --pressure: wall impulse received so far (unit mass x velocity); in the periodic
+                        box the impulse of its pair collisions (the virial's, SPEC.md 7); else NULL */
     int32_t *last;   /* --exact: partner of each disk's last event, -1 for none (exact.h); else NULL */
 } Sim;
 
@@ -159,14 +165,12 @@ static inline SIM_HD real min_time(real a, real b)
     return b < a ? b : a;
 }
 
-/* Time until disks i and j touch (3.2), or -1 when they do not within `limit` time units: 1 for the
- * step of SPEC.md, the rest of the step for --exact. The root form c / (-b + SIM_SQRT(D)) never
- * subtracts nearly equal numbers. */
-static inline SIM_HD real pair_time_within(real xi, real yi, real vxi, real vyi, real xj,
-                                           real yj, real vxj, real vyj, real sigma2, real limit)
+/* Time until two disks whose centres differ by (dx, dy) (j's minus i's) and velocities by (dvx, dvy)
+ * touch (3.2), or -1 when they do not within `limit` time units: 1 for the step of SPEC.md, the rest
+ * of the step for --exact. The root form c / (-b + SIM_SQRT(D)) never subtracts nearly equal
+ * numbers. */
+static inline SIM_HD real pair_time_rel(real dx, real dy, real dvx, real dvy, real sigma2, real limit)
 {
-    real dx = xj - xi, dy = yj - yi;
-    real dvx = vxj - vxi, dvy = vyj - vyi;
     real b = dx * dvx + dy * dvy;
     if (!(b < 0)) return -1;
     real dd = dx * dx + dy * dy;
@@ -179,6 +183,13 @@ static inline SIM_HD real pair_time_within(real xi, real yi, real vxi, real vyi,
     if (t <= 0) t = 0;
     if (!(t <= limit)) return -1;
     return t;
+}
+
+/* Time until disks i and j touch (3.2), or -1 when they do not within `limit` time units. */
+static inline SIM_HD real pair_time_within(real xi, real yi, real vxi, real vyi, real xj,
+                                           real yj, real vxj, real vyj, real sigma2, real limit)
+{
+    return pair_time_rel(xj - xi, yj - yi, vxj - vxi, vyj - vyi, sigma2, limit);
 }
 
 /* Time of the pair event of disks i and j (3.2), or -1 when the pair has no event this step. */
@@ -219,14 +230,14 @@ static inline SIM_HD void wall_bounce(real *x, real *y, real *vx, real *vy, real
     }
 }
 
-/* Elastic response of two equal disks in contact (3.4): the normal components swap, the tangential
- * ones stay. Coincident centres have no normal; their velocities are left alone. */
-static inline SIM_HD void pair_bounce(real xi, real yi, real *vxi, real *vyi, real xj,
-                                      real yj, real *vxj, real *vyj)
+/* Elastic response of two equal disks in contact (3.4) whose centres differ by (nx, ny) (j's minus
+ * i's): the normal components swap, the tangential ones stay. Coincident centres have no normal; their
+ * velocities are left alone. Returns the impulse each disk received, |vni - vnj| (unit masses), for
+ * --pressure's virial (0 for coincident centres); callers that need it not let the compiler drop it. */
+static inline SIM_HD real pair_bounce_rel(real nx, real ny, real *vxi, real *vyi, real *vxj, real *vyj)
 {
-    real nx = xj - xi, ny = yj - yi;
     real len = SIM_SQRT(nx * nx + ny * ny);
-    if (len == 0) return;
+    if (len == 0) return 0;
     real ux = nx / len, uy = ny / len;
     real vni = ux * *vxi + uy * *vyi, vti = ux * *vyi - uy * *vxi;
     real vnj = ux * *vxj + uy * *vyj, vtj = ux * *vyj - uy * *vxj;
@@ -234,6 +245,13 @@ static inline SIM_HD void pair_bounce(real xi, real yi, real *vxi, real *vyi, re
     *vyi = vnj * uy + vti * ux;
     *vxj = vni * ux - vtj * uy;
     *vyj = vni * uy + vtj * ux;
+    return SIM_FABS(vni - vnj);
+}
+
+static inline SIM_HD real pair_bounce(real xi, real yi, real *vxi, real *vyi, real xj, real yj,
+                                      real *vxj, real *vyj)
+{
+    return pair_bounce_rel(xj - xi, yj - yi, vxi, vyi, vxj, vyj);
 }
 
 /* The rest of the step after an event at t1 (3.4): fly on for 1 - t1, or stop touching the first wall
@@ -258,28 +276,36 @@ static inline SIM_HD void finish_step(real *x, real *y, real vx, real vy, real t
     }
 }
 
+/* Both disks of an accepted pair event fly to contact at t1 (3.4). */
+static inline SIM_HD void pair_fly(real *xi, real *yi, real vxi, real vyi, real *xj, real *yj, real vxj,
+                                   real vyj, real t1)
+{
+    *xi = *xi + vxi * t1;
+    *yi = *yi + vyi * t1;
+    *xj = *xj + vxj * t1;
+    *yj = *yj + vyj * t1;
+}
+
 /* The first half of an accepted pair event at t1 (3.4): both disks fly to contact and swap their
- * normal velocities. i is the lower original index. Backends where each partner updates only itself
- * (cuda) call this and then finish_step for their own side. */
-static inline SIM_HD void pair_contact(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+ * normal velocities; returns the impulse (pair_bounce_rel). i is the lower original index. Backends
+ * where each partner updates only itself (cuda) call this and then finish_step for their own side. */
+static inline SIM_HD real pair_contact(real *xi, real *yi, real *vxi, real *vyi, real *xj,
                                        real *yj, real *vxj, real *vyj, real t1)
 {
-    *xi = *xi + *vxi * t1;
-    *yi = *yi + *vyi * t1;
-    *xj = *xj + *vxj * t1;
-    *yj = *yj + *vyj * t1;
-    pair_bounce(*xi, *yi, vxi, vyi, *xj, *yj, vxj, vyj);
+    pair_fly(xi, yi, *vxi, *vyi, xj, yj, *vxj, *vyj, t1);
+    return pair_bounce(*xi, *yi, vxi, vyi, *xj, *yj, vxj, vyj);
 }
 
 /* An accepted pair event at t1 (3.4): both disks fly to contact, swap their normal velocities and
- * finish the step. i is the lower original index. */
-static inline SIM_HD void pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
+ * finish the step; returns the impulse. i is the lower original index. */
+static inline SIM_HD real pair_collide(real *xi, real *yi, real *vxi, real *vyi, real *xj,
                                        real *yj, real *vxj, real *vyj, real t1, real lo,
                                        real hi)
 {
-    pair_contact(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1);
+    real dp = pair_contact(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1);
     finish_step(xi, yi, *vxi, *vyi, t1, lo, hi);
     finish_step(xj, yj, *vxj, *vyj, t1, lo, hi);
+    return dp;
 }
 
 /* The impulse (unit mass) that wall_bounce gave a disk whose velocity went from (vx0, vy0) to
@@ -305,6 +331,63 @@ static inline SIM_HD double broad_margin(double r, double scale, double reach, d
 static inline SIM_HD real clamp_coord(real c, real lo, real hi)
 {
     return c < lo ? lo : (c > hi ? hi : c);
+}
+
+/* ---- the periodic box (--periodic, SPEC.md 7): no walls, opposite edges joined ----------------- */
+
+/* The nearest image of a difference d of two coordinates: half = L / 2. */
+static inline SIM_HD real wrap_delta(real d, real L, real half)
+{
+    if (d > half) d = d - L;
+    else if (d < -half) d = d + L;
+    return d;
+}
+
+/* A coordinate brought into [0, L) as SPEC.md 7 writes it (fmod is exact); one inside already is
+ * what fmod returns for it, and needs no division. */
+static inline SIM_HD real wrap_coord(real c, real L)
+{
+    if (c >= 0 && c < L) return c;
+    c = SIM_FMOD(c, L);
+    if (c < 0) c = c + L;
+    if (c >= L) c = c - L;
+    return c;
+}
+
+/* 3.2 in the periodic box: the nearest image's difference, the rest as written (-1: no event within
+ * limit). */
+static inline SIM_HD real pair_time_wrap(real xi, real yi, real vxi, real vyi, real xj, real yj, real vxj,
+                                         real vyj, real sigma2, real L, real half, real limit)
+{
+    return pair_time_rel(wrap_delta(xj - xi, L, half), wrap_delta(yj - yi, L, half), vxj - vxi, vyj - vyi,
+                         sigma2, limit);
+}
+
+/* pair_contact in the periodic box: the normal from the nearest image of the moved centres. */
+static inline SIM_HD real pair_contact_wrap(real *xi, real *yi, real *vxi, real *vyi, real *xj, real *yj,
+                                            real *vxj, real *vyj, real t1, real L, real half)
+{
+    pair_fly(xi, yi, *vxi, *vyi, xj, yj, *vxj, *vyj, t1);
+    return pair_bounce_rel(wrap_delta(*xj - *xi, L, half), wrap_delta(*yj - *yi, L, half), vxi, vyi, vxj,
+                           vyj);
+}
+
+/* The rest of the step after an event at t1 in the periodic box: no wall, no stop. */
+static inline SIM_HD void fly_rest(real *x, real *y, real vx, real vy, real t1)
+{
+    real rem = 1 - t1;
+    *x = *x + vx * rem;
+    *y = *y + vy * rem;
+}
+
+/* pair_collide in the periodic box (the coordinates are brought into [0, L) with the others'). */
+static inline SIM_HD real pair_collide_wrap(real *xi, real *yi, real *vxi, real *vyi, real *xj, real *yj,
+                                            real *vxj, real *vyj, real t1, real L, real half)
+{
+    real dp = pair_contact_wrap(xi, yi, vxi, vyi, xj, yj, vxj, vyj, t1, L, half);
+    fly_rest(xi, yi, *vxi, *vyi, t1);
+    fly_rest(xj, yj, *vxj, *vyj, t1);
+    return dp;
 }
 
 #ifdef __cplusplus

@@ -34,6 +34,7 @@ void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
  * huge): such a step could not be run event by event. */
 void exact_check_speeds(const Sim *s, const Params *p)
 {
+    if (p->periodic) return; /* no walls: a disk alone has no events */
     double span = (double)p->hi - (double)p->lo;
     for (int64_t i = 0; i < p->n; i++) {
         double crossings = (fabs((double)s->vx[i]) + fabs((double)s->vy[i])) / span;
@@ -55,6 +56,7 @@ void exact_free(ExactDisks *d)
 real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i)
 {
     const Sim *s = d->sim;
+    if (p->periodic) return -1;
     real dt = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
                        wall_time(s->y[i], s->vy[i], p->lo, p->hi));
     real te = d->t[i] + dt;
@@ -67,22 +69,51 @@ typedef struct {
     real xi, yi, xj, yj;
 } ExactMeet;
 
-/* Returns 1 and fills m if disks i < j touch by the end of the step. */
+/* The flight from tc until two disks whose centres differ by (dx, dy) at tc touch, within rest, or -1:
+ * none where they overlap deeper than the slack, or (partners: their last events were with each other)
+ * while they still touch. */
+static real meet_image(const ExactDisks *d, const Params *p, real dx, real dy, real dvx, real dvy, real rest,
+                       int partners)
+{
+    real c = dx * dx + dy * dy - p->sigma2;
+    if (c < -d->slack || (partners && c < d->slack)) return -1;
+    return pair_time_rel(dx, dy, dvx, dvy, p->sigma2, rest);
+}
+
+/* Returns 1 and fills m if disks i < j touch by the end of the step. In the periodic box (SPEC.md 7a)
+ * the centres at tc are brought into [0, L) and the pair meets by the earliest of its images within
+ * one box of the nearest (those the rest of the step can bring within 2r: for most pairs the nearest
+ * alone); two disks whose last events were with each other may then meet again through another
+ * image, though not where they still touch. */
 static int exact_meet(const ExactDisks *d, const Params *p, int64_t i, int64_t j, ExactMeet *m)
 {
     const Sim *s = d->sim;
-    if (d->last[i] == j && d->last[j] == i) return 0;
+    int partners = d->last[i] == j && d->last[j] == i;
+    if (partners && !p->periodic) return 0;
     real ti = d->t[i], tj = d->t[j];
-    real tc = ti < tj ? tj : ti;
+    real tc = ti < tj ? tj : ti, rest = 1 - tc;
     m->tc = tc;
     m->xi = s->x[i] + s->vx[i] * (tc - ti);
     m->yi = s->y[i] + s->vy[i] * (tc - ti);
     m->xj = s->x[j] + s->vx[j] * (tc - tj);
     m->yj = s->y[j] + s->vy[j] * (tc - tj);
-    real dx = m->xj - m->xi, dy = m->yj - m->yi;
-    if (dx * dx + dy * dy - p->sigma2 < -d->slack) return 0;
-    m->dt = pair_time_within(m->xi, m->yi, s->vx[i], s->vy[i], m->xj, m->yj, s->vx[j], s->vy[j],
-                             p->sigma2, 1 - tc);
+    real dx = m->xj - m->xi, dy = m->yj - m->yi, dvx = s->vx[j] - s->vx[i], dvy = s->vy[j] - s->vy[i];
+    if (p->periodic) {
+        m->xi = wrap_coord(m->xi, p->L), m->yi = wrap_coord(m->yi, p->L);
+        m->xj = wrap_coord(m->xj, p->L), m->yj = wrap_coord(m->yj, p->L);
+        dx = wrap_delta(m->xj - m->xi, p->L, p->half), dy = wrap_delta(m->yj - m->yi, p->L, p->half);
+    }
+    m->dt = meet_image(d, p, dx, dy, dvx, dvy, rest, partners);
+    /* images one box over: each axis within reach (2r plus the axis' flight, twice over: no rounding
+     * can skip one that meets); the earliest, the nearest first on a tie */
+    real far_x = 4 * p->r + 2 * SIM_FABS(dvx) * rest, far_y = 4 * p->r + 2 * SIM_FABS(dvy) * rest;
+    for (int kx = -1; p->periodic && kx <= 1; kx++)
+        for (int ky = -1; ky <= 1; ky++) {
+            real ex = dx + (real)kx * p->L, ey = dy + (real)ky * p->L;
+            if ((!kx && !ky) || SIM_FABS(ex) > far_x || SIM_FABS(ey) > far_y) continue;
+            real t = meet_image(d, p, ex, ey, dvx, dvy, rest, partners);
+            if (t >= 0 && (m->dt < 0 || t < m->dt)) m->dt = t;
+        }
     return m->dt >= 0 && tc + m->dt <= 1;
 }
 
@@ -106,6 +137,18 @@ static void exact_count(ExactDisks *d, int64_t i, int32_t *c)
     ++*c;
 }
 
+/* Disk i's centre into the box: clamped into [lo, hi], or in the periodic box into [0, L). */
+static void exact_into_box(Sim *s, const Params *p, int64_t i)
+{
+    if (p->periodic) {
+        s->x[i] = wrap_coord(s->x[i], p->L);
+        s->y[i] = wrap_coord(s->y[i], p->L);
+    } else {
+        s->x[i] = clamp_coord(s->x[i], p->lo, p->hi);
+        s->y[i] = clamp_coord(s->y[i], p->lo, p->hi);
+    }
+}
+
 /* Processes event e (valid: predicted from the disks' current versions). */
 void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
 {
@@ -117,8 +160,7 @@ void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
         real vx0 = s->vx[i], vy0 = s->vy[i];
         wall_bounce(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], dt, lo, hi);
         if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
-        s->x[i] = clamp_coord(s->x[i], lo, hi);
-        s->y[i] = clamp_coord(s->y[i], lo, hi);
+        exact_into_box(s, p, i);
         d->t[i] = e->t;
         d->last[i] = -1;
         exact_count(d, i, &s->wc[i]);
@@ -130,11 +172,12 @@ void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
     s->y[i] = m.yi + s->vy[i] * m.dt;
     s->x[j] = m.xj + s->vx[j] * m.dt;
     s->y[j] = m.yj + s->vy[j] * m.dt;
-    pair_bounce(s->x[i], s->y[i], &s->vx[i], &s->vy[i], s->x[j], s->y[j], &s->vx[j], &s->vy[j]);
-    s->x[i] = clamp_coord(s->x[i], lo, hi);
-    s->y[i] = clamp_coord(s->y[i], lo, hi);
-    s->x[j] = clamp_coord(s->x[j], lo, hi);
-    s->y[j] = clamp_coord(s->y[j], lo, hi);
+    real nx = s->x[j] - s->x[i], ny = s->y[j] - s->y[i];
+    if (p->periodic) nx = wrap_delta(nx, p->L, p->half), ny = wrap_delta(ny, p->L, p->half);
+    real dp = pair_bounce_rel(nx, ny, &s->vx[i], &s->vy[i], &s->vx[j], &s->vy[j]);
+    if (s->wi && p->periodic) s->wi[i] += dp, s->wi[j] += dp; /* the virial's impulses (SPEC.md 7a) */
+    exact_into_box(s, p, i);
+    exact_into_box(s, p, j);
     d->t[i] = d->t[j] = e->t;
     d->last[i] = (int32_t)j;
     d->last[j] = (int32_t)i;
@@ -147,8 +190,9 @@ void exact_finish(ExactDisks *d, const Params *p, int64_t i)
 {
     Sim *s = d->sim;
     real rest = 1 - d->t[i];
-    s->x[i] = clamp_coord(s->x[i] + s->vx[i] * rest, p->lo, p->hi);
-    s->y[i] = clamp_coord(s->y[i] + s->vy[i] * rest, p->lo, p->hi);
+    s->x[i] = s->x[i] + s->vx[i] * rest;
+    s->y[i] = s->y[i] + s->vy[i] * rest;
+    exact_into_box(s, p, i);
     d->t[i] = 0;
     d->step_events[i] = 0;
 }

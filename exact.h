@@ -32,6 +32,13 @@
  *   any number per step, and a version that marks the disk's older predictions stale. With --pressure
  *   each wall event adds wall_impulse (2 |v| per reflected axis) to the disk's wi, in its event order.
  *
+ * - In the periodic box (SPEC.md 7a) there are no wall events; a pair is predicted from its centres
+ *   at tc brought into [0, L), by the earliest of its nearest image and the images one box over that
+ *   can touch within the step; coordinates are brought into [0, L) after each event and at the
+ *   step's end; the rule above holds only for the image where the two still touch (they may meet
+ *   again through another), and after an event the pair itself is predicted again. With --pressure
+ *   each pair event adds its impulse |vni - vnj| to both disks' wi (the collision virial).
+ *
  * Because each event's arithmetic reads only its own disks' states, any algorithm that processes the
  * same events in the same order prints the same bytes: seq finds the next event among all pairs, omp
  * among grid neighbours, and both take the same smallest key.

@@ -265,6 +265,7 @@ static long long header_int(Reader *rd, const char *what, long long lo, long lon
     return v;
 }
 
+/* The header into par; par->periodic, set by the caller, decides the checks of SPEC.md 7. */
 static void read_header(Reader *rd, Params *par)
 {
     par->n = header_int(rd, "the number of particles N", 1, SIM_MAX_N);
@@ -281,6 +282,9 @@ static void read_header(Reader *rd, Params *par)
     if (!(2 * par->r < par->L))
         input_error(rd, rd->line, "the radius r must satisfy 2r < L = %.17g (found '%s')", (double)par->L,
                     rd->tok[0]);
+    if (par->periodic && !(4 * par->r < par->L)) /* two touching disks have one nearest image */
+        input_error(rd, rd->line, "with --periodic the radius r must satisfy 4r < L = %.17g (found '%s')",
+                    (double)par->L, rd->tok[0]);
     par->steps = header_int(rd, "the number of steps S", 0, SIM_MAX_STEPS);
     const char *mode = header_token(rd, "the mode 'print' or 'perf'");
     if (strcmp(mode, "print") == 0) {
@@ -390,12 +394,18 @@ static int32_t read_line(const Parse *ps, Chunk *c, long line, int64_t pos, char
             return (int32_t)idx;
         }
     }
-    for (int k = 0; k < 2; k++)
-        if (!(v[k] >= par->lo && v[k] <= par->hi)) {
+    for (int k = 0; k < 2; k++) {
+        if (par->periodic && !(v[k] >= 0 && (real)v[k] < par->L)) { /* as stored: a float may round up to L */
+            chunk_error(c, line, "%s must be within [0, L) = [0, %.17g) with --periodic (found '%s')",
+                        field_name[k + 1], (double)par->L, tok[k + 1]);
+            return (int32_t)idx;
+        }
+        if (!par->periodic && !(v[k] >= par->lo && v[k] <= par->hi)) {
             chunk_error(c, line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
                         field_name[k + 1], (double)par->lo, (double)par->hi, tok[k + 1]);
             return (int32_t)idx;
         }
+    }
     for (int k = 2; k < 4; k++)
         if (!(fabs(v[k]) <= SIM_MAX_V)) {
             chunk_error(c, line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V,
@@ -404,7 +414,7 @@ static int32_t read_line(const Parse *ps, Chunk *c, long line, int64_t pos, char
         }
     /* a duplicate index writes twice here, and is then reported: the values are never used */
     int64_t at = ps->by_line ? pos : idx;
-    ps->sim->x[at] = (real)v[0]; /* rounding keeps x in [lo, hi]: both are reals */
+    ps->sim->x[at] = (real)v[0]; /* rounding keeps x in [lo, hi] (both are reals), or in [0, L) */
     ps->sim->y[at] = (real)v[1];
     ps->sim->vx[at] = (real)v[2];
     ps->sim->vy[at] = (real)v[3];
@@ -570,6 +580,7 @@ void input_read(const Options *opt, Params *par, Sim *sim, IoTimes *io, int prep
     double t0 = sim_clock();
     rd.text = slurp(opt, &rd.size);
     double t1 = sim_clock();
+    par->periodic = opt->periodic;
     read_header(&rd, par);
     if (prepare && io_backend->prepare) io_backend->prepare(par);
     if (sim_alloc(sim, par->n))

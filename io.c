@@ -30,7 +30,9 @@ static void usage(FILE *f)
             "  --substeps K split each step into K sub-steps of length 1/K (K a power of two up to\n"
             "               1024; up to K collisions per disk per step); 1 is SPEC.md\n"
             "  --pressure   add up the impulse the walls give the disks and print the pressure on\n"
-            "               stderr\n"
+            "               stderr (with --periodic: the pressure of the collision virial)\n"
+            "  --periodic   the periodic box: no walls, opposite edges joined, nearest images\n"
+            "               (SPEC.md 7); centres in [0, L), L > 4r\n"
             "  --quiet      no timing line on stderr\n"
             "  --exact      event-driven: every collision in time order, any number per disk and step\n"
             "               (the exact elastic dynamics up to rounding); not with --substeps\n"
@@ -93,6 +95,10 @@ void io_parse_args(int argc, char **argv, Options *opt)
             opt->pressure = 1;
             if (!(has & SIM_FEATURE_PRESSURE))
                 sim_fail("--pressure is not supported by %s", sim_program);
+        } else if (strcmp(a, "--periodic") == 0) {
+            opt->periodic = 1;
+            if (!(has & SIM_FEATURE_PERIODIC))
+                sim_fail("--periodic is not supported by %s", sim_program);
         } else if (strcmp(a, "--exact") == 0) {
             opt->exact = 1;
             if (!(has & SIM_FEATURE_EXACT))
@@ -147,9 +153,9 @@ void io_parse_args(int argc, char **argv, Options *opt)
     if (opt->resume) {
         /* the run is the checkpoint's: these would change it */
         if (opt->path) sim_fail("--resume reads no input file ('%s' given)", opt->path);
-        if (substeps_given || opt->pressure || opt->dump17 || opt->seed_given || opt->exact)
-            sim_fail("--resume takes --substeps, --exact, --pressure, --dump17 and --seed from the checkpoint: "
-                    "leave them out");
+        if (substeps_given || opt->pressure || opt->dump17 || opt->seed_given || opt->exact || opt->periodic)
+            sim_fail("--resume takes --substeps, --exact, --pressure, --periodic, --dump17 and --seed from the "
+                    "checkpoint: leave them out");
     }
     if (!opt->path) opt->path = "-";
     opt->label = strcmp(opt->path, "-") == 0 ? "<stdin>" : opt->path;
@@ -163,6 +169,81 @@ static void scale_velocities(Sim *sim, int64_t n, real f)
         sim->vx[i] = sim->vx[i] * f;
         sim->vy[i] = sim->vy[i] * f;
     }
+}
+
+/* ==== --pressure in the periodic box (SPEC.md 7a) ======================================================== */
+
+static int64_t virial_blocks(int64_t steps)
+{
+    return steps < VIRIAL_BLOCKS ? steps : VIRIAL_BLOCKS;
+}
+
+/* The block that ends after step `step` (0: step 0), or -1 if none does. */
+static int virial_block(int64_t steps, int64_t step)
+{
+    int64_t B = virial_blocks(steps);
+    if (step == 0) return 0;
+    for (int64_t b = 1; b <= B; b++)
+        if (b * steps / B == step) return (int)b;
+    return -1;
+}
+
+int io_virial_ends_block(const Params *par, const Options *opt, int64_t step)
+{
+    return par->periodic && opt->pressure && step > 0 && step < par->steps && virial_block(par->steps, step) > 0;
+}
+
+int io_virial_due(const Output *out, int64_t step)
+{
+    return step > out->first && io_virial_ends_block(out->par, out->opt, step);
+}
+
+void io_virial_sums(Output *out, int64_t step, double w, double k)
+{
+    int b = virial_block(out->steps, step);
+    if (!out->par->periodic || !out->opt->pressure || b < 0) return;
+    double f = (double)io_velocity_scale(); /* the run's velocities are v / K: K is a power of two */
+    out->virial.w[b] = w * f;
+    out->virial.k[b] = k * (f * f);
+}
+
+void io_virial(Output *out, const Sim *sim, int64_t step)
+{
+    if (!out->par->periodic || !out->opt->pressure) return;
+    double w = 0, k = 0;
+    for (int64_t i = 0; i < out->par->n; i++) {
+        w += sim->wi ? sim->wi[i] : 0;
+        k += (double)sim->vx[i] * (double)sim->vx[i] + (double)sim->vy[i] * (double)sim->vy[i];
+    }
+    io_virial_sums(out, step, w, k);
+}
+
+/* The pressure line of the periodic box: for block b of T_b steps, kT_b = (k_(b-1) + k_b) / (4 N)
+ * (the mean kinetic energy of a disk at its two ends; 2D, unit masses), its virial V_b = (sigma / 2)
+ * (w_b - w_(b-1)) (each collision's sigma |dp|, counted by both disks) and Z_b = 1 + V_b / (2 N kT_b
+ * T_b); over the run kT is the T_b-weighted mean of the kT_b, V = (sigma / 2) w_B, Z = 1 + V / (2 N kT
+ * S) and P = Z N kT / L^2; the error is the standard error of the mean of the Z_b. */
+static void report_virial(const Output *out, const Params *par)
+{
+    const Virial *v = &out->virial;
+    int64_t S = par->steps, B = virial_blocks(S);
+    double n = (double)par->n, sigma = 2 * (double)par->r, kt = B > 0 ? 0 : v->k[0] / (2 * n), zsum = 0, z2 = 0;
+    double zb[VIRIAL_BLOCKS + 1];
+    for (int64_t b = 1; b <= B; b++) {
+        double tb = (double)(b * S / B - (b - 1) * S / B), ktb = (v->k[b - 1] + v->k[b]) / (4 * n);
+        double vb = sigma / 2 * (v->w[b] - v->w[b - 1]);
+        zb[b] = 1 + vb / (2 * n * ktb * tb);
+        kt += tb * ktb / (double)S;
+        zsum += zb[b];
+    }
+    for (int64_t b = 1; b <= B; b++) z2 += (zb[b] - zsum / (double)B) * (zb[b] - zsum / (double)B);
+    double vir = sigma / 2 * v->w[B], z = S > 0 ? 1 + vir / (2 * n * kt * (double)S) : 1;
+    double err = B >= 2 ? sqrt(z2 / (double)(B * (B - 1))) : NAN;
+    fprintf(stderr,
+            "%s: pressure (periodic box, collision virial): N kT = %.17g, virial %.17g over %lld time "
+            "units: P = %.17g, Z = P L^2 / (N kT) = %.17g +- %.2g (standard error of %lld block means)\n",
+            sim_program, n * kt, vir, (long long)S, z * n * kt / ((double)par->L * (double)par->L), z, err,
+            (long long)B);
 }
 
 void io_report(Output *out, const Params *par, const Options *opt, const RunStats *st, double run_s, double impulse)
@@ -194,7 +275,9 @@ void io_report(Output *out, const Params *par, const Options *opt, const RunStat
         fprintf(stderr, "%s: the run %.4f s, its step loop %.4f s; %.4f s since the start\n", sim_program, run_s,
                 st->seconds, sim_clock() - (out->io_known ? io->start : out->start));
     }
-    if (opt->pressure) {
+    if (opt->pressure && par->periodic) {
+        report_virial(out, par);
+    } else if (opt->pressure) {
         impulse *= (double)opt->substeps; /* the run's velocities were v / K */
         double span = (double)par->steps * 4 * (double)par->L;
         fprintf(stderr,
@@ -216,6 +299,8 @@ int io_main(int argc, char **argv, const Backend *b)
     Options opt;
     Params par;
     Sim sim;
+    Virial vir;
+    memset(&vir, 0, sizeof vir);
     io_use_backend(b);
     io_parse_args(argc, argv, &opt);
     if (opt.checkpoint) checkpoint_probe(opt.checkpoint);
@@ -225,7 +310,7 @@ int io_main(int argc, char **argv, const Backend *b)
     if (opt.resume) {
         memset(&par, 0, sizeof par);
         memset(&sim, 0, sizeof sim);
-        checkpoint_read(&opt, &par, &sim);
+        checkpoint_read(&opt, &par, &sim, &vir);
         if (io_backend->prepare) io_backend->prepare(&par);
     } else {
         input_read(&opt, &par, &sim, &io, 1);
@@ -233,6 +318,7 @@ int io_main(int argc, char **argv, const Backend *b)
     }
 
     Output *out = io_output_open(&par, &opt);
+    out->virial = vir;
     /* runs that cannot finish are refused before the first byte of output */
     if (opt.exact) exact_check_speeds(&sim, &par);
     if (par.steps * (int64_t)opt.substeps > INT32_MAX)
@@ -249,6 +335,7 @@ int io_main(int argc, char **argv, const Backend *b)
     scale_velocities(&sim, par.n, 1 / k);
     io_set_velocity_scale(k);
     if (opt.pressure && !sim.wi) sim.wi = sim_calloc((size_t)par.n, sizeof *sim.wi);
+    if (!opt.resume) io_virial(out, &sim, 0);
 
     RunStats st;
     memset(&st, 0, sizeof st);
@@ -261,6 +348,7 @@ int io_main(int argc, char **argv, const Backend *b)
     io.out_bytes = out->step0_bytes;
     if (out->shown) fputc('\n', stderr);
     out->shown = 0;
+    io_virial(out, &sim, par.steps);
     scale_velocities(&sim, par.n, k);
     io_set_velocity_scale(1);
 

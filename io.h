@@ -30,6 +30,7 @@ typedef struct {
     int substeps;      /* --substeps K: K sub-steps of length 1/K per step (1: SPEC.md) */
     int pressure;      /* --pressure: add up wall impulses and print the pressure on stderr */
     int exact;         /* --exact: event-driven steps, every collision in time order (exact.h) */
+    int periodic;      /* --periodic: the periodic box of SPEC.md 7 */
     int broad;         /* omp --broad: SIM_BROAD_AUTO (the cost model chooses each step), _GRID,
                           _PATHS, _MIXED */
     int lanes;         /* omp --lanes W: pairs a SIMD screen of the paths takes at a time (0: the
@@ -73,6 +74,7 @@ typedef struct Output Output;
 #define SIM_FEATURE_THREADS 64u   /* --threads, --check and --broad (omp's broad phase) */
 #define SIM_FEATURE_LANES 128u    /* --lanes and --keep (omp's paths) */
 #define SIM_FEATURE_BALANCE 256u  /* --balance (mpi's cuts) */
+#define SIM_FEATURE_PERIODIC 512u /* --periodic (SPEC.md 7) */
 
 typedef struct {
     const char *name;    /* program name used in messages: "seq", "omp", "cuda", "mpi" (+ SIM_SUFFIX) */
@@ -156,6 +158,16 @@ int io_checkpoint_due(const Output *out, int64_t step);
 /* The first whole step from `step` on that is to be saved, or 0 if none is (backends that plan ahead) */
 int64_t io_checkpoint_next(const Output *out, int64_t step);
 void io_checkpoint(Output *out, const Sim *sim, int64_t step);
+/* --pressure in the periodic box (SPEC.md 7a): the run's steps cut into blocks, and after the last
+ * step of each block the index-order sums of the disks' virial impulses (wi) and of their squared
+ * speeds. io_virial_due: whether the state after whole step `step` ends a block (the run's last step
+ * aside: the driver takes that one); io_virial: those sums of sim (original order, velocities as the
+ * backend holds them, v / K) recorded for `step`; io_virial_sums: the same for a backend that adds
+ * them up itself (mpi), w and k as it holds them. Nothing outside a periodic --pressure run. */
+int io_virial_due(const Output *out, int64_t step);
+int io_virial_ends_block(const Params *par, const Options *opt, int64_t step); /* the same, any rank */
+void io_virial(Output *out, const Sim *sim, int64_t step);
+void io_virial_sums(Output *out, int64_t step, double w, double k);
 /* SIM_FEATURE_STEP0: whether this run's step 0 is the backend's to write, and writing it (sim as the
  * backend received it, before it changes sim; any thread, while no other writes to out). */
 int io_step0_pending(const Output *out);
@@ -175,8 +187,9 @@ Output *io_output_open(const Params *par, const Options *opt);
 /* Writes what is pending (sim_fail on a write error) and frees out. */
 void io_output_close(Output *out);
 /* What io_main prints on stderr after a run: the timing line (unless --quiet), --stats and, with
- * --pressure, the pressure of impulse, the index-order sum of the disks' wi as the backend holds them
- * (velocities v / K: io_report multiplies by K). */
+ * --pressure, the pressure: in the walled box of impulse, the index-order sum of the disks' wi as the
+ * backend holds them (velocities v / K: io_report multiplies by K); in the periodic box of the virial
+ * sums recorded (io_virial), impulse unused. */
 void io_report(Output *out, const Params *par, const Options *opt, const RunStats *st, double run_s,
                double impulse);
 /* The whole input as io_main reads it (or the disks it places), failing with seq's one-line message on
@@ -185,7 +198,7 @@ void io_read_input(const Options *opt, Params *par, Sim *sim);
 /* Reading a regular file in pieces (mpi: each rank its own byte range). io_header_span: the bytes of
  * text[0, size) through the newline of the header's 5th record, or 0 when they do not hold it whole
  * (read more, or all). io_read_header: the header of text[0, size) into par as io_main reads it (same
- * messages, naming label; text[size] must be writable), the offset of the first particle line and
+ * messages, naming label; text[size] must be writable; par->periodic set by the caller), the offset of the first particle line and
  * the number of the line before it. */
 size_t io_header_span(const char *text, size_t size);
 void io_read_header(const char *label, char *text, size_t size, Params *par, size_t *body, long *body_line);

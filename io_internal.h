@@ -11,6 +11,16 @@
 
 #define PLACE_TRIES 10000 /* random positions tried for one disk before giving up */
 
+/* --pressure in the periodic box (SPEC.md 7a): after step 0 and after the last step of each of the
+ * run's blocks b = 1 .. B (B = min(VIRIAL_BLOCKS, S); block b ends after step b S / B), the index-order
+ * sums of the disks' virial impulses w_i and of their squared speeds vx^2 + vy^2, in the units of the
+ * output (velocities per step). A checkpoint keeps them. */
+#define VIRIAL_BLOCKS 10
+typedef struct {
+    double w[VIRIAL_BLOCKS + 1];
+    double k[VIRIAL_BLOCKS + 1];
+} Virial;
+
 /* Seconds and bytes of the untimed parts, for --stats. */
 typedef struct {
     double start; /* sim_clock() when main began */
@@ -45,6 +55,7 @@ struct Output {
     int shown;         /* a progress line is on the terminal */
     IoTimes io;        /* io_main's reading and writing, for --stats */
     int io_known;      /* io holds them (not so for a backend that reads and writes its own way: mpi) */
+    Virial virial;     /* --pressure in the periodic box: the blocks' sums so far */
 };
 
 /* ---- output.c ---------------------------------------------------------------------------------------- */
@@ -79,8 +90,9 @@ void input_read(const Options *opt, Params *par, Sim *sim, IoTimes *io, int prep
 
 /* --checkpoint FILE tried before the run (fails the run where FILE cannot be written). */
 void checkpoint_probe(const char *path);
-/* --resume: the run and state of opt->resume into par and sim; the options that shape the run
- * (K, exact, pressure, dump17) into opt. Anything wrong with the file fails the run. */
-void checkpoint_read(Options *opt, Params *par, Sim *sim);
+/* --resume: the run and state of opt->resume into par and sim, its virial sums so far into vir; the
+ * options that shape the run (K, exact, pressure, periodic, dump17) into opt. Anything wrong with the
+ * file fails the run. */
+void checkpoint_read(Options *opt, Params *par, Sim *sim, Virial *vir);
 
 #endif

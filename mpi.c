@@ -91,12 +91,42 @@ static void neighbours(double reach, int *lo, int *hi)
     while (*hi < mpi_np - 1 && mpi_cut[*hi + 1] - mpi_cut[me + 1] <= 2 * reach) ++*hi;
 }
 
+/* The periodic box (SPEC.md 7): the strips wrap, the first and the last are neighbours. The cyclic
+ * gap between strips a and b, the same on both ranks (computed from the lower and the higher). */
+static double cyclic_gap(int a, int b, double L)
+{
+    int lo = a < b ? a : b, hi = a < b ? b : a;
+    double inner = mpi_cut[hi] - mpi_cut[lo + 1], outer = (L - mpi_cut[hi + 1]) + mpi_cut[lo];
+    return inner < outer ? inner : outer;
+}
+
+/* Whether rank q's strip and its halo (the reach either side) would hold some disk twice, in two
+ * images of the box: then q holds every disk, the whole torus, its grid wrapping along x too. With a
+ * margin of a reach, so that any two disks within reach of each other in q's region are so in its
+ * frame (the images nearest the strip's middle). Alike on every rank. */
+static int whole_torus(int q, double reach, double L)
+{
+    return (mpi_cut[q + 1] - mpi_cut[q]) + 3 * reach >= L;
+}
+
+/* The distance from x to strip q around the torus (0 inside it). */
+static double strip_distance(double x, int q, double L)
+{
+    double best = INFINITY;
+    for (int k = -1; k <= 1; k++) {
+        double y = x + k * L, d = y < mpi_cut[q] ? mpi_cut[q] - y : (y >= mpi_cut[q + 1] ? y - mpi_cut[q + 1] : 0);
+        if (d < best) best = d;
+    }
+    return best;
+}
+
 /* Sends count[q] records of `width` doubles (packed in rank order in out) to each rank q of
- * lo .. hi but this one (count is 0 elsewhere), every one of them a message even if empty, and
- * returns theirs in rank order (*got records, rcount[q] from rank q): point to point with the
- * neighbours only, so a rank waits for them and not for every rank. */
-static double *exchange_near(const double *out, const int *count, int width, int lo, int hi, int tag,
-                             int64_t *got, int *rcount)
+ * lo .. hi but this one (count is 0 elsewhere) that is a neighbour (near[q], or every one where near
+ * is NULL), every one of them a message even if empty, and returns theirs in rank order (*got
+ * records, rcount[q] from rank q): point to point with the neighbours only, so a rank waits for them
+ * and not for every rank. */
+static double *exchange_near(const double *out, const int *count, int width, int lo, int hi, const char *near,
+                             int tag, int64_t *got, int *rcount)
 {
     int n = hi - lo + 1;
     MPI_Datatype t;
@@ -107,7 +137,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     for (int q = 0; q < lo; q++) off += count[q];
     for (int q = lo; q <= hi; q++) {
         req[q - lo] = MPI_REQUEST_NULL;
-        if (q != mpi_me) {
+        if (q != mpi_me && (!near || near[q])) {
             MPI_Isend(out + off * width, count[q], t, q, tag, MPI_COMM_WORLD, &req[q - lo]);
             bytes_sent += (uint64_t)count[q] * (uint64_t)width * sizeof(double);
         }
@@ -116,7 +146,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     double t0 = MPI_Wtime();
     memset(rcount, 0, (size_t)mpi_np * sizeof *rcount);
     for (int q = lo; q <= hi; q++) { /* the sizes first, then one buffer for all */
-        if (q == mpi_me) continue;
+        if (q == mpi_me || (near && !near[q])) continue;
         MPI_Status st;
         MPI_Probe(q, tag, MPI_COMM_WORLD, &st);
         MPI_Get_count(&st, t, &rcount[q]);
@@ -126,7 +156,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     off = 0;
     for (int q = lo; q <= hi; q++) {
         req[n + q - lo] = MPI_REQUEST_NULL;
-        if (q == mpi_me) continue;
+        if (q == mpi_me || (near && !near[q])) continue;
         MPI_Irecv(in + off * width, rcount[q], t, q, tag, MPI_COMM_WORLD, &req[n + q - lo]);
         off += rcount[q];
     }
@@ -176,6 +206,8 @@ typedef struct {
     int nt;
     double reach;     /* this step's */
     int nlo, nhi;     /* this step's neighbours (neighbours()) */
+    char *near;       /* the periodic box: by rank, whether a neighbour (nlo .. nhi are all ranks) */
+    int whole;        /* the periodic box: this rank holds the whole torus (whole_torus) */
     int most_near;    /* the most neighbours in any step (--stats) */
     double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
     real own_vmax;    /* a bound on the own disks' fastest velocity component */
@@ -326,45 +358,94 @@ static double own_speeds(Run *r)
     return sqrt(s2);
 }
 
-/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (a disk at
- * x to the strips of mpi_owner(x - reach) to mpi_owner(x + reach), all of them neighbours). */
+static void halo_send(Run *r);
+
+/* The neighbours in the periodic box: the ranks whose strips lie within twice the reach around the
+ * torus, and every rank of a whole_torus strip (which is every rank's neighbour); whole[q] says which
+ * those are. nlo .. nhi are all ranks. */
+static void neighbours_periodic(Run *r, char *whole)
+{
+    int np = mpi_np, me = mpi_me, near = 0;
+    double L = r->par.L;
+    for (int q = 0; q < np; q++) whole[q] = (char)whole_torus(q, r->reach, L);
+    r->whole = whole[me];
+    for (int q = 0; q < np; q++) {
+        r->near[q] = (char)(q != me && (whole[me] || whole[q] || cyclic_gap(me, q, L) <= 2 * r->reach));
+        near += r->near[q];
+    }
+    r->nlo = 0, r->nhi = np - 1;
+    if (near > r->most_near) r->most_near = near;
+}
+
+/* The ranks but this one that get a copy of the own disk at x (into q; returns how many): those whose
+ * strips lie within the reach, from mpi_owner(x - reach) to mpi_owner(x + reach); in the periodic
+ * box around the torus, and every rank holding the whole torus (whole: by rank, any_whole: some). */
+static int halo_targets(const Run *r, double x, const char *whole, int any_whole, int *q)
+{
+    int n = 0;
+    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
+    if (!any_whole && x > in0 && x < in1) return 0; /* within the strip, by more than the reach */
+    if (r->par.periodic) {
+        for (int k = 0; k < mpi_np; k++)
+            if (r->near[k] && (whole[k] || strip_distance(x, k, r->par.L) <= r->reach)) q[n++] = k;
+        return n;
+    }
+    int q0 = mpi_owner(x - r->reach), q1 = mpi_owner(x + r->reach);
+    if (q0 < r->nlo || q1 > r->nhi)
+        sim_fail("internal error: a disk within reach of strips %d to %d, beyond the neighbours %d to %d", q0, q1,
+                 r->nlo, r->nhi);
+    for (int k = q0; k <= q1; k++)
+        if (k != mpi_me) q[n++] = k;
+    return n;
+}
+
+/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (all of them
+ * neighbours; halo_targets). */
 static void halo_exchange(Run *r)
 {
     Slots *s = &r->b.s;
-    int np = mpi_np;
+    int np = mpi_np, any_whole = 0, *q = sim_calloc((size_t)np, sizeof *q);
+    char *whole = sim_calloc((size_t)np, 1);
     /* two disks close in by at most twice the fastest speed */
     r->reach = (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
-    neighbours(r->reach, &r->nlo, &r->nhi);
-    if (r->nhi - r->nlo > r->most_near) r->most_near = r->nhi - r->nlo;
+    if (r->par.periodic) {
+        neighbours_periodic(r, whole);
+        for (int k = 0; k < np; k++) any_whole |= whole[k];
+    } else {
+        neighbours(r->reach, &r->nlo, &r->nhi);
+        if (r->nhi - r->nlo > r->most_near) r->most_near = r->nhi - r->nlo;
+    }
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
     for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
         int64_t *at = NULL;
         if (pass) {
             at = sim_calloc((size_t)np, sizeof *at);
-            for (int q = 1; q < np; q++) at[q] = at[q - 1] + r->scount[q - 1];
+            for (int k = 1; k < np; k++) at[k] = at[k - 1] + r->scount[k - 1];
             r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         }
-        double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
         for (int64_t k = 0; k < r->own; k++) {
-            double x = s->x[k];
-            if (x > in0 && x < in1) continue; /* within the strip, by more than the reach */
-            int q0 = mpi_owner(x - r->reach), q1 = mpi_owner(x + r->reach);
-            if (q0 < r->nlo || q1 > r->nhi)
-                sim_fail("internal error: a disk within reach of strips %d to %d, beyond the neighbours %d to %d",
-                         q0, q1, r->nlo, r->nhi);
-            for (int q = q0; q <= q1; q++) {
-                if (q == mpi_me) continue;
-                if (pass) r->send[at[q]++] = (int32_t)k;
-                else r->scount[q]++, r->nsend++;
+            int n = halo_targets(r, s->x[k], whole, any_whole, q);
+            for (int u = 0; u < n; u++) {
+                if (pass) r->send[at[q[u]]++] = (int32_t)k;
+                else r->scount[q[u]]++, r->nsend++;
             }
         }
         free(at);
     }
+    free(q), free(whole);
+    halo_send(r);
+}
+
+/* The copies listed in r->send to their ranks, and theirs into the halo. */
+static void halo_send(Run *r)
+{
+    Slots *s = &r->b.s;
     double *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1) * D_LEN, sizeof *out);
     for (int64_t k = 0; k < r->nsend; k++) pack(s, r->send[k], out + k * D_LEN);
     int64_t got;
-    double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, TAG_HALO, &got, r->rcount);
+    double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
+                               &got, r->rcount);
     run_reserve(r, r->own + got);
     s = &r->b.s;
     real vm = r->own_vmax; /* the grid's, over the disks this rank sees */
@@ -386,6 +467,13 @@ static void find_events(Run *r, int64_t step)
     double x0 = mpi_cut[mpi_me] - r->reach, x1 = mpi_cut[mpi_me + 1] + r->reach;
     b->rx0 = x0 > r->par.lo ? x0 : r->par.lo;
     b->rx1 = x1 < r->par.hi ? x1 : r->par.hi;
+    if (r->par.periodic) { /* the strip and its halo in the images nearest its middle, or the torus */
+        b->wrap_x = r->whole;
+        b->rx0 = r->whole ? 0 : x0;
+        b->rx1 = r->whole ? (double)r->par.L : x1;
+        b->frame_x = (mpi_cut[mpi_me] + mpi_cut[mpi_me + 1]) / 2;
+        b->grid_only = mpi_np > 1;
+    }
 #pragma omp parallel num_threads(r->nt)
     {
         int tid = omp_get_thread_num();
@@ -620,7 +708,8 @@ static void move(Run *r)
 {
     Slots *s = &r->b.s;
     const Node *node = r->node;
-    real lo = r->par.lo, hi = r->par.hi;
+    real lo = r->par.lo, hi = r->par.hi, L = r->par.L, half = r->par.half;
+    int periodic = r->par.periodic;
     uint64_t events = 0;
 #pragma omp parallel for num_threads(r->nt) schedule(static) reduction(+ : events)
     for (int64_t q = 0; q < r->own; q++) {
@@ -638,6 +727,25 @@ static void move(Run *r)
         if (p == -2) {
             x = x + vx;
             y = y + vy;
+        } else if (periodic) { /* SPEC.md 7: no walls, the nearest image's normal, no stop */
+            real dp;
+            int32_t o = r->adj[p].other;
+            int64_t j = o >= 0 ? node[o].slot : r->own + (-1 - o);
+            real ox = s->x[j], oy = s->y[j], ovx = s->vx[j], ovy = s->vy[j];
+            if (node[v].id == e->i)
+                dp = pair_contact_wrap(&x, &y, &vx, &vy, &ox, &oy, &ovx, &ovy, e->t, L, half);
+            else
+                dp = pair_contact_wrap(&ox, &oy, &ovx, &ovy, &x, &y, &vx, &vy, e->t, L, half);
+            if (o >= 0) { /* two own disks, from the lower index */
+                fly_rest(&ox, &oy, ovx, ovy, e->t);
+                s->x[j] = wrap_coord(ox, L), s->y[j] = wrap_coord(oy, L), s->vx[j] = ovx, s->vy[j] = ovy;
+                s->pc[j]++;
+                if (s->wi) s->wi[j] += dp;
+            }
+            events += node[v].id == e->i; /* once a pair: from its lower index */
+            fly_rest(&x, &y, vx, vy, e->t);
+            s->pc[q]++;
+            if (s->wi) s->wi[q] += dp; /* the virial's impulses (SPEC.md 7a) */
         } else if (p == -1) {
             real t = node[v].wall_t, vx0 = vx, vy0 = vy;
             wall_bounce(&x, &y, &vx, &vy, t, lo, hi);
@@ -668,7 +776,9 @@ static void move(Run *r)
             finish_step(&x, &y, vx, vy, e->t, lo, hi);
             s->pc[q]++;
         }
-        s->x[q] = clamp_coord(x, lo, hi), s->y[q] = clamp_coord(y, lo, hi), s->vx[q] = vx, s->vy[q] = vy;
+        if (periodic) x = wrap_coord(x, L), y = wrap_coord(y, L);
+        else x = clamp_coord(x, lo, hi), y = clamp_coord(y, lo, hi);
+        s->x[q] = x, s->y[q] = y, s->vx[q] = vx, s->vy[q] = vy;
     }
     r->events += events;
 }
@@ -695,7 +805,7 @@ static void migrate(Run *r, int moved, int speed)
     dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
     for (int64_t k = 0; k < moving; k++) {
         dest[k] = mpi_owner(s->x[leaver[k]]);
-        if (!moved && (dest[k] < r->nlo || dest[k] > r->nhi))
+        if (!moved && (dest[k] < r->nlo || dest[k] > r->nhi || (r->par.periodic && !r->near[dest[k]])))
             sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
                      r->nhi);
     }
@@ -719,7 +829,8 @@ static void migrate(Run *r, int moved, int speed)
     }
     int64_t got;
     double *in = moved ? exchange(out, count, D_LEN, &got, rcount)
-                       : exchange_near(out, count, D_LEN, r->nlo, r->nhi, TAG_MIGRATE, &got, rcount);
+                       : exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL,
+                                       TAG_MIGRATE, &got, rcount);
     run_reserve(r, keep + got);
     s = &r->b.s;
     real vm = r->own_vmax; /* own_speeds' over the disks before they left: still a bound */
@@ -792,6 +903,16 @@ static Local view(const Run *r)
     return l;
 }
 
+/* --pressure in the periodic box: the virial sums of the state after step `step`, on rank 0 (every
+ * rank calls it). */
+static void record_virial(Run *r, int64_t step)
+{
+    double w, k;
+    Local l = view(r);
+    mpi_index_sums(&r->par, &l, &w, &k);
+    if (mpi_me == 0) io_virial_sums(r->out, step, w, k);
+}
+
 static double run_steps(Run *r, RunStats *st)
 {
     int64_t k = r->par.substeps, last = r->par.steps * k;
@@ -835,6 +956,7 @@ static double run_steps(Run *r, RunStats *st)
             if (++c->fill == CLOCK_CHUNK) clock_flush(c);
         }
         if (sub % k) continue;
+        if (io_virial_ends_block(&r->par, r->opt, sub / k)) record_virial(r, sub / k);
         if (r->par.print && sub < last) {
             Local l = view(r);
             mpi_write_state(r->out, &r->par, &l, sub / k, 0);
@@ -877,7 +999,7 @@ static const Backend mpi_backend = {
     "               work as measured (default 0: cuts placed by count at the start only)\n"
     "run as: mpirun -np P mpi INPUT [options]\n",
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT | SIM_FEATURE_THREADS |
-        SIM_FEATURE_BALANCE,
+        SIM_FEATURE_BALANCE | SIM_FEATURE_PERIODIC,
     mpi_run, NULL, mpi_parallel,
 };
 
@@ -935,12 +1057,14 @@ int main(int argc, char **argv)
     MPI_Comm_dup(MPI_COMM_WORLD, &r.speed_comm);
     MPI_Comm_dup(MPI_COMM_WORLD, &r.keys_comm);
     r.scount = sim_calloc((size_t)mpi_np, sizeof *r.scount);
+    r.near = sim_calloc((size_t)mpi_np, 1);
     r.rcount = sim_calloc((size_t)mpi_np, sizeof *r.rcount);
 
     /* --substeps K: a sub-step of length 1/K is a SPEC.md step at velocities v / K */
     real k = (real)opt.substeps;
     scale_own(&r, 1 / k);
     io_set_velocity_scale(k);
+    if (r.par.periodic && opt.pressure) record_virial(&r, 0);
     RunStats st;
     memset(&st, 0, sizeof st);
     if (opt.stats) {
@@ -950,13 +1074,15 @@ int main(int argc, char **argv)
     double t0 = MPI_Wtime();
     st.seconds = run_steps(&r, &st);
     double run_s = MPI_Wtime() - t0;
+    if (r.par.periodic && opt.pressure) record_virial(&r, r.par.steps);
     scale_own(&r, k);
     io_set_velocity_scale(1);
     Local fin = view(&r);
     double t_final = MPI_Wtime();
     mpi_write_state(r.out, &r.par, &fin, r.par.steps, 1);
     t_final = MPI_Wtime() - t_final;
-    double impulse = opt.pressure ? mpi_impulse_sum(&r.par, &fin) : 0;
+    double impulse = 0, squares;
+    if (opt.pressure && !r.par.periodic) mpi_index_sums(&r.par, &fin, &impulse, &squares);
     /* --stats: the steps' traffic between ranks, and each rank's peak memory (the largest and rank 0's) */
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
@@ -1000,7 +1126,7 @@ int main(int argc, char **argv)
     }
     broad_free(&r.b);
     free(r.send), free(r.scount), free(r.rcount), free(r.node), free(r.adj), free(r.active);
-    free(r.node_of), free(r.hbuf);
+    free(r.node_of), free(r.hbuf), free(r.near);
     MPI_Comm_free(&r.speed_comm);
     MPI_Comm_free(&r.keys_comm);
     if (r.clock) free(r.clock->slowest), free(r.clock);

@@ -63,8 +63,8 @@ void mpi_output_file(const char *path);
  * through out (rank 0's; NULL elsewhere), or into mpi_output_file's file, in index order: the bytes of
  * io_write_lines. */
 void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t step, int with_counts);
-/* --pressure: the sum of the disks' wall impulses (s.wi) in index order, as io_main adds them, on
- * rank 0 (0 elsewhere). */
-double mpi_impulse_sum(const Params *par, const Local *l);
+/* --pressure: the sums of the disks' wall (or virial) impulses (s.wi) and of their squared speeds
+ * vx^2 + vy^2 in index order, as io_main and io_virial add them, on rank 0 (0 elsewhere). */
+void mpi_index_sums(const Params *par, const Local *l, double *w, double *k);
 
 #endif

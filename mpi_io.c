@@ -151,6 +151,7 @@ static void read_head(const Options *opt, int fd, Head *h)
     }
     size_t body;
     long body_line;
+    h->par.periodic = opt->periodic;
     io_read_header(opt->label, buf, span ? span : got, &h->par, &body, &body_line);
     h->body = (int64_t)body;
     free(buf);
@@ -492,36 +493,39 @@ void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t ste
     free(buf);
 }
 
-double mpi_impulse_sum(const Params *par, const Local *l)
+void mpi_index_sums(const Params *par, const Local *l, double *w, double *k)
 {
     typedef struct {
         int64_t id;
-        double wi;
-    } Wall;
+        double wi, v2;
+    } Term;
     int64_t n = par->n, own = l->own, got;
-    Wall *w = sim_realloc(NULL, (size_t)own, sizeof *w);
+    Term *t = sim_realloc(NULL, (size_t)own, sizeof *t);
     int *dest = sim_realloc(NULL, (size_t)own, sizeof *dest);
-    for (int64_t k = 0; k < own; k++) {
-        w[k].id = l->s.id[k];
-        w[k].wi = l->s.wi ? l->s.wi[k] : 0;
-        dest[k] = block_of(n, w[k].id);
+    for (int64_t q = 0; q < own; q++) {
+        double vx = l->s.vx[q], vy = l->s.vy[q];
+        t[q].id = l->s.id[q];
+        t[q].wi = l->s.wi ? l->s.wi[q] : 0;
+        t[q].v2 = vx * vx + vy * vy;
+        dest[q] = block_of(n, t[q].id);
     }
-    Wall *in = exchange(w, sizeof *w, dest, own, &got);
-    free(w), free(dest);
+    Term *in = exchange(t, sizeof *t, dest, own, &got);
+    free(t), free(dest);
     int64_t lo = block_lo(n, mpi_me);
-    double *blk = sim_realloc(NULL, (size_t)got, sizeof *blk);
-    for (int64_t k = 0; k < got; k++) blk[in[k].id - lo] = in[k].wi;
+    double *blk = sim_realloc(NULL, 2 * (size_t)(got ? got : 1), sizeof *blk);
+    for (int64_t q = 0; q < got; q++) blk[2 * (in[q].id - lo)] = in[q].wi, blk[2 * (in[q].id - lo) + 1] = in[q].v2;
     free(in);
     if (got != block_lo(n, mpi_me + 1) - lo)
-        sim_fail("internal error: %lld impulses of block %d", (long long)got, mpi_me);
+        sim_fail("internal error: %lld terms of block %d", (long long)got, mpi_me);
     /* seq's loop over the indices, passed along the blocks: rank 0, 1, ..., np - 1, back to 0 */
-    double sum = 0;
-    if (mpi_me > 0) MPI_Recv(&sum, 1, MPI_DOUBLE, mpi_me - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    for (int64_t k = 0; k < got; k++) sum += blk[k];
+    double sum[2] = {0, 0};
+    if (mpi_me > 0) MPI_Recv(sum, 2, MPI_DOUBLE, mpi_me - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    for (int64_t q = 0; q < got; q++) sum[0] += blk[2 * q], sum[1] += blk[2 * q + 1];
     free(blk);
     if (mpi_np > 1) {
-        MPI_Send(&sum, 1, MPI_DOUBLE, (mpi_me + 1) % mpi_np, TAG_SUM, MPI_COMM_WORLD);
-        if (mpi_me == 0) MPI_Recv(&sum, 1, MPI_DOUBLE, mpi_np - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        MPI_Send(sum, 2, MPI_DOUBLE, (mpi_me + 1) % mpi_np, TAG_SUM, MPI_COMM_WORLD);
+        if (mpi_me == 0) MPI_Recv(sum, 2, MPI_DOUBLE, mpi_np - 1, TAG_SUM, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     }
-    return mpi_me == 0 ? sum : 0;
+    *w = mpi_me == 0 ? sum[0] : 0;
+    *k = mpi_me == 0 ? sum[1] : 0;
 }

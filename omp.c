@@ -570,12 +570,14 @@ typedef struct {
     double inv_span;
     const real *wall_t;
     BroadThread *th;
+    int periodic; /* SPEC.md 7: the coordinates into [0, L) rather than clamped */
+    real L, half;
 } Mover;
 
 static Mover mover_of(Work *w, int tid)
 {
     Mover c = {&w->b.s, w->p->lo, w->p->hi, 1 / ((double)w->p->hi - (double)w->p->lo),
-               walls_in_nodes(w) ? NULL : w->b.wall_t, &w->b.th[tid]};
+               walls_in_nodes(w) ? NULL : w->b.wall_t, &w->b.th[tid], w->p->periodic, w->p->L, w->p->half};
     return c;
 }
 
@@ -587,12 +589,24 @@ static inline int flies(const real *wall_t, int64_t i, int32_t v)
 }
 
 /* The move of a disk that flies freely (most of them: inline in the loops, whose box bounds stay in
- * registers). */
-static inline void fly(Slots *s, int64_t i, real lo, real hi, Moved *m)
+ * registers); in the periodic box (wrap; lo unused, hi = L) into [0, L). */
+static inline void fly(Slots *s, int64_t i, real lo, real hi, int wrap, Moved *m)
 {
-    s->x[i] = clamp_coord(s->x[i] + s->vx[i], lo, hi);
-    s->y[i] = clamp_coord(s->y[i] + s->vy[i], lo, hi);
+    if (wrap) {
+        s->x[i] = wrap_coord(s->x[i] + s->vx[i], hi);
+        s->y[i] = wrap_coord(s->y[i] + s->vy[i], hi);
+    } else {
+        s->x[i] = clamp_coord(s->x[i] + s->vx[i], lo, hi);
+        s->y[i] = clamp_coord(s->y[i] + s->vy[i], lo, hi);
+    }
     m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
+}
+
+/* Disk i's centre into the box after its event: clamped (3.4) or into [0, L) (SPEC.md 7). */
+static inline void into_box(Slots *s, int64_t i, const Mover *c)
+{
+    s->x[i] = c->periodic ? wrap_coord(s->x[i], c->L) : clamp_coord(s->x[i], c->lo, c->hi);
+    s->y[i] = c->periodic ? wrap_coord(s->y[i], c->L) : clamp_coord(s->y[i], c->lo, c->hi);
 }
 
 /* Moves the disk in slot i that has an event or a node v (-1: none; node_of[i] is then left -1 for
@@ -627,7 +641,7 @@ static void move_event(Work *w, const Mover *c, int64_t i, int32_t v, Moved *m)
         s->wc[i]++;
         m->events++;
     } else if (p < 0) {
-        fly(s, i, lo, hi, m);
+        fly(s, i, lo, c->periodic ? c->L : hi, c->periodic, m);
         return;
     } else if (pair_mover(node[v].id, node[p].id)) {
         int64_t j = node[p].slot, a = i, b = j; /* a: the lower original index */
@@ -638,21 +652,25 @@ static void move_event(Work *w, const Mover *c, int64_t i, int32_t v, Moved *m)
         BroadThread *th = c->th;
         note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, -1);
         note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, -1);
-        pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
-                     &s->vy[b], t, lo, hi);
+        if (c->periodic) {
+            real dp = pair_collide_wrap(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b],
+                                        &s->vx[b], &s->vy[b], t, c->L, c->half);
+            if (s->wi) s->wi[a] += dp, s->wi[b] += dp; /* the virial's impulses (SPEC.md 7a) */
+        } else {
+            pair_collide(&s->x[a], &s->y[a], &s->vx[a], &s->vy[a], &s->x[b], &s->y[b], &s->vx[b],
+                         &s->vy[b], t, lo, hi);
+        }
         s->pc[i]++;
         s->pc[j]++;
         m->events++;
-        s->x[j] = clamp_coord(s->x[j], lo, hi);
-        s->y[j] = clamp_coord(s->y[j], lo, hi);
+        into_box(s, j, c);
         m->vm = fastest(m->vm, s->vx[j], s->vy[j]);
         note_speed(th->speed_n, th->speed_s1, s->vx[i], s->vy[i], c->inv_span, 1);
         note_speed(th->speed_n, th->speed_s1, s->vx[j], s->vy[j], c->inv_span, 1);
     } else {
         return;
     }
-    s->x[i] = clamp_coord(s->x[i], lo, hi);
-    s->y[i] = clamp_coord(s->y[i], lo, hi);
+    into_box(s, i, c);
     m->vm = fastest(m->vm, s->vx[i], s->vy[i]);
 }
 
@@ -663,13 +681,14 @@ static void move_range(Work *w, int tid)
     Moved m = {0, 0};
     Mover c = mover_of(w, tid);
     Slots *s = c.s;
-    real lo = c.lo, hi = c.hi;
+    real lo = c.lo, hi = c.periodic ? c.L : c.hi;
     const real *wall_t = c.wall_t;
+    int wrap = c.periodic;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
     for (int64_t i = from; i < to; i++) {
         int32_t v = w->node_of[i];
-        if (flies(wall_t, i, v)) fly(s, i, lo, hi, &m);
+        if (flies(wall_t, i, v)) fly(s, i, lo, hi, wrap, &m);
         else move_event(w, &c, i, v, &m);
     }
     c.th->vmax = m.vm;
@@ -695,8 +714,9 @@ static void choose_move(Work *w, int tid, int64_t step)
     Moved m = {0, 0};
     Mover c = mover_of(w, tid);
     Slots *s = c.s;
-    real lo = c.lo, hi = c.hi;
+    real lo = c.lo, hi = c.periodic ? c.L : c.hi;
     const real *wall_t = c.wall_t;
+    int wrap = c.periodic;
     int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
     const int64_t *mark = w->paired;
 #pragma omp single nowait
@@ -709,7 +729,7 @@ static void choose_move(Work *w, int tid, int64_t step)
         int64_t to = (k + 1) * chunk < n ? (k + 1) * chunk : n;
         for (int64_t i = k * chunk; i < to; i++) {
             if (mark[i] == step) continue;
-            if (flies(wall_t, i, -1)) fly(s, i, lo, hi, &m);
+            if (flies(wall_t, i, -1)) fly(s, i, lo, hi, wrap, &m);
             else move_event(w, &c, i, -1, &m);
         }
     }
@@ -860,11 +880,15 @@ static void step_run(Work *w, int tid, int64_t step)
     int64_t k = p->substeps;
     if (step % k) return;
     if (p->print && step < p->steps * k) print_state(w, tid, step / k);
-    if (io_checkpoint_due(w->out, step / k)) {
+    int ck = io_checkpoint_due(w->out, step / k), vir = io_virial_due(w->out, step / k);
+    if (ck || vir) {
         if (!p->print) slots_unpermute(w, tid); /* print_state has done it */
 #pragma omp barrier
 #pragma omp single
-        io_checkpoint(w->out, w->sim, step / k);
+        {
+            if (vir) io_virial(w->out, w->sim, step / k);
+            if (ck) io_checkpoint(w->out, w->sim, step / k);
+        }
     }
     /* no barrier after it: the next step's plan waits for every thread anyway, and the progress
      * line reads nothing the others write */
@@ -1019,7 +1043,7 @@ static int omp_run(Sim *sim, const Params *par, const Options *opt, Output *out,
 static const Backend omp_backend = {
     "omp" SIM_SUFFIX, omp_options,
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT |
-        SIM_FEATURE_THREADS | SIM_FEATURE_LANES,
+        SIM_FEATURE_THREADS | SIM_FEATURE_LANES | SIM_FEATURE_PERIODIC,
     omp_run, NULL, omp_parallel,
 };
 

@@ -74,6 +74,11 @@ void broad_init(Broad *b, const Params *p, const Options *opt, int64_t cap, int 
     b->with_wi = with_wi;
     b->rx0 = b->ry0 = p->lo;
     b->rx1 = b->ry1 = p->hi;
+    if (p->periodic) { /* the whole torus, wrapping both ways (mpi's strips narrow x) */
+        b->rx0 = b->ry0 = 0;
+        b->rx1 = b->ry1 = p->L;
+        b->wrap_x = b->wrap_y = 1;
+    }
     b->th = sim_calloc_lines((size_t)nt_max, sizeof *b->th);
     b->nt_max = nt_max;
     while (1 << b->name_shift < nt_max) b->name_shift++;
@@ -160,6 +165,47 @@ void broad_count_speeds(Broad *b, int tid)
 
 /* ==== the plan ========================================================================================= */
 
+/* The most cells a side of a square grid of at most max_cells. */
+static int64_t grid_side_cap(const Broad *b)
+{
+    int64_t gcap = (int64_t)sqrt((double)b->max_cells);
+    while (gcap > 1 && gcap * gcap > b->max_cells) gcap--;
+    while ((gcap + 1) * (gcap + 1) <= b->max_cells) gcap++;
+    return gcap;
+}
+
+/* Cells of side at least h tiling [0, L) along an axis that wraps, at most most: 3 or more, so that a
+ * cell's two neighbours along it are other cells and not the same one, else 1. */
+static int64_t wrap_cells(double L, double h, int64_t most)
+{
+    double gd = L / h;
+    int64_t g = gd < (double)most ? (int64_t)gd : most;
+    return g < 3 ? 1 : g;
+}
+
+/* The periodic box's grid (SPEC.md 7) of cells of side at least h: square cells tiling [0, L) along
+ * y, and along x too where it wraps (omp; a rank of mpi holding the whole torus); along a strip's x
+ * (mpi) as many of the same side as cover its region [rx0, rx1] with its margins. */
+static void grid_cells_periodic(const Broad *b, double h, double v, double grow, Plan *pl)
+{
+    double L = b->p->L;
+    pl->y0 = 0;
+    if (b->wrap_x) {
+        pl->gx = pl->gy = wrap_cells(L, h, grid_side_cap(b));
+        pl->x0 = 0;
+    } else {
+        double ex = (b->rx1 - b->rx0) + 2 * v + 2 * grow;
+        pl->x0 = b->rx0 - v - grow;
+        for (pl->gy = wrap_cells(L, h, b->max_cells);; pl->gy = pl->gy > 3 ? pl->gy - 1 : 1) {
+            pl->gx = (int64_t)ceil(ex * (double)pl->gy / L);
+            if (pl->gx < 1) pl->gx = 1;
+            if (pl->gx * pl->gy <= b->max_cells || pl->gy == 1) break;
+        }
+        if (pl->gx > b->max_cells) pl->gx = b->max_cells; /* the last column takes the rest (clamped) */
+    }
+    pl->inv_h = (double)pl->gy / L;
+}
+
 /* The grid for disks moving at most v along an axis, boxes grown by grow: square cells as wide as two
  * boxes can be apart and still overlap (so overlapping boxes lie in the same or neighbouring cells),
  * over the region of the centres, at most max_cells. Returns its cost: n disks binned, n_box of them
@@ -174,10 +220,10 @@ static double grid_plan(const Broad *b, double v, double grow, int64_t n_box, in
     pl->y0 = b->ry0 - v - grow;
     /* centres of two overlapping boxes are at most 2 * grow + (displacement in a step) apart */
     double h = (2 * grow + v) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
-    if (ex == ey) { /* the box (omp): g x g cells */
-        int64_t gcap = (int64_t)sqrt((double)b->max_cells);
-        while (gcap > 1 && gcap * gcap > b->max_cells) gcap--;
-        while ((gcap + 1) * (gcap + 1) <= b->max_cells) gcap++;
+    if (p->periodic) {
+        grid_cells_periodic(b, h, v, grow, pl);
+    } else if (ex == ey) { /* the box (omp): g x g cells */
+        int64_t gcap = grid_side_cap(b);
         double gd = ex / h;
         pl->gx = gd < (double)gcap ? (int64_t)gd : gcap;
         if (pl->gx < 1) pl->gx = 1;
@@ -213,7 +259,8 @@ static double grid_grow(const Params *p, double v)
  * --broad names): the grid, for the fastest disk's displacement vm (slow scenes); the paths of every
  * disk (fast scenes); or mixed, slow disks in the grid and the paths of the fast ones across its
  * cells (omp_paths.c), for each cut between slow and fast at a bin of the disks' speeds. The paths
- * cover the whole box: over a strip (mpi) only the grid runs. */
+ * cover the whole box: over a strip (mpi) only the grid runs, and in the periodic box the paths run
+ * only where each visits a cell at most once (paths_fit_periodic). */
 static Plan plan_step(Broad *b, int nt)
 {
     const Params *p = b->p;
@@ -239,7 +286,7 @@ static Plan plan_step(Broad *b, int nt)
     double cost = grid_plan(b, vm, grid_grow(p, vm), p->n, nt, &best);
     best.mode = MODE_GRID;
     best.v_cut = INFINITY;
-    if (broad == SIM_BROAD_GRID || best.gx != best.gy) return best;
+    if (broad == SIM_BROAD_GRID || (p->periodic ? !b->wrap_x || b->grid_only : best.gx != best.gy)) return best;
     if (broad != SIM_BROAD_AUTO) cost = INFINITY; /* the grid only where nothing else can run */
     PathsPlan all;
     double c = paths_plan(p, p->n, vm, (double)s1 * unit, nt, &all);
@@ -257,6 +304,8 @@ static Plan plan_step(Broad *b, int nt)
         if (v >= vm) break;
         c = grid_plan(b, v, grid_grow(p, v), n_slow, nt, &pl);
         pl.reach = all.grow + (pl.grow + v / 2) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * p->L;
+        /* the periodic box: a fast path may visit each slow cell once, in a grid of 3 or more a side */
+        if (p->periodic && (pl.g < 3 || !paths_fit_periodic(p, vm, pl.reach, 1 / pl.inv_h))) continue;
         c += paths_plan_grid(p, p->n - n_slow, n_slow, vm, (double)s1_fast * unit, pl.reach,
                              1 / pl.inv_h, pl.g, b->keep, nt, &pl.paths);
         if (c < cost) {
@@ -281,6 +330,24 @@ static inline void step_span(const Slots *s, int64_t q, real grow, Span *b)
     b->xhi = (xa > xb ? xa : xb) + grow;
     b->ylo = (ya < yb ? ya : yb) - grow;
     b->yhi = (ya > yb ? ya : yb) + grow;
+}
+
+/* The periodic box: the image of a disk's box that the grid bins: its centre in [0, L) along an axis
+ * that wraps, else the image nearest frame_x (Broad). Whole multiples of L are added: the rounding,
+ * a few units of L's, lies within the margins. */
+static inline void span_frame(const Broad *b, Span *sp)
+{
+    double L = (double)b->p->L;
+    double mx = ((double)sp->xlo + (double)sp->xhi) * 0.5, my = ((double)sp->ylo + (double)sp->yhi) * 0.5;
+    double kx = b->wrap_x ? floor(mx / L) : floor((mx - b->frame_x) / L + 0.5), ky = floor(my / L);
+    if (kx != 0) {
+        sp->xlo = (real)((double)sp->xlo - kx * L);
+        sp->xhi = (real)((double)sp->xhi - kx * L);
+    }
+    if (ky != 0) {
+        sp->ylo = (real)((double)sp->ylo - ky * L);
+        sp->yhi = (real)((double)sp->yhi - ky * L);
+    }
 }
 
 /* A coordinate in the grid's cell units from origin, rounded to float. */
@@ -344,13 +411,14 @@ static void bin_grid(Broad *b, int tid, int reorder)
     BroadThread *th = &b->th[tid];
     int mixed = pl->mode == MODE_MIXED;
     /* a gas's dense wall_t would be written for nothing but the rare disk near a wall */
-    int wall_all = !b->wall_lists || mixed || b->opt->check;
+    int wall_all = !b->wall_lists || mixed || b->opt->check, periodic = b->p->periodic;
     th->fast_len = 0;
     memset(h - one, 0, (size_t)(cells + one) * sizeof *h);
     range_of(b->p->n, tid, nt, &from, &to);
     for (int64_t q = from; q < to; q++) {
         Span sp;
         step_span(s, q, pl->grow, &sp);
+        if (periodic) span_frame(b, &sp);
         h[span_cell(&sp, pl)]++;
         if (!reorder) {
             real wt = slot_wall_time(s, b->p, q);
@@ -395,6 +463,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
         for (int64_t q = from; q < to; q++) {
             Span sp;
             step_span(s, q, pl->grow, &sp);
+            if (periodic) span_frame(b, &sp);
             int32_t c = span_cell(&sp, pl);
             int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
@@ -420,6 +489,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
         for (int64_t q = from; q < to; q++) {
             Span sp;
             step_span(s, q, pl->grow, &sp);
+            if (periodic) span_frame(b, &sp);
             int32_t c = span_cell(&sp, pl);
             int32_t pos = (one ? 0 : b->cell_start[c]) + h[c]++;
             if (mixed && is_fast(b, q)) {
@@ -447,16 +517,17 @@ static void bin_grid(Broad *b, int tid, int reorder)
  * gives the same bits either way round (swapping the disks negates dx, dy, dvx and dvy exactly, and
  * only their products and squares follow), so the indices are read only for the few pairs with an
  * event; so are the wall event times, found again (wall_t need not hold them, see wall_lists). */
-static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b)
+static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b, int wrap)
 {
     const Slots *s = &w->s;
+    const Params *p = w->p;
     real dx = s->x[b] - s->x[a], dy = s->y[b] - s->y[a];
+    if (wrap) dx = wrap_delta(dx, p->L, p->half), dy = wrap_delta(dy, p->L, p->half); /* SPEC.md 7 */
     real dvx = s->vx[b] - s->vx[a], dvy = s->vy[b] - s->vy[a];
     if (!(dx * dvx + dy * dvy < 0)) return;
     th->found.tests++;
-    real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b], s->vy[b],
-                       w->p->sigma2);
-    if (!(t >= 0 && before_walls(t, slot_wall_time(s, w->p, a), slot_wall_time(s, w->p, b)))) return;
+    real t = pair_time_rel(dx, dy, dvx, dvy, p->sigma2, 1);
+    if (!(t >= 0 && before_walls(t, slot_wall_time(s, p, a), slot_wall_time(s, p, b)))) return;
     if (s->id[b] < s->id[a]) {
         int32_t u = a;
         a = b;
@@ -465,11 +536,17 @@ static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t 
     found_push(&th->found, t, s->id[a], s->id[b], a, b);
 }
 
-/* The pairs of box a with the boxes b + u whose bit u is set in the mask m. */
+/* The pairs of box a with the boxes b + u whose bit u is set in the mask m (in the periodic box by
+ * their nearest images). */
 static void scan_hits(const Broad *w, BroadThread *th, int32_t a, int32_t b, unsigned m)
 {
+    if (w->p->periodic) {
+        for (int u = 0; u < SCAN_WIDTH; u++)
+            if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u], 1);
+        return;
+    }
     for (int u = 0; u < SCAN_WIDTH; u++)
-        if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u]);
+        if (m >> u & 1) try_pair(w, th, w->box_slot[a], w->box_slot[b + u], 0);
 }
 
 #ifdef SIM_SSE2
@@ -537,6 +614,52 @@ static void scan_grid(Broad *b, int tid)
     }
 }
 
+/* The periodic box's grid: every box against the later boxes of its own cell and those of the cells
+ * east, north-west, north and north-east, wrapping at the edges where the axis wraps (an axis of one
+ * cell has no neighbours along it: wrap_cells never leaves 2, whose two neighbours would be one).
+ * Across an edge, and everywhere where an axis that wraps has one cell, the boxes lie in frames L
+ * apart: their pairs skip the screen (the few that a box straddling the edge has), but for the empty
+ * boxes of a mixed step's fast disks, which the paths pair. */
+static void scan_grid_periodic(Broad *b, int tid)
+{
+    static const int offset[4][2] = {{1, 0}, {-1, 1}, {0, 1}, {1, 1}};
+    const Plan *pl = &b->plan;
+    BroadThread *th = &b->th[tid];
+    const int32_t *cs = b->cell_start;
+    int64_t gx = pl->gx, gy = pl->gy, chunk = gy / (8 * b->nt) + 1;
+    int whole = (b->wrap_x && gx == 1) || gy == 1; /* an axis that wraps onto its one cell */
+#pragma omp for schedule(dynamic, chunk)
+    for (int64_t cy = 0; cy < gy; cy++) {
+        for (int64_t cx = 0; cx < gx; cx++) {
+            int64_t c = cy * gx + cx;
+            for (int k = -1; k < 4; k++) {
+                int64_t nx = cx, ny = cy;
+                int across = 0;
+                if (k >= 0) {
+                    nx += offset[k][0], ny += offset[k][1];
+                    if ((offset[k][0] && gx == 1) || (offset[k][1] && gy == 1)) continue;
+                    if (nx < 0 || nx >= gx) {
+                        if (!b->wrap_x) continue;
+                        nx = (nx + gx) % gx, across = 1;
+                    }
+                    if (ny >= gy) ny = 0, across = 1;
+                }
+                int64_t d = ny * gx + nx;
+                for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
+                    int32_t from = k < 0 ? a + 1 : cs[d];
+                    if (!(across || whole)) {
+                        scan_range(b, th, a, from, cs[d + 1]);
+                        continue;
+                    }
+                    if (b->boxes[a].xhi == -INFINITY) continue; /* a fast disk's empty box */
+                    for (int32_t e = from; e < cs[d + 1]; e++)
+                        if (b->boxes[e].xhi != -INFINITY) try_pair(b, th, b->box_slot[a], b->box_slot[e], 1);
+                }
+            }
+        }
+    }
+}
+
 /* ==== --check: the broad phase against all pairs ================================================ */
 
 static int pair_cmp(const void *pa, const void *pb)
@@ -550,6 +673,7 @@ static int pair_cmp(const void *pa, const void *pb)
 /* The wall event time of the disk in slot q straight from 3.1 (-1: none), for --check. */
 static real check_wall_time(const Slots *s, const Params *p, int64_t q)
 {
+    if (p->periodic) return -1;
     real tw = min_time(wall_time(s->x[q], s->vx[q], p->lo, p->hi),
                        wall_time(s->y[q], s->vy[q], p->lo, p->hi));
     return tw <= 1 ? tw : -1;
@@ -611,8 +735,11 @@ static void check_broad_phase(Broad *w, int64_t step)
     for (int64_t qa = 0; qa < n; qa++)
         for (int64_t qb = qa + 1; qb < n; qb++) {
             int64_t a = s->id[qa] < s->id[qb] ? qa : qb, b = a == qa ? qb : qa;
-            real t = pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
-                                 s->vy[b], w->p->sigma2);
+            const Params *p = w->p;
+            real t = p->periodic ? pair_time_wrap(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b],
+                                                  s->vx[b], s->vy[b], p->sigma2, p->L, p->half, 1)
+                                 : pair_time(s->x[a], s->y[a], s->vx[a], s->vy[a], s->x[b], s->y[b], s->vx[b],
+                                             s->vy[b], p->sigma2);
             if (t < 0 || !before_walls(t, w->wall_t[a], w->wall_t[b])) continue;
             PairEvent key = {t, s->id[a], s->id[b], 0, 0};
             PairEvent *hit = bsearch(&key, mine, uniq, sizeof *mine, pair_cmp);
@@ -695,7 +822,8 @@ void broad_find(Broad *b, int tid, int64_t step, int reorder, int again)
     } else {
         bin_grid(b, tid, reorder);
         phase_mark(b, tid, PHASE_BIN);
-        scan_grid(b, tid);
+        if (b->p->periodic) scan_grid_periodic(b, tid);
+        else scan_grid(b, tid);
         phase_mark(b, tid, PHASE_PAIRS);
         if (b->plan.mode == MODE_MIXED) {
             SlowGrid slow = slow_grid_of(b);

@@ -95,6 +95,7 @@ static real plan_window(XWork *w, real t0, double vmax)
     double n = (double)p->n, rest = 1 - (double)t0;
     w->vbound = VBOUND_FACTOR * vmax;
     double margin = REL_MARGIN * (double)(p->L + p->r), extent = (double)(p->hi - p->lo) + 2 * margin;
+    if (p->periodic) extent = (double)p->L; /* cells tiling [0, L), wrapping (periodic_cells) */
     double best = -1, h = rest;
     for (int k = 0; k < WINDOW_CHOICES; k++) {
         double hk = ldexp(rest, -k);
@@ -112,6 +113,10 @@ static real plan_window(XWork *w, real t0, double vmax)
     if (!(t1 > t0) || t1 > 1) t1 = 1;
     w->g = cells_per_side(w, cell_width(p, w->vbound, (double)t1 - (double)t0), extent);
     w->origin = (double)p->lo - margin;
+    if (p->periodic) {
+        if (w->g < 3) w->g = 1; /* a cell's neighbours along an axis are two other cells, or none */
+        w->origin = 0;
+    }
     w->inv_w = (double)w->g / extent;
     return t1;
 }
@@ -133,6 +138,11 @@ static void bin_disks(XWork *w, real t0)
     for (int64_t i = 0; i < n; i++) {
         double dt = (double)t0 - (double)w->d.t[i];
         double x = (double)s->x[i] + (double)s->vx[i] * dt, y = (double)s->y[i] + (double)s->vy[i] * dt;
+        if (w->p->periodic) { /* the image in [0, L) */
+            double L = (double)w->p->L;
+            x = x - floor(x / L) * L;
+            y = y - floor(y / L) * L;
+        }
         w->cell_of[i] = cell_coord(w, y) * (int32_t)w->g + cell_coord(w, x);
     }
     memset(w->cell_start, 0, (size_t)(cells + 1) * sizeof *w->cell_start);
@@ -150,9 +160,31 @@ static inline void buf_add(ExactHeap *b, const ExactDisks *d, real t, int64_t i,
     b->e[b->len++] = e;
 }
 
+/* Disk i's pair events up to t1 with the members [m0, m1) of the grid, except skip, and
+ * (from_lower) except those with a lower index. Into the heap, or appended to b. Returns the pair
+ * predictions made. */
+static uint64_t predict_members(XWork *w, int64_t i, int64_t skip, int from_lower, real t1, ExactHeap *b,
+                                int32_t m0, int32_t m1)
+{
+    const ExactDisks *d = &w->d;
+    uint64_t tests = 0;
+    for (int32_t m = m0; m < m1; m++) {
+        int64_t k = w->members[m];
+        if (k == i || k == skip || (from_lower && k < i)) continue;
+        int64_t a = k < i ? k : i, bb = k < i ? i : k;
+        tests++;
+        real t = exact_pair_time(d, w->p, a, bb);
+        if (t < 0 || t > t1) continue;
+        if (from_lower) buf_add(b, d, t, a, bb);
+        else exact_heap_push(b, d, t, a, bb);
+    }
+    return tests;
+}
+
 /* Disk i's events up to t1: its wall event and its pair events with the disks in the 3 x 3 cells
- * around its own, except skip, and (from_lower) except those with a lower index. Into the heap, or
- * appended to b. Returns the pair predictions made. */
+ * around its own (in the periodic box wrapping at the edges; a grid of one cell has no others),
+ * except skip, and (from_lower) except those with a lower index. Into the heap, or appended to b.
+ * Returns the pair predictions made. */
 static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, real t1, ExactHeap *b)
 {
     const ExactDisks *d = &w->d;
@@ -163,21 +195,20 @@ static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, 
         if (from_lower) buf_add(b, d, t, i, i);
         else exact_heap_push(b, d, t, i, i);
     }
-    int64_t g = w->g, c = w->cell_of[i], cx = c % g, cy = c / g;
+    int64_t g = w->g, c = w->cell_of[i], cx = c % g, cy = c / g, reach = g > 1;
+    const int32_t *cs = w->cell_start;
     for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
+        if (p->periodic) {
+            if (ny != cy && !reach) continue;
+            for (int64_t nx = cx - reach; nx <= cx + reach; nx++) {
+                int64_t cell = (ny + g) % g * g + (nx + g) % g;
+                tests += predict_members(w, i, skip, from_lower, t1, b, cs[cell], cs[cell + 1]);
+            }
+            continue;
+        }
         if (ny < 0 || ny >= g) continue;
         int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : cx;
-        int32_t m0 = w->cell_start[ny * g + x0], m1 = w->cell_start[ny * g + x1 + 1];
-        for (int32_t m = m0; m < m1; m++) {
-            int64_t k = w->members[m];
-            if (k == i || k == skip || (from_lower && k < i)) continue;
-            int64_t a = k < i ? k : i, bb = k < i ? i : k;
-            tests++;
-            t = exact_pair_time(d, p, a, bb);
-            if (t < 0 || t > t1) continue;
-            if (from_lower) buf_add(b, d, t, a, bb);
-            else exact_heap_push(b, d, t, a, bb);
-        }
+        tests += predict_members(w, i, skip, from_lower, t1, b, cs[ny * g + x0], cs[ny * g + x1 + 1]);
     }
     return tests;
 }
@@ -265,7 +296,8 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
             early = 1;
             break;
         }
-        st->pair_tests += predict_near(w, e.i, e.j, 0, t1, &w->heap);
+        /* as seq.c: the pair again (once) in the periodic box, where it may meet through another image */
+        st->pair_tests += predict_near(w, e.i, p->periodic ? -1 : e.j, 0, t1, &w->heap);
         if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap);
     }
     st->events += events;
@@ -304,6 +336,7 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
 #pragma omp parallel for schedule(static)
         for (int64_t i = 0; i < n; i++) exact_finish(&w.d, par, i);
         if (par->print && step < par->steps) io_write_lines(out, step, sim, n, 0);
+        if (io_virial_due(out, step)) io_virial(out, sim, step);
         if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }

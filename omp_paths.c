@@ -193,7 +193,7 @@ void paths_free(Paths *pp)
  * (omp_lanes.h's line: positions within X, velocity components within vm). */
 static void plan_margins(const Params *p, double vm, PathsPlan *pl)
 {
-    double r = p->r, span = p->hi - p->lo;
+    double r = p->r, span = p->periodic ? p->L : p->hi - p->lo;
     double reach = 2 * r + 2 * 1.4142135623730951 * vm;
     if (reach > 1.4142135623730951 * span + 2 * r) reach = 1.4142135623730951 * span + 2 * r;
     double m = broad_margin(r, p->L, reach, SIM_REL_MARGIN);
@@ -202,6 +202,7 @@ static void plan_margins(const Params *p, double vm, PathsPlan *pl)
     pl->reach2 = 4 * g_test * g_test;
     double X = fabs((double)p->lo) > fabs((double)p->hi + pl->grow) ? fabs((double)p->lo)
                                                                      : fabs((double)p->hi + pl->grow);
+    if (p->periodic) X = 2 * (double)p->L + pl->grow; /* the images a path's pieces take: [-L, 2L) */
     double u = 5.9604644775390625e-8; /* 2^-24, a float's unit roundoff */
     double s = 2 * g_test, c = 12 * u * g_test * vm + 64 * u * X * vm;
     pl->flt = X < 1e17 && vm < 1e17 && X * vm < 1e18 && g_test * vm < 1e18;
@@ -251,10 +252,18 @@ static double visits(double n, double s1, double inv_h, double grow, double *spe
     return d + q * s1 * inv_h;
 }
 
+int paths_fit_periodic(const Params *p, double vm, double grow, double h)
+{
+    /* a cell more than the count needs: the pieces' cells are counted in two images of the box */
+    return (vm + 2 * grow + 3 * h) * (1 + SIM_REL_MARGIN) < (double)p->L;
+}
+
 double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, PathsPlan *pl)
 {
-    double span = p->hi - p->lo, nd = (double)n;
+    double span = p->periodic ? p->L : p->hi - p->lo, nd = (double)n;
     plan_margins(p, vm, pl);
+    pl->periodic = p->periodic;
+    pl->L = p->L;
     /* at most 4 cells per disk and 2^26 in all */
     double gmax = sqrt(4 * nd + 16);
     if (gmax > 8192) gmax = 8192;
@@ -262,6 +271,7 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
     int64_t best_g = 1;
     for (double gd = 1; gd <= gmax; gd = gd < 8 ? gd + 1 : gd * 1.125) {
         double g = (double)(int64_t)gd, ig = 1 / g, cells = g * g, d;
+        if (p->periodic && !paths_fit_periodic(p, vm, pl->grow, span / g)) continue;
         double e = visits(nd, s1, g * inv_span, pl->grow, &d);
         double pairs = (0.85 * e * d < e * e / 2 ? 0.85 * e * d : e * e / 2) * ig * ig;
         double cost = COST_ENTRY * e + COST_PAIR * pairs + COST_CELL * cells;
@@ -273,8 +283,9 @@ double paths_plan(const Params *p, int64_t n, double vm, double s1, int nt, Path
          * the best (the search ran to gmax every step, a few microseconds of a serial section) */
         if (cost > 2 * best) break;
     }
+    if (best < 0) return INFINITY; /* the periodic box: no grid where the paths fit */
     double h = span / (double)best_g;
-    plan_cells(pl, best_g, p->lo, h, visits(nd, s1, 1 / h, pl->grow, NULL), nt);
+    plan_cells(pl, best_g, p->periodic ? 0 : p->lo, h, visits(nd, s1, 1 / h, pl->grow, NULL), nt);
     return COST_DISK * nd + best;
 }
 
@@ -331,6 +342,18 @@ static inline int64_t cell_of(const Paths *pp, double c)
     double k = (c - pp->pl.x0) * pp->pl.inv_h;
     k = k > 0 ? k : 0;
     return (int64_t)(k < pp->pl.last ? k : pp->pl.last);
+}
+
+/* The cells [*u0, *u1] along an axis of positions [a, b] (a <= b), cut to [lo, hi]; 0 where none
+ * lies there. Where the positions lie over the grid (all but the pieces of a path in the periodic
+ * box) and [lo, hi] is every cell, the cells of cell_of. */
+static inline int cells_within(const Paths *pp, double a, double b, int64_t lo, int64_t hi, int64_t *u0,
+                               int64_t *u1)
+{
+    double ka = (a - pp->pl.x0) * pp->pl.inv_h, kb = (b - pp->pl.x0) * pp->pl.inv_h;
+    *u0 = ka > (double)lo ? (ka < (double)(hi + 1) ? (int64_t)ka : hi + 1) : lo;
+    *u1 = kb < (double)hi ? (kb >= (double)lo ? (int64_t)kb : lo - 1) : hi;
+    return *u0 <= *u1;
 }
 
 /* 1 / v, or 0 when v is 0 or so small that 1 / v overflows (the disk then moves less than a
@@ -425,7 +448,7 @@ static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, cons
  * steps add rounding errors of about g units of the box's, far inside the margin.) */
 static void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
                        const int64_t *c0, const int64_t *c1, const double *ea, const double *eb,
-                       const double *dt, Bucket *bk)
+                       const double *dt, int64_t in_lo, int64_t in_hi, Bucket *bk)
 {
     double G = pp->pl.grow;
     float bins = (float)pp->pl.bins;
@@ -441,7 +464,8 @@ static void path_lines(const Paths *pp, Entry x, double T, const double *c, cons
         tb = tb < T ? tb : T;
         if (ta > tb) continue;
         double ia = c[in] + v[in] * ta, ib = c[in] + v[in] * tb;
-        int64_t u0 = cell_of(pp, (ia < ib ? ia : ib) - G), u1 = cell_of(pp, (ia < ib ? ib : ia) + G);
+        int64_t u0, u1;
+        if (!cells_within(pp, (ia < ib ? ia : ib) - G, (ia < ib ? ib : ia) + G, in_lo, in_hi, &u0, &u1)) continue;
         Bucket *line = bk + (size_t)pp->tile_of[l] * (size_t)to;
         int64_t lpart = (int64_t)pp->in_tile[l] * so;
         double ua = ea[in] + (double)u0 * dt[in], ub = eb[in] + (double)u0 * dt[in];
@@ -508,8 +532,14 @@ static void path_setup(const Paths *pp, const double *c, double *v, double T, in
  * this thread's buckets (bk: its row of tiles). The grid's edge cells need no extension: a path
  * never leaves [lo, hi] by more than a few rounding units (it ends at the wall), and G exceeds r by
  * far more. */
+static void path_cells_periodic(const Paths *pp, const Body *b, int32_t slot, Bucket *bk);
+
 static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
 {
+    if (pp->pl.periodic) {
+        path_cells_periodic(pp, b, slot, bk);
+        return;
+    }
     double T = b->cap;
     Entry x = {0, 0, 0, slot, (float)b->x, (float)b->y, (float)b->vx, (float)b->vy};
     double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, ea[2], eb[2], dt[2];
@@ -528,7 +558,49 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
     }
 #endif
     if ((c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) <= BOX_CELLS) path_box(pp, x, T, c0, c1, ea, eb, dt, bk);
-    else path_lines(pp, x, T, c, v, c0, c1, ea, eb, dt, bk);
+    else path_lines(pp, x, T, c, v, c0, c1, ea, eb, dt, 0, pp->pl.g - 1, bk);
+}
+
+/* The first image (the multiple of L) of the cells [lo, hi] counted on from the grid's, and the last:
+ * at most two apart (paths_fit_periodic). */
+static inline int64_t image_of(int64_t k, int64_t g)
+{
+    return k >= 0 ? k / g : -((-k + g - 1) / g);
+}
+
+/* path_cells in the periodic box (SPEC.md 7), where a path runs over the edges: its cells (grown by
+ * G) counted on from the grid's past them, at most g an axis (paths_fit_periodic), and each piece of
+ * them that lies in one image of the box binned as the path of the disk's image there: its centre
+ * shifted by that multiple of L, in the entries' float state too, so that the screens see the images
+ * that meet in a cell. The pieces' cells are distinct cells of the grid: a pair of disks shares at most
+ * one visit of each cell. */
+static void path_cells_periodic(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
+{
+    double T = b->cap, L = pp->pl.L, G = pp->pl.grow;
+    double c[2] = {b->x, b->y}, v[2] = {b->vx, b->vy}, iv[2];
+    int64_t g = pp->pl.g, lo[2], hi[2];
+    for (int k = 0; k < 2; k++) {
+        iv[k] = inverse(v[k]);
+        if (iv[k] == 0) v[k] = 0;
+        double e = c[k] + v[k] * T;
+        lo[k] = (int64_t)floor(((c[k] < e ? c[k] : e) - G - pp->pl.x0) * pp->pl.inv_h);
+        hi[k] = (int64_t)floor(((c[k] < e ? e : c[k]) + G - pp->pl.x0) * pp->pl.inv_h);
+    }
+    for (int64_t sy = image_of(lo[1], g); sy <= image_of(hi[1], g); sy++)
+        for (int64_t sx = image_of(lo[0], g); sx <= image_of(hi[0], g); sx++) {
+            int64_t s[2] = {sx, sy}, c0[2], c1[2];
+            double cs[2], ea[2], eb[2], dt[2];
+            for (int k = 0; k < 2; k++) {
+                cs[k] = c[k] - (double)s[k] * L;
+                c0[k] = lo[k] - s[k] * g > 0 ? lo[k] - s[k] * g : 0;
+                c1[k] = hi[k] - s[k] * g < g - 1 ? hi[k] - s[k] * g : g - 1;
+                crossing(pp, cs[k], iv[k], &ea[k], &eb[k], &dt[k]);
+            }
+            Entry x = {0, 0, 0, slot, (float)cs[0], (float)cs[1], (float)b->vx, (float)b->vy};
+            if ((c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) <= BOX_CELLS) path_box(pp, x, T, c0, c1, ea, eb, dt, bk);
+            else path_lines(pp, x, T, cs, v, c0, c1, ea, eb, dt, c0[1 - (fabs(v[1]) <= fabs(v[0]))],
+                            c1[1 - (fabs(v[1]) <= fabs(v[0]))], bk);
+        }
 }
 
 /* The record of the disk in slot q that the exact tests read, whose wall event time is wt (-1: none). */
@@ -545,6 +617,16 @@ static inline void body_of(const Slots *s, int64_t q, real wt, Body *b)
 
 static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, const Params *p,
                       Found *mine);
+
+/* The slow grid's cells [*u0, *u1] along an axis of positions [a, b] (a <= b), cut to the grid; 0
+ * where none lies in it (only a piece of a path in the periodic box misses it). */
+static inline int slow_cells(const SlowGrid *slow, double a, double b, int64_t *u0, int64_t *u1)
+{
+    double ka = (a - slow->x0) * slow->inv_h, kb = (b - slow->x0) * slow->inv_h, gl = (double)(slow->g - 1);
+    *u0 = ka > 0 ? (ka < gl + 1 ? (int64_t)ka : slow->g) : 0;
+    *u1 = kb < gl ? (kb >= 0 ? (int64_t)kb : -1) : slow->g - 1;
+    return *u0 <= *u1;
+}
 
 /* A fast disk of a mixed step against the slow disks: its path is rasterised across the slow disks'
  * grid in lines of cells (cutting it across its shorter axis or, see keep below, its longer), with
@@ -563,13 +645,13 @@ static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, cons
  * than all of them: keep_first keeps the same k and notes the same trim as after the whole path. A
  * fast disk meets a gas's disks every few radii, so its first k lie within a few of the dozens of
  * lines of a step. */
-static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s,
+static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const double *c, const Slots *s,
                       const real *wall_t, const SlowGrid *slow, const Params *p, Found *mine)
 {
     int64_t g = slow->g;
     double x0 = slow->x0, k = slow->inv_h, h = 1 / slow->inv_h, Gs = slow->reach;
-    double Gf = pp->pl.grow, gl = (double)(g - 1), T = (double)A->cap;
-    double c[2] = {(double)A->x, (double)A->y}, v[2] = {(double)A->vx, (double)A->vy}, iv[2];
+    double Gf = pp->pl.grow, T = (double)A->cap;
+    double v[2] = {(double)A->vx, (double)A->vy}, iv[2];
     for (int u = 0; u < 2; u++) {
         iv[u] = inverse(v[u]);
         if (iv[u] == 0) v[u] = 0;
@@ -581,9 +663,8 @@ static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s
     int in = 1 - o;
     int64_t so = o ? g : 1, si = o ? 1 : g; /* strides of the cell index */
     double ob = c[o] + v[o] * T;
-    double l0d = ((c[o] < ob ? c[o] : ob) - Gs - x0) * k, l1d = ((c[o] < ob ? ob : c[o]) + Gs - x0) * k;
-    int64_t l0 = (int64_t)(l0d > 0 ? (l0d < gl ? l0d : gl) : 0);
-    int64_t l1 = (int64_t)(l1d > 0 ? (l1d < gl ? l1d : gl) : 0);
+    int64_t l0, l1;
+    if (!slow_cells(slow, (c[o] < ob ? c[o] : ob) - Gs, (c[o] < ob ? ob : c[o]) + Gs, &l0, &l1)) return;
     int64_t step = v[o] < 0 ? -1 : 1, n_lines = l1 - l0 + 1;
     /* soon: the k + 1 earliest event times so far, ascending; early: how much before a line's ta
      * they must all lie for the walk to stop there */
@@ -616,9 +697,8 @@ static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s
         double oa = c[o] + v[o] * ta, oc = c[o] + v[o] * tb;
         double il = ia < ib ? ia : ib, ih = ia < ib ? ib : ia;
         double ol = oa < oc ? oa : oc, oh = oa < oc ? oc : oa;
-        double m0d = (il - Gs - x0) * k, m1d = (ih + Gs - x0) * k;
-        int64_t m0 = (int64_t)(m0d > 0 ? (m0d < gl ? m0d : gl) : 0);
-        int64_t m1 = (int64_t)(m1d > 0 ? (m1d < gl ? m1d : gl) : 0);
+        int64_t m0, m1;
+        if (!slow_cells(slow, il - Gs, ih + Gs, &m0, &m1)) continue;
         float bil = (float)((il - Gf - x0) * k), bih = (float)((ih + Gf - x0) * k);
         float bol = (float)((ol - Gf - x0) * k), boh = (float)((oh + Gf - x0) * k);
         Box vb = box_of(o ? bil : bol, o ? bih : boh, o ? bol : bil, o ? boh : bih);
@@ -631,6 +711,9 @@ static void fast_slow(const Paths *pp, const Body *A, int32_t qa, const Slots *s
                 if (!boxes_overlap(&vb, &slow->boxes[b])) continue;
                 int32_t q = slow->box_slot[b];
                 double dx = (double)s->x[q] - c[0], dy = (double)s->y[q] - c[1];
+                if (p->periodic) /* by the nearest image (SPEC.md 7): c is the image of this piece */
+                    dx = wrap_near((double)s->x[q] - (double)A->x, p->L),
+                    dy = wrap_near((double)s->y[q] - (double)A->y, p->L);
                 double dvx = (double)s->vx[q] - (double)A->vx, dvy = (double)s->vy[q] - (double)A->vy;
                 double bb = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy, cr = dx * dvy - dy * dvx;
                 if ((bb < 0) & (cr * cr <= pp->pl.reach2 * a)) {
@@ -672,12 +755,31 @@ static void keep_first(Found *mine, size_t from, int k, int32_t q)
     mine->trimmed++;
 }
 
-/* The fast disk A in slot q against the slow disks, its events beyond the first keep trimmed. */
+/* The fast disk A in slot q against the slow disks, its events beyond the first keep trimmed. In the
+ * periodic box its path, grown by the slow reach, may run over the edges: each piece of it in one
+ * image of the box walks the grid as the path of the disk's image there (path_cells_periodic), each
+ * slow cell once (paths_fit_periodic). */
 static void fast_slow_kept(const Paths *pp, const Body *A, int32_t q, const Slots *s, const real *wall_t,
                            const SlowGrid *slow, const Params *p, Found *mine)
 {
     size_t from = mine->len;
-    fast_slow(pp, A, q, s, wall_t, slow, p, mine);
+    double c[2] = {(double)A->x, (double)A->y};
+    if (!p->periodic) {
+        fast_slow(pp, A, q, c, s, wall_t, slow, p, mine);
+    } else {
+        double v[2] = {(double)A->vx, (double)A->vy}, L = p->L;
+        int64_t g = slow->g, lo[2], hi[2];
+        for (int k = 0; k < 2; k++) {
+            double e = c[k] + (inverse(v[k]) == 0 ? 0 : v[k]) * (double)A->cap;
+            lo[k] = (int64_t)floor(((c[k] < e ? c[k] : e) - slow->reach - slow->x0) * slow->inv_h);
+            hi[k] = (int64_t)floor(((c[k] < e ? e : c[k]) + slow->reach - slow->x0) * slow->inv_h);
+        }
+        for (int64_t sy = image_of(lo[1], g); sy <= image_of(hi[1], g); sy++)
+            for (int64_t sx = image_of(lo[0], g); sx <= image_of(hi[0], g); sx++) {
+                double cs[2] = {c[0] - (double)sx * L, c[1] - (double)sy * L};
+                fast_slow(pp, A, q, cs, s, wall_t, slow, p, mine);
+            }
+    }
     if (slow->keep > 0 && mine->len - from > (size_t)slow->keep) keep_first(mine, from, slow->keep, q);
 }
 
@@ -762,8 +864,29 @@ static void meet_near(const Paths *pp, const Body *A, const Body *B, int32_t qa,
     test_pair(A, B, qa, qb, p, mine);
 }
 
-/* The exact test of SPEC.md 3.2, the lower original index first, and the event if the choice can
- * accept it. */
+/* meet_near in the periodic box (SPEC.md 7): the differences by the nearest image, and the midpoint
+ * taken from the disk of lower original index towards the other's nearest image and brought into
+ * [0, L): a function of the pair alone, whichever disk is A, so that it names one cell, whose visits
+ * of both disks (one each: path_cells_periodic) meet at tau. */
+static void meet_near_periodic(const Paths *pp, const Body *A, const Body *B, int32_t qa, int32_t qb,
+                               int64_t cx, int64_t cy, const Params *p, Found *mine)
+{
+    const Body *P = A->id < B->id ? A : B, *Q = P == A ? B : A;
+    double L = p->L;
+    double dx = wrap_near((double)Q->x - (double)P->x, L), dy = wrap_near((double)Q->y - (double)P->y, L);
+    double dvx = (double)Q->vx - (double)P->vx, dvy = (double)Q->vy - (double)P->vy;
+    double b = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy;
+    double tau = -b > a ? 1 : -b / a; /* within [0, 1]: no wall ends a path */
+    double mx = (double)P->x + (double)P->vx * tau + (dx + dvx * tau) * 0.5;
+    double my = (double)P->y + (double)P->vy * tau + (dy + dvy * tau) * 0.5;
+    mx = mx - floor(mx / L) * L;
+    my = my - floor(my / L) * L;
+    if (cell_of(pp, mx) != cx || cell_of(pp, my) != cy) return;
+    test_pair(A, B, qa, qb, p, mine);
+}
+
+/* The exact test of SPEC.md 3.2 (7 in the periodic box), the lower original index first, and the
+ * event if the choice can accept it. */
 static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, const Params *p,
                       Found *mine)
 {
@@ -776,7 +899,9 @@ static void test_pair(const Body *A, const Body *B, int32_t qa, int32_t qb, cons
         qb = u;
     }
     mine->tests++;
-    real t = pair_time(A->x, A->y, A->vx, A->vy, B->x, B->y, B->vx, B->vy, p->sigma2);
+    real t = p->periodic ? pair_time_wrap(A->x, A->y, A->vx, A->vy, B->x, B->y, B->vx, B->vy, p->sigma2, p->L,
+                                          p->half, 1)
+                         : pair_time(A->x, A->y, A->vx, A->vy, B->x, B->y, B->vx, B->vy, p->sigma2);
     if (t >= 0 && t < A->wt && t < B->wt) found_push(mine, t, A->id, B->id, qa, qb);
 }
 
@@ -790,9 +915,12 @@ static inline void meet(const Paths *pp, const Body *A, const Body *B, int32_t q
                         int64_t cx, int64_t cy, const Params *p, Found *mine)
 {
     double dx = (double)B->x - (double)A->x, dy = (double)B->y - (double)A->y;
+    if (pp->pl.periodic) dx = wrap_near(dx, pp->pl.L), dy = wrap_near(dy, pp->pl.L);
     double dvx = (double)B->vx - (double)A->vx, dvy = (double)B->vy - (double)A->vy;
     double b = dx * dvx + dy * dvy, a = dvx * dvx + dvy * dvy, cr = dx * dvy - dy * dvx;
-    if ((b < 0) & (cr * cr <= pp->pl.reach2 * a)) meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
+    if (!((b < 0) & (cr * cr <= pp->pl.reach2 * a))) return;
+    if (pp->pl.periodic) meet_near_periodic(pp, A, B, qa, qb, cx, cy, p, mine);
+    else meet_near(pp, A, B, qa, qb, cx, cy, p, mine);
 }
 
 /* Whether the visits [lo, hi) of a cell are sorted by entry time and swept (cell_pairs), rather than

@@ -65,6 +65,13 @@ typedef struct {
     int64_t step;  /* the step being found (broad_find) */
 } Found;
 
+/* The nearest image of a difference d of two coordinates (SPEC.md 7), in double: for the broad
+ * phases' filters, whose margins cover its rounding. */
+static inline double wrap_near(double d, double L)
+{
+    return d > L / 2 ? d - L : (d < -L / 2 ? d + L : d);
+}
+
 /* sim_grow for a buffer whose contents need not be kept: no copy on the way. */
 static inline void *omp_scratch_grow(void *ptr, size_t *cap, size_t need, size_t size)
 {
@@ -99,11 +106,13 @@ static inline void found_wall(Found *f, real t, int32_t q)
     f->wall[f->wall_len++] = e;
 }
 
-/* 3.1: the wall event time of the disk in slot q, or -1 when it has none within the step. Most disks
+/* 3.1: the wall event time of the disk in slot q, or -1 when it has none within the step (nor ever in
+ * the periodic box). Most disks
  * are farther from every wall than they move in a step (with SIM_REL_MARGIN to spare, so the quotient
  * is surely > 1): they need no division. */
 static inline real slot_wall_time(const Slots *s, const Params *p, int64_t q)
 {
+    if (p->periodic) return -1; /* no walls (SPEC.md 7) */
     real x = s->x[q], y = s->y[q], vx = s->vx[q], vy = s->vy[q];
     double ax = fabs((double)vx) * (1 + SIM_REL_MARGIN);
     double ay = fabs((double)vy) * (1 + SIM_REL_MARGIN);
@@ -194,8 +203,14 @@ typedef struct {
     float flt_s, flt_c; /* its bound cr^2 <= flt_s a + flt_c (omp_lanes.h's line) */
     int64_t tc, gt, tiles; /* tile side in cells, tiles per side, tiles */
     int32_t bins;    /* bins of entry time per cell in phase B's counting sort: a power of 2 */
+    int periodic;    /* the periodic box (SPEC.md 7): the cells tile [0, L) and paths run over the edges */
+    double L;
 } PathsPlan;
 
+/* In the periodic box (SPEC.md 7), whether the paths of disks whose velocity components are at most
+ * vm, cells grown by grow, visit each of the cells of side h tiling [0, L) at most once: a path's cells
+ * span at most (vm + 2 grow) / h + 2 a side, at most the whole side. */
+int paths_fit_periodic(const Params *p, double vm, double grow, double h);
 /* lanes: phase B's screens, pairs at a time (1, 4 or 8; 0: the widest the processor runs) */
 Paths *paths_new(int nt_max, int lanes);
 int paths_lanes(const Paths *pp);
@@ -303,6 +318,13 @@ typedef struct {
     const Params *p;  /* p->n: the slots of this step */
     const Options *opt;
     double rx0, rx1, ry0, ry1; /* where the centres lie (the box unless the caller narrows it) */
+    /* the periodic box (p->periodic): on an axis that wraps the cells tile [0, L) and the last cell's
+     * neighbour is the first; on one that does not (mpi's strips along x) each box takes the image
+     * nearest frame_x, the middle of the region. The narrow phase reads every disk as stored, by the
+     * nearest image, whatever image its box took. */
+    int wrap_x, wrap_y;
+    double frame_x;
+    int grid_only;    /* 1: the grid alone, whatever the cost model says (mpi's strips) */
     int nt, nt_max;   /* threads in the parallel region; BroadThreads allocated */
     int name_shift;   /* bits of a thread in the events' names (found_name) */
     int with_wi;

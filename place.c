@@ -44,7 +44,8 @@ static double rng_unit(Rng *g)
     return (double)(rng_next(g) >> 11) * (1.0 / 9007199254740992.0);
 }
 
-/* Places n non-overlapping disks uniformly, each tried up to PLACE_TRIES times, in index order: disk i
+/* Places n non-overlapping disks uniformly (in the periodic box in [0, L)^2, overlaps by the nearest
+ * image), each tried up to PLACE_TRIES times, in index order: disk i
  * draws x, y until it overlaps none of the disks before it, then its speed and direction. A grid of
  * cells at least 2r wide, about one disk per cell, makes each overlap test look at 9 cells.
  *
@@ -82,26 +83,39 @@ static int64_t place_cell(const Place *pl, double x, double y)
     return cell_of(y, pl->cell, pl->cells) * pl->cells + cell_of(x, pl->cell, pl->cells);
 }
 
-/* 1 if the disk at (x, y) overlaps one of the disks j < limit in the grid around it */
+/* The difference of two coordinates: in the periodic box its nearest image (SPEC.md 7). */
+static double place_delta(const Params *par, double d)
+{
+    double L = (double)par->L;
+    if (!par->periodic) return d;
+    return d > L / 2 ? d - L : (d < -L / 2 ? d + L : d);
+}
+
+/* 1 if the disk at (x, y) overlaps one of the disks j < limit in the grid around it (in the periodic
+ * box the cells wrap; a cell met twice where there are fewer than 3 a side is tested twice, harmlessly) */
 static int place_overlaps(const Place *pl, double x, double y, int64_t limit)
 {
     const Sim *sim = pl->sim;
     int64_t cells = pl->cells, cx = cell_of(x, pl->cell, cells), cy = cell_of(y, pl->cell, cells);
+    int wrap = pl->par->periodic;
     for (int64_t ny = cy - 1; ny <= cy + 1; ny++)
         for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
-            if (nx < 0 || ny < 0 || nx >= cells || ny >= cells) continue;
-            for (int32_t j = pl->head[ny * cells + nx]; j >= 0; j = pl->next[j]) {
+            int64_t ux = wrap ? (nx + cells) % cells : nx, uy = wrap ? (ny + cells) % cells : ny;
+            if (ux < 0 || uy < 0 || ux >= cells || uy >= cells) continue;
+            for (int32_t j = pl->head[uy * cells + ux]; j >= 0; j = pl->next[j]) {
                 if (j >= limit) continue;
-                double dx = sim->x[j] - x, dy = sim->y[j] - y;
+                double dx = place_delta(pl->par, sim->x[j] - x), dy = place_delta(pl->par, sim->y[j] - y);
                 if (dx * dx + dy * dy < pl->par->sigma2) return 1;
             }
         }
     return 0;
 }
 
-/* the position a draw gives: rounded to real first, so that the overlap tests see the stored value */
+/* the position a draw gives: rounded to real first, so that the overlap tests see the stored value;
+ * in the periodic box uniform in [0, L) (a product that rounds up to L is 0) */
 static double place_coord(const Params *par, double u)
 {
+    if (par->periodic) return wrap_coord((real)(par->L * u), par->L);
     return clamp_coord((real)(par->lo + (par->hi - par->lo) * u), par->lo, par->hi);
 }
 

@@ -2,7 +2,9 @@
  *
  * The simplest code that is obviously SPEC.md section 3: every wall and every pair tested each step,
  * all events sorted by (t, kind, i, j), the greedy one-event-per-disk choice, the moves. O(N^2) per
- * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly.
+ * step on purpose: clarity over speed. Every other backend must reproduce its bytes exactly. In the
+ * periodic box (--periodic, SPEC.md 7) there are no wall events, pairs meet by their nearest images
+ * and every coordinate is brought into [0, L) at the step's end.
  * --exact (exact.h) likewise: every pair's next contact predicted, a heap of events in key order.
  */
 #include "io.h"
@@ -43,9 +45,10 @@ static int event_cmp(const void *pa, const void *pb)
     return 0;
 }
 
-/* 3.1: every disk's wall event, if it comes within the step. */
+/* 3.1: every disk's wall event, if it comes within the step (none in the periodic box). */
 static void detect_walls(const Sim *s, const Params *p, EventList *l)
 {
+    if (p->periodic) return;
     for (int64_t i = 0; i < p->n; i++) {
         real tw = min_time(wall_time(s->x[i], s->vx[i], p->lo, p->hi),
                              wall_time(s->y[i], s->vy[i], p->lo, p->hi));
@@ -53,13 +56,15 @@ static void detect_walls(const Sim *s, const Params *p, EventList *l)
     }
 }
 
-/* 3.2: every pair's event, if it comes within the step. */
+/* 3.2: every pair's event, if it comes within the step (in the periodic box by the nearest image). */
 static uint64_t detect_pairs(const Sim *s, const Params *p, EventList *l)
 {
     for (int64_t i = 0; i < p->n; i++)
         for (int64_t j = i + 1; j < p->n; j++) {
-            real t = pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
-                                 s->vy[j], p->sigma2);
+            real t = p->periodic ? pair_time_wrap(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j],
+                                                  s->vx[j], s->vy[j], p->sigma2, p->L, p->half, 1)
+                                 : pair_time(s->x[i], s->y[i], s->vx[i], s->vy[i], s->x[j], s->y[j], s->vx[j],
+                                             s->vy[j], p->sigma2);
             if (t >= 0) events_push(l, t, 1, i, j);
         }
     return (uint64_t)p->n * (uint64_t)(p->n - 1) / 2;
@@ -98,7 +103,14 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
             if (s->wi) s->wi[i] += wall_impulse(vx0, vy0, s->vx[i], s->vy[i]);
             finish_step(&s->x[i], &s->y[i], s->vx[i], s->vy[i], e->t, lo, hi);
             s->wc[i]++;
-        } else if (i == e->i) { /* the pair is handled once, from its lower index */
+        } else if (i == e->i && p->periodic) { /* the pair is handled once, from its lower index */
+            int64_t j = e->j;
+            real dp = pair_collide_wrap(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j],
+                                        &s->vx[j], &s->vy[j], e->t, p->L, p->half);
+            if (s->wi) s->wi[i] += dp, s->wi[j] += dp; /* the virial's impulses (SPEC.md 7a) */
+            s->pc[i]++;
+            s->pc[j]++;
+        } else if (i == e->i) {
             int64_t j = e->j;
             pair_collide(&s->x[i], &s->y[i], &s->vx[i], &s->vy[i], &s->x[j], &s->y[j], &s->vx[j],
                          &s->vy[j], e->t, lo, hi);
@@ -106,9 +118,9 @@ static void move(Sim *s, const Params *p, const EventList *l, const int64_t *eve
             s->pc[j]++;
         }
     }
-    for (int64_t i = 0; i < p->n; i++) {
-        s->x[i] = clamp_coord(s->x[i], lo, hi);
-        s->y[i] = clamp_coord(s->y[i], lo, hi);
+    for (int64_t i = 0; i < p->n; i++) { /* SPEC.md 3.4's clamp, or 7's fmod into [0, L) */
+        s->x[i] = p->periodic ? wrap_coord(s->x[i], p->L) : clamp_coord(s->x[i], lo, hi);
+        s->y[i] = p->periodic ? wrap_coord(s->y[i], p->L) : clamp_coord(s->y[i], lo, hi);
     }
 }
 
@@ -157,11 +169,14 @@ static int exact_run(Sim *sim, const Params *par, Output *out, RunStats *st)
             if (!exact_valid(&d, &e)) continue;
             exact_apply(&d, par, &e);
             st->events++;
-            st->pair_tests += exact_predict(&d, par, e.i, e.j, &h);
+            /* its disks against every other, and each other (once) where they may meet again: in the
+             * periodic box, through another image */
+            st->pair_tests += exact_predict(&d, par, e.i, par->periodic ? -1 : e.j, &h);
             if (e.j != e.i) st->pair_tests += exact_predict(&d, par, e.j, e.i, &h);
         }
         for (int64_t i = 0; i < par->n; i++) exact_finish(&d, par, i);
         if (par->print && step < par->steps) io_write_lines(out, step, sim, par->n, 0);
+        if (io_virial_due(out, step)) io_virial(out, sim, step);
         if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
@@ -195,6 +210,7 @@ static int seq_run(Sim *sim, const Params *par, const Options *opt, Output *out,
         move(sim, par, &events, event_of);
         if (sub % k) continue;
         if (par->print && sub < last) io_write_lines(out, sub / k, sim, par->n, 0);
+        if (io_virial_due(out, sub / k)) io_virial(out, sim, sub / k);
         if (io_checkpoint_due(out, sub / k)) io_checkpoint(out, sim, sub / k);
         io_progress(out, sub / k);
     }
@@ -206,7 +222,8 @@ static int seq_run(Sim *sim, const Params *par, const Options *opt, Output *out,
 
 static const Backend seq_backend = {
     "seq" SIM_SUFFIX, "",
-    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT,
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_EXACT | SIM_FEATURE_CHECKPOINT |
+        SIM_FEATURE_PERIODIC,
     seq_run, NULL, seq_parallel,
 };
 

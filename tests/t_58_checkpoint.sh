@@ -238,7 +238,7 @@ for prog in $(backend_list); do
     expect_error "refuse $prog: extended checkpoint" "cut short or extended" ./$prog --resume "$C/long.ck"
     expect_error "refuse $prog: a byte of the state changed" "checksum" ./$prog --resume "$C/flip.ck"
     expect_error "refuse $prog: the checksum changed" "checksum" ./$prog --resume "$C/hash.ck"
-    expect_error "refuse $prog: another format version" "format 254.*reads format 1" ./$prog --resume "$C/version.ck"
+    expect_error "refuse $prog: another format version" "format 253.*reads formats 1 and 2" ./$prog --resume "$C/version.ck"
     expect_error "refuse $prog: impossible step" "impossible values" ./$prog --resume "$C/step.ck"
     expect_error "refuse $prog: single-precision checkpoint" "single precision.*computes in double" \
         ./$prog --resume "$C/f32.ck"

@@ -75,6 +75,14 @@ else
         fi
         ranks "inputs/$b" "outputs/$b.out" "$counts" "$f"
     done
+    # the periodic box (SPEC.md 7): the bundled scenes with --periodic, the strips wrapping (t_78 has
+    # the rest of mpi's periodic checks)
+    for f in inputs/periodic/*.in; do
+        b=$(basename "$f" .in)
+        counts=$(pick "1 2 3x2 4 8" "")
+        all_suite || case $b in edges_print) counts="3x2" ;; fast_600_perf) counts="2" ;; *) continue ;; esac
+        ranks "periodic/$b" "outputs/periodic/$b.out" "$counts" "$f" --periodic
+    done
     for f in tests/cases/*.in; do ranks "cases/$(basename "$f" .in)" "${f%.in}.out" "$(pick "1 4" "3")" "$f"; done
     for f in tests/hard/*.in; do
         [ -f "${f%.in}.out" ] && ranks "hard/$(basename "$f" .in)" "${f%.in}.out" "3" "$f"

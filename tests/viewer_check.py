@@ -165,6 +165,69 @@ def picture_checks(name, b, h, state, first_vmax, tol):
     return v, img
 
 
+def periodic_checks(b):
+    """A run of the periodic box (inputs/periodic/edges_print: disks across the edges and a corner):
+    with periodic=1 (and with the checkbox) a disk within r of an edge is drawn on both sides of the
+    box and cut at its edges; without it, on one side and over the edge."""
+    pin, pout = os.path.join(ROOT, "inputs", "periodic", "edges_print.in"), os.path.join(ROOT, "outputs", "periodic", "edges_print.out")
+    h = header(pin)
+    L, r = h["L"], h["r"]
+    disks = states(pout, h["n"])[0][1]
+    first_vmax = max(math.hypot(d[2], d[3]) for d in disks)
+
+    def near(a, c):
+        d = a - c
+        return d - L if d > L / 2 else (d + L if d < -L / 2 else d)
+
+    # points of each straddling disk: inside the box on the far side of an edge (its image), and
+    # outside the box beyond its own edge; each away from every other disk and its images
+    probes = []
+    for i, (x, y, vx, vy) in enumerate(disks):
+        for sx, sy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            if not ((sx == 1 and x < r) or (sx == -1 and x > L - r) or (sy == 1 and y < r) or (sy == -1 and y > L - r)):
+                continue
+            ix, iy = x + sx * L, y + sy * L  # the image's centre
+            # a point of the image inside the box, 0.3 r from its edge, and one of the disk outside it
+            px = (L - 0.3 * r if sx == 1 else 0.3 * r) if sx else y
+            inside = (px, y) if sx else (x, L - 0.3 * r if sy == 1 else 0.3 * r)
+            outside = (-0.3 * r if sx == 1 else L + 0.3 * r, y) if sx else (x, -0.3 * r if sy == 1 else L + 0.3 * r)
+            if (inside[0] - ix) ** 2 + (inside[1] - iy) ** 2 > (0.8 * r) ** 2:
+                continue
+            if (outside[0] - x) ** 2 + (outside[1] - y) ** 2 > (0.8 * r) ** 2:
+                continue
+            if any(j != i and near(inside[0], d[0]) ** 2 + near(inside[1], d[1]) ** 2 < (r + 0.5) ** 2 for j, d in enumerate(disks)):
+                continue
+            probes.append((i, inside, outside, ramp(math.hypot(vx, vy) / first_vmax)))
+    check("periodic: edges_print has disks across the edges to look at", len(probes) >= 4, f"{len(probes)} probes")
+    for render in ("2d", "webgl"):
+        for wrap in (1, 0):
+            ready = b.open(url(pin, pout, step=0, render=render, **({"periodic": 1} if wrap else {})))
+            v = view_of(b)
+            img = Image(b.screenshot())
+            want_status = "step 0 of 20, 24 disks" + (", periodic box" if wrap else "")
+            bad = []
+            for i, inside, outside, col in probes:
+                for (x, y), want in ((inside, col if wrap else BOX), (outside, BG if wrap else col)):
+                    px, py = pixel_of(v, x, y)
+                    got = img.pixel(int(math.floor(px)), int(math.floor(py)))
+                    if not close(got, want, 2):
+                        bad.append(f"disk {i} at ({x:.2f}, {y:.2f}): {got}, expected {want}")
+            check(f"periodic ({render}, periodic={wrap}): status; disks across an edge drawn "
+                  f"{'on both sides, cut at the box' if wrap else 'on one side, over the edge'} ({len(probes)} places)",
+                  ready == "1" and v["status"] == want_status and not bad,
+                  f"ready={ready} status='{v['status']}' " + "; ".join(bad[:3]))
+    # the checkbox, and a click on a disk's image across the edge selects the disk
+    b.open(url(pin, pout, step=0, render="2d"))
+    b.eval("document.getElementById('periodic').click()")
+    status = b.eval("document.getElementById('status').textContent")
+    v = view_of(b)
+    i, inside, _, _ = probes[0]
+    b.click(*pixel_of(v, *inside))
+    info = b.wait_for("!document.getElementById('info').hidden && document.getElementById('info').textContent")
+    check("periodic: the checkbox turns it on; a click on a disk's image selects the disk",
+          status.endswith(", periodic box") and info.startswith(f"disk {i}, step 0"), f"{status} / {info.splitlines()[0]}")
+
+
 def main(work):
     inputs = os.path.join(ROOT, "inputs")
     outputs = os.path.join(ROOT, "outputs")
@@ -183,6 +246,9 @@ def main(work):
                   and v["renderer"] == ("webgl2" if render == "webgl" else "2d"),
                   f"ready={ready} status='{v['status']}' renderer={v['renderer']}")
             picture_checks(name, b, h, ov[5], first_vmax, tol)
+
+        # ---- the periodic box ----
+        periodic_checks(b)
 
         # ---- click a disk, step on with the keyboard ----
         b.open(url(ov_in, ov_out, step=5, render="2d"))

@@ -1,6 +1,6 @@
 /* tools/check.c: checks the invariants of one simulator output against its input.
  *
- * usage: tools/check [--dump17] [--exact] INPUT OUTPUT
+ * usage: tools/check [--dump17] [--exact] [--periodic] INPUT OUTPUT
  *
  * - shape: step 0, then (print mode) steps 1..S-1, then step S with counts; each line "t i x y vx vy"
  *   (+ " p w" on the last step), i = 0..N-1 in order, one space between fields, '\n' after every line;
@@ -14,6 +14,8 @@
  * --exact (output of --exact, any number of events per step): instead of p + w <= S and the plain-move
  * count, with --dump17, no two disks overlap in a printed step (by more than rounding) unless two did
  * at step 0.
+ * --periodic (output of the periodic box, SPEC.md 7): centres in [0, L) instead, a plain move brings
+ * x + vx into [0, L) by SPEC.md 7's formula, overlaps are by the nearest image, and w stays 0.
  * Prints nothing and exits 0 when all hold; otherwise one line "check: OUTPUT:line: problem", exit 1.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -79,20 +81,47 @@ static int by_x(const void *a, const void *b)
     return (xa > xb) - (xa < xb);
 }
 
+static int periodic; /* --periodic */
+
+/* A difference of two coordinates; with --periodic its nearest image. */
+static double nearest(double d, double L)
+{
+    if (!periodic) return d;
+    return d > L / 2 ? d - L : (d < -L / 2 ? d + L : d);
+}
+
 /* Returns 1 if two of the n centres xy (x, y pairs) are closer than 2r, less a relative 1e-9 and the
- * rounding of coordinates up to L: a sweep over the centres sorted by x. */
+ * rounding of coordinates up to L: a sweep over the centres sorted by x (with --periodic also from
+ * each centre back across x = 0 to the last ones, by the nearest image). */
 static int overlapping(const double *xy, long long n, double r, double L, long long *order)
 {
     double d = 2 * r * (1 - 1e-9) - 64 * DBL_EPSILON * L, d2 = d * d;
     for (long long i = 0; i < n; i++) order[i] = i;
     sort_x = xy;
     qsort(order, (size_t)n, sizeof *order, by_x);
-    for (long long a = 0; a < n; a++)
-        for (long long b = a + 1; b < n && xy[2 * order[b]] - xy[2 * order[a]] < d; b++) {
-            double dx = xy[2 * order[b]] - xy[2 * order[a]], dy = xy[2 * order[b] + 1] - xy[2 * order[a] + 1];
+    for (long long a = 0; a < n; a++) {
+        const double *p = xy + 2 * order[a];
+        for (long long b = a + 1; b < n && xy[2 * order[b]] - p[0] < d; b++) {
+            double dx = xy[2 * order[b]] - p[0], dy = nearest(xy[2 * order[b] + 1] - p[1], L);
             if (dx * dx + dy * dy < d2) return 1;
         }
+        for (long long b = n - 1; periodic && b > a && p[0] + L - xy[2 * order[b]] < d; b--) {
+            double dx = nearest(xy[2 * order[b]] - p[0], L), dy = nearest(xy[2 * order[b] + 1] - p[1], L);
+            if (dx * dx + dy * dy < d2) return 1;
+        }
+    }
     return 0;
+}
+
+/* A coordinate after a plain move: clamped into [lo, hi], or with --periodic brought into [0, L). */
+static double into_box(double c, double lo, double hi, double L)
+{
+    if (!periodic) return clamp(c, lo, hi);
+    if (c >= 0 && c < L) return c;
+    c = fmod(c, L);
+    if (c < 0) c = c + L;
+    if (c >= L) c = c - L;
+    return c;
 }
 
 static long long parse_count(const char *s, size_t len, const char *what)
@@ -112,10 +141,11 @@ int main(int argc, char **argv)
     for (; a < argc && argv[a][0] == '-' && argv[a][1] == '-'; a++) {
         if (strcmp(argv[a], "--dump17") == 0) dump17 = 1;
         else if (strcmp(argv[a], "--exact") == 0) exact = 1;
+        else if (strcmp(argv[a], "--periodic") == 0) periodic = 1;
         else break;
     }
     if (argc - a != 2) {
-        fprintf(stderr, "usage: tools/check [--dump17] [--exact] INPUT OUTPUT\n");
+        fprintf(stderr, "usage: tools/check [--dump17] [--exact] [--periodic] INPUT OUTPUT\n");
         return 2;
     }
     FILE *in = fopen(argv[a], "r");
@@ -132,7 +162,7 @@ int main(int argc, char **argv)
     fclose(in);
     long long n = atoll(tok[0]), steps = atoll(tok[3]);
     double L = strtod(tok[1], NULL), r = strtod(tok[2], NULL);
-    double lo = r, hi = L - r;
+    double lo = periodic ? 0 : r, hi = periodic ? L : L - r;
     int print = strcmp(tok[4], "print") == 0;
     double slack = dump17 ? 0 : 0.5e-8 + 4 * DBL_EPSILON * hi; /* %.8f rounding of a centre */
 
@@ -188,20 +218,24 @@ int main(int argc, char **argv)
             v[k] = strtod(f[k + 2], NULL);
             if (!isfinite(v[k])) die("field %d is not finite", k + 3);
         }
-        for (int k = 0; k < 2; k++)
-            if (!(v[k] >= lo - slack && v[k] <= hi + slack))
+        for (int k = 0; k < 2; k++) {
+            if (periodic && !(v[k] >= -slack && (dump17 ? v[k] < L : v[k] <= L + slack)))
+                die("%c = %.17g lies outside [0, L) = [0, %.17g)", "xy"[k], v[k], L);
+            if (!periodic && !(v[k] >= lo - slack && v[k] <= hi + slack))
                 die("%c = %.17g lies outside [r, L-r] = [%.17g, %.17g]", "xy"[k], v[k], lo, hi);
+        }
         e += (long double)v[2] * v[2] + (long double)v[3] * v[3];
         double *q = prev + 4 * i;
         if (dump17 && step_of_block == prev_step + 1 &&
-            !(v[2] == q[2] && v[3] == q[3] && v[0] == clamp(q[0] + q[2], lo, hi) &&
-              v[1] == clamp(q[1] + q[3], lo, hi)))
+            !(v[2] == q[2] && v[3] == q[3] && v[0] == into_box(q[0] + q[2], lo, hi, L) &&
+              v[1] == into_box(q[1] + q[3], lo, hi, L)))
             moved[i]++;
         memcpy(q, v, sizeof v);
         xy[2 * i] = v[0];
         xy[2 * i + 1] = v[1];
         if (last) {
             long long p = parse_count(f[6], fl[6], "p"), w = parse_count(f[7], fl[7], "w");
+            if (periodic && w != 0) die("w = %lld in the periodic box, which has no walls", w);
             if (!exact && p + w > steps)
                 die("p + w = %lld exceeds S = %lld (one event per step)", p + w, steps);
             if (!exact && moved[i] > p + w)

@@ -7,6 +7,16 @@
  * the file as read. Above BAND_DISKS disks the box is cut into horizontal bands, each with its own
  * random stream, filled in parallel (even bands, then odd ones); the file depends on N and the seed,
  * never on the thread count.
+ *
+ * --periodic writes a scene for the periodic box (SPEC.md 7): centres in [0, L), no two disks
+ * overlapping by the nearest image (the simulator then needs --periodic too). --lattice writes a
+ * triangular crystal filling the periodic box at the given area fraction: nx disks a row, ny rows (ny
+ * even, so that the offset rows repeat across the edge), N = nx ny. No triangular lattice is periodic
+ * in a square exactly (its rows are sqrt(3)/2 of its columns apart), so the pair (nx, ny) whose ratio
+ * ny / nx is nearest 2 / sqrt(3) is chosen and the lattice stretched by that little (0.07% for N = 780,
+ * 0.28% for 418) to fill the L x L box exactly; N without such a pair within 0.5% is refused with the
+ * nearest counts that have one. Positions and velocities are printed with 17 digits (the crystal is
+ * exact to rounding), the velocities with their mean taken off (zero total momentum, to rounding).
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -32,7 +42,12 @@ static const char usage_text[] =
     "  --overlap      centres uniform, overlaps allowed\n"
     "  --fast F       a fraction F of the disks, drawn at random, moves --fast-speed instead: a\n"
     "                 mixed scene (with --fast 0 the same scene, every disk at its own speed)\n"
-    "  --fast-speed K speed of the fast disks: K*L per step (default 0.25, a quarter of the box)\n";
+    "  --fast-speed K speed of the fast disks: K*L per step (default 0.25, a quarter of the box)\n"
+    "  --periodic     for the periodic box (SPEC.md 7): centres in [0, L), no overlaps by the\n"
+    "                 nearest image\n"
+    "  --lattice      a triangular crystal filling the periodic box at --fraction (N = nx * ny,\n"
+    "                 ny rows of nx, ny even, ny / nx near 2 / sqrt(3)); speeds as --speed,\n"
+    "                 zero total momentum\n";
 
 static void die(const char *msg, const char *arg)
 {
@@ -64,6 +79,7 @@ typedef struct {
     int64_t n, cells, bands;
     double lo, hi, sigma2, cell, smin, smax;
     int overlap;
+    int periodic; /* centres in [lo, hi) = [0, L), overlaps by the nearest image, cells that wrap */
     double fast, fast_speed; /* --fast: fraction of fast disks (-1: option not given), their speed */
     int32_t *head, *next; /* disks by cell: first disk of each cell, next disk of each disk */
     double *x, *y;
@@ -101,6 +117,54 @@ static void band_append(Band *bd, const char *line)
     bd->len += len;
 }
 
+/* A difference of two coordinates: in the periodic box its nearest image. */
+static double nearest(const Scene *sc, double d)
+{
+    double L = sc->hi;
+    if (!sc->periodic) return d;
+    return d > L / 2 ? d - L : (d < -L / 2 ? d + L : d);
+}
+
+/* --lattice: the crystal of n = nx ny disks in ny rows (ny even) whose ratio ny / nx lies nearest
+ * 2 / sqrt(3), stretched to fill the L x L box (see the top); die where no pair comes within 0.5%. */
+static void lattice(int64_t n, double L, double speed, uint64_t seed, const char *header)
+{
+    const double ideal = 2 / sqrt(3.0);
+    int64_t nx = 0, ny = 0;
+    for (int64_t c = 1; c * c <= 2 * n; c++) {
+        if (n % c || (n / c) % 2) continue;
+        if (!nx || fabs((double)(n / c) / (double)c / ideal - 1) < fabs((double)ny / (double)nx / ideal - 1))
+            nx = c, ny = n / c;
+    }
+    double stretch = nx ? (double)ny / (double)nx / ideal - 1 : 1;
+    if (fabs(stretch) > 0.005) {
+        fprintf(stderr, "gen: --lattice: no %lld = nx * ny (ny even) with ny / nx within 0.5%% of 2 / sqrt(3); "
+                "counts that have one:", (long long)n);
+        for (int64_t c = 2, shown = 0; shown < 8 && c < 1000; c++)
+            for (int64_t r = 2; r < 1200; r += 2)
+                if (fabs((double)r / (double)c / ideal - 1) <= 0.003 && shown < 8 && llabs(c * r - n) < n + 1000)
+                    fprintf(stderr, " %lld (%lld x %lld)", (long long)(c * r), (long long)c, (long long)r), shown++;
+        fputc('\n', stderr);
+        exit(1);
+    }
+    double ax = L / (double)nx, by = L / (double)ny, *v = malloc(2 * (size_t)n * sizeof *v), mx = 0, my = 0;
+    if (!v) die("out of memory", NULL);
+    fputs(header, stdout);
+    uint64_t state = seed;
+    for (int64_t i = 0; i < n; i++) {
+        double s = speed * rng_unit(&state), a = 6.283185307179586 * rng_unit(&state);
+        v[2 * i] = s * cos(a), v[2 * i + 1] = s * sin(a);
+        mx += v[2 * i] / (double)n, my += v[2 * i + 1] / (double)n;
+    }
+    for (int64_t j = 0, i = 0; j < ny; j++)
+        for (int64_t k = 0; k < nx; k++, i++)
+            printf("%lld %.17g %.17g %.17g %.17g\n", (long long)i, ((double)k + (j % 2 ? 0.75 : 0.25)) * ax,
+                   ((double)j + 0.5) * by, v[2 * i] - mx, v[2 * i + 1] - my);
+    fprintf(stderr, "gen: --lattice: %lld rows of %lld, stretched %+.3f%% from equilateral; neighbours %.17g and "
+            "%.17g apart\n", (long long)ny, (long long)nx, 100 * stretch, ax, sqrt(ax * ax / 4 + by * by));
+    free(v);
+}
+
 /* Places the disks of band b, those with indices [n b / bands, n (b + 1) / bands), centres in its strip
  * of [lo, hi]; with one band: the whole box, stream seed, as the generator always did. */
 static void place_band(Scene *sc, int64_t b, uint64_t seed)
@@ -126,6 +190,7 @@ static void place_band(Scene *sc, int64_t b, uint64_t seed)
             sc->x[i] = printed(fmin(hi, lo + span * rng_unit(&state)), text[0]);
             sc->y[i] = printed(fmin(yhi, ylo + (yhi - ylo) * rng_unit(&state)), text[1]);
             if (sc->x[i] < lo || sc->x[i] > hi || sc->y[i] < lo || sc->y[i] > hi) continue;
+            if (sc->periodic && (sc->x[i] >= hi || sc->y[i] >= hi)) continue; /* [0, L) as printed */
             cx = (int64_t)(sc->x[i] / sc->cell);
             cy = (int64_t)(sc->y[i] / sc->cell);
             if (cx >= cells) cx = cells - 1;
@@ -133,9 +198,10 @@ static void place_band(Scene *sc, int64_t b, uint64_t seed)
             int clear = 1;
             for (int64_t ny = cy - 1; ny <= cy + 1 && clear && !sc->overlap; ny++)
                 for (int64_t nx = cx - 1; nx <= cx + 1 && clear; nx++) {
-                    if (nx < 0 || ny < 0 || nx >= cells || ny >= cells) continue;
-                    for (int32_t j = sc->head[ny * cells + nx]; j >= 0 && clear; j = sc->next[j]) {
-                        double dx = sc->x[j] - sc->x[i], dy = sc->y[j] - sc->y[i];
+                    int64_t ux = sc->periodic ? (nx + cells) % cells : nx, uy = sc->periodic ? (ny + cells) % cells : ny;
+                    if (ux < 0 || uy < 0 || ux >= cells || uy >= cells) continue;
+                    for (int32_t j = sc->head[uy * cells + ux]; j >= 0 && clear; j = sc->next[j]) {
+                        double dx = nearest(sc, sc->x[j] - sc->x[i]), dy = nearest(sc, sc->y[j] - sc->y[i]);
                         clear = dx * dx + dy * dy >= sc->sigma2;
                     }
                 }
@@ -164,13 +230,15 @@ int main(int argc, char **argv)
     double r = 1, fraction = 0.2, L = 0, speed = 0.5, fast = -1, fast_speed = 0.25;
     long long steps = 100;
     uint64_t seed = 1;
-    int assignment = 0, overlap = 0;
+    int assignment = 0, overlap = 0, periodic = 0, crystal = 0;
     const char *mode = "perf";
     for (int k = 2; k < argc; k++) {
         const char *a = argv[k];
         int has = k + 1 < argc;
         if (strcmp(a, "--assignment") == 0) assignment = 1;
         else if (strcmp(a, "--overlap") == 0) overlap = 1;
+        else if (strcmp(a, "--periodic") == 0) periodic = 1;
+        else if (strcmp(a, "--lattice") == 0) crystal = periodic = 1;
         else if (!has) die("missing value after", a);
         else if (strcmp(a, "--r") == 0) r = number(argv[++k]);
         else if (strcmp(a, "--fraction") == 0) fraction = number(argv[++k]);
@@ -185,15 +253,27 @@ int main(int argc, char **argv)
     }
     if (L == 0) L = sqrt((double)n * 3.141592653589793 * r * r / fraction);
     char text[2][32];
-    L = printed(L, text[0]);
-    r = printed(r, text[1]);
+    if (crystal) { /* the side as printed fixes the crystal: every digit */
+        snprintf(text[0], 32, "%.17g", L);
+        snprintf(text[1], 32, "%.17g", r);
+    }
+    L = crystal ? strtod(text[0], NULL) : printed(L, text[0]);
+    r = crystal ? strtod(text[1], NULL) : printed(r, text[1]);
     if (!(r > 0 && 2 * r < L)) die("radius does not fit the box", NULL);
+    if (periodic && !(4 * r < L)) die("--periodic needs 4r < L", NULL);
+    if (crystal) {
+        char header[160];
+        snprintf(header, sizeof header, "%lld\n%s\n%s\n%lld\n%s\n", (long long)n, text[0], text[1], steps, mode);
+        lattice(n, L, speed * r, seed, header);
+        return fflush(stdout) == 0 && !ferror(stdout) ? 0 : 1;
+    }
 
     Scene sc;
     memset(&sc, 0, sizeof sc);
     sc.n = n;
-    sc.lo = r;
-    sc.hi = L - r;
+    sc.lo = periodic ? 0 : r;
+    sc.hi = periodic ? L : L - r;
+    sc.periodic = periodic;
     sc.sigma2 = (r + r) * (r + r);
     sc.overlap = overlap;
     sc.smax = speed * r;
@@ -212,6 +292,7 @@ int main(int argc, char **argv)
     /* a band at least 4 cell rows high, so that bands two apart never look at the same cells */
     sc.bands = n > BAND_DISKS ? (n + BAND_DISKS - 1) / BAND_DISKS : 1;
     if (sc.bands > sc.cells / 4) sc.bands = sc.cells / 4 > 1 ? sc.cells / 4 : 1;
+    if (periodic && sc.bands > 1 && sc.bands % 2) sc.bands--; /* the first and last bands meet: parities differ */
     sc.head = malloc((size_t)(sc.cells * sc.cells) * sizeof *sc.head);
     sc.next = malloc((size_t)n * sizeof *sc.next);
     sc.x = malloc((size_t)n * sizeof *sc.x);

@@ -1,13 +1,14 @@
 /* tools/measure.c: accuracy measures of one simulator output (tools/accuracy.sh uses them).
  *
- * usage: tools/measure [--depth D] INPUT [OUTPUT|-]
+ * usage: tools/measure [--depth D] [--periodic] INPUT [OUTPUT|-]
  *
  * INPUT gives N, L and r (its first three records); OUTPUT (default: standard input) is what a program
  * printed for it, in print or perf mode, with %.8f or --dump17 reals. Each state (N lines, one step) is
  * measured as it streams past, so outputs of many gigabytes need only O(N) memory:
  * - overlaps: pairs closer than 2r (deeper than D when --depth is given). A grid of cells at least 2r
  *   wide finds them in O(N) per state; the hard-disk model allows none, so every one is an error of the
- *   dynamics (or, at the depth of a rounding error, of the arithmetic).
+ *   dynamics (or, at the depth of a rounding error, of the arithmetic). With --periodic (an output of
+ *   the periodic box, SPEC.md 7) by the nearest image, the grid's cells wrapping.
  * - kinetic energy E = sum (vx^2 + vy^2) / 2 (unit masses) of every state, its drift
  *   max |E(t) - E(0)| / E(0), and kT = <v^2> / 2 = mean E / N (2D).
  * - collisions per unit time, from the final state's counts: pair collisions sum(p) / 2, wall
@@ -24,10 +25,11 @@
 #include <string.h>
 
 static const char usage_text[] =
-    "usage: tools/measure [--depth D] INPUT [OUTPUT|-]\n"
+    "usage: tools/measure [--depth D] [--periodic] INPUT [OUTPUT|-]\n"
     "  INPUT     the simulator input (N, L and r are read from it)\n"
     "  OUTPUT    the program's stdout, print or perf mode, %.8f or --dump17 (default: stdin)\n"
     "  --depth D count only overlaps deeper than D (default 0: every pair closer than 2r)\n"
+    "  --periodic  the output of a --periodic run: overlaps by the nearest image\n"
     "Prints one line of key=value pairs: states, overlap fraction of states, overlapping pairs per\n"
     "state, mean and max penetration 2r - distance, energy drift, kT, collisions per unit time.\n";
 
@@ -90,6 +92,7 @@ static long long parse_int(const char *s, const char *end, int field)
 typedef struct {
     int64_t n;
     double L, r, sigma, sigma2, depth;
+    int periodic;            /* --periodic: nearest images, cells that wrap (3 or more a side, else 1) */
     double *x, *y, *vx, *vy; /* the state being read, n each */
     int64_t cells;           /* grid side in cells, each at least 2r wide */
     double cell;             /* cell width */
@@ -108,6 +111,13 @@ static int64_t cell_coord(const Measure *m, double c)
     if (!(k >= 0)) return 0; /* also a centre left of the box */
     if (k >= (double)m->cells) return m->cells - 1;
     return (int64_t)k;
+}
+
+/* A difference of two coordinates; with --periodic its nearest image (SPEC.md 7). */
+static double nearest(const Measure *m, double d)
+{
+    if (!m->periodic) return d;
+    return d > m->L / 2 ? d - m->L : (d < -m->L / 2 ? d + m->L : d);
 }
 
 /* Overlapping pairs of the state: each cell against itself and its E, NE, N and NW neighbours, so
@@ -132,13 +142,15 @@ static void measure_overlaps(Measure *m)
             int64_t a = cy * c + cx;
             for (int k = 0; k < 5; k++) {
                 int64_t nx = cx + dx[k], ny = cy + dy[k];
+                if (m->periodic && k > 0 && c == 1) continue; /* one cell: its own neighbour */
+                if (m->periodic) nx = (nx + c) % c, ny = ny % c;
                 if (nx < 0 || nx >= c || ny >= c) continue;
                 int64_t b = ny * c + nx;
                 for (int64_t p = m->start[a]; p < m->start[a + 1]; p++) {
                     int64_t i = m->order[p];
                     for (int64_t q = k == 0 ? p + 1 : m->start[b]; q < m->start[b + 1]; q++) {
                         int64_t j = m->order[q];
-                        double ex = m->x[j] - m->x[i], ey = m->y[j] - m->y[i];
+                        double ex = nearest(m, m->x[j] - m->x[i]), ey = nearest(m, m->y[j] - m->y[i]);
                         double d2 = ex * ex + ey * ey;
                         if (!(d2 < m->sigma2)) continue;
                         double depth = m->sigma - sqrt(d2);
@@ -213,6 +225,8 @@ int main(int argc, char **argv)
                 fprintf(stderr, "measure: bad --depth %s\n", argv[k]);
                 return 2;
             }
+        } else if (strcmp(argv[k], "--periodic") == 0) {
+            m.periodic = 1;
         } else if (named < 2) {
             names[named++] = argv[k];
         } else {
@@ -240,7 +254,7 @@ int main(int argc, char **argv)
     m.sigma2 = m.sigma * m.sigma;
     double fit = floor(m.L / m.sigma), side = floor(sqrt((double)n)) + 1;
     m.cells = (int64_t)(side < fit ? side : fit);
-    if (m.cells < 1) m.cells = 1;
+    if (m.cells < 1 || (m.periodic && m.cells < 3)) m.cells = 1;
     m.cell = m.L / (double)m.cells;
     m.x = malloc((size_t)n * sizeof(double));
     m.y = malloc((size_t)n * sizeof(double));

@@ -1,6 +1,6 @@
 /* tools/xyz.c: a simulator output as extended XYZ, one frame per printed step, for ASE, OVITO or VMD.
  *
- * usage: tools/xyz INPUT [OUTPUT|-]
+ * usage: tools/xyz [--periodic] INPUT [OUTPUT|-]
  *
  * INPUT is the simulator input (its header gives N, L, r, S and print|perf; particle lines are not read);
  * OUTPUT (default: standard input) is what a program printed for it: step 0, then (print mode) steps
@@ -11,6 +11,9 @@
  *   i x y 0 vx vy 0 r                      (N lines, i = 0..N-1)
  * and the final step's frame adds the counts as two more columns, declared as
  * ":collisions:I:1:wall_collisions:I:1" at the end of its Properties, so that nothing is lost.
+ * With --periodic (the output of a --periodic run: the input's format has no mark of it) the frames
+ * say pbc="T T F": the box wraps along x and y (SPEC.md 7), and a reader draws the disks across the
+ * edges and measures distances by the nearest image.
  * x, y, vx and vy are copied as the bytes the program printed (never read back into doubles and printed
  * again), so the frames hold exactly what the output held; L, r and T are printed in the fewest digits
  * that read back as the same double.
@@ -33,7 +36,7 @@
 #include <string.h>
 
 static const char usage_text[] =
-    "usage: tools/xyz INPUT [OUTPUT|-] > frames.xyz\n"
+    "usage: tools/xyz [--periodic] INPUT [OUTPUT|-] > frames.xyz\n"
     "  INPUT   the simulator input file (N, L, r, S and print|perf are read from its header)\n"
     "  OUTPUT  the program's stdout for it, print or perf mode, %.8f or --dump17 (default or -: stdin)\n"
     "Writes extended XYZ, one frame per printed step (step 0, each printed step, step S):\n"
@@ -43,6 +46,7 @@ static const char usage_text[] =
     "The final frame (step S) also has the collision counts p and w as two more columns, declared by\n"
     "appending :collisions:I:1:wall_collisions:I:1 to its Properties. The third axis is a slab 2r\n"
     "thick (a disk's diameter) with every centre at z = 0; pbc is off (the walls reflect).\n"
+    "--periodic: OUTPUT is a --periodic run's (SPEC.md 7): pbc=\"T T F\", the box wraps along x, y.\n"
     "Streams in constant memory. A malformed or mismatched OUTPUT or a bad INPUT header: one line\n"
     "\"xyz: FILE:LINE: problem\" on stderr and exit status 1 (frames before it may have been written);\n"
     "a missing file or a failed write: exit status 1; bad usage: exit status 2.\n";
@@ -261,13 +265,15 @@ static void put(const char *s, size_t len)
     if (fwrite(s, 1, len, stdout) != len) write_failed();
 }
 
+static int periodic; /* --periodic: the box wraps along x and y */
+
 /* A frame's two header lines. */
 static void frame_header(const Header *h, long long step, int counted)
 {
     if (printf("%lld\nLattice=\"%s 0 0 0 %s 0 0 0 %s\" Properties=id:I:1:pos:R:3:velo:R:3:radius:R:1%s "
-               "Time=%lld pbc=\"F F F\"\n",
+               "Time=%lld pbc=\"%s\"\n",
                h->n, h->L_text, h->L_text, h->T_text,
-               counted ? ":collisions:I:1:wall_collisions:I:1" : "", step) < 0)
+               counted ? ":collisions:I:1:wall_collisions:I:1" : "", step, periodic ? "T T F" : "F F F") < 0)
         write_failed();
 }
 
@@ -281,6 +287,8 @@ int main(int argc, char **argv)
         if (strcmp(argv[k], "--help") == 0) {
             fputs(usage_text, stdout);
             return 0;
+        } else if (strcmp(argv[k], "--periodic") == 0 && named == 0) {
+            periodic = 1;
         } else if ((argv[k][0] == '-' && argv[k][1] != '\0') || named == 2) {
             fputs(usage_text, stderr);
             return 2;

@@ -7,11 +7,13 @@ rounding at all and its result is the rational answer written out in README.md. 
 IEEE rules (x + y == 0 is +0 unless both are -0; products and quotients take the xor of the signs).
 A value that needed rounding is marked inexact; printing an inexact value is an error.
 
-usage: tests/hard/derive.py [--inexact] CASE.in  ->  the expected stdout on stdout
+usage: tests/hard/derive.py [--inexact] [--periodic] CASE.in  ->  the expected stdout on stdout
 
 With --inexact it skips the exactness checks and prints whatever IEEE double arithmetic gives: an
 independent implementation of SPEC.md section 3 (Python floats are IEEE doubles, never fused), used to
-cross-check seq on scenes whose numbers are not dyadic.
+cross-check seq on scenes whose numbers are not dyadic. With --periodic it works SPEC.md section 7
+(the periodic box: no walls, nearest images, coordinates brought into [0, L) by fmod, exact too)
+instead.
 """
 import math
 import sys
@@ -63,8 +65,29 @@ def wall_time(c, v, lo, hi):
     return t
 
 
+PERIODIC = None  # (L, half) with --periodic
+
+
+def wrap(d):
+    """SPEC.md 7's nearest image of a difference of two coordinates (the identity without --periodic)."""
+    if PERIODIC is None: return d
+    L, half = PERIODIC
+    if d > half: return d - L
+    if d < -half: return d + L
+    return d
+
+
+def into_box(c):
+    """SPEC.md 7: x = fmod(x, L); if (x < 0) x += L; if (x >= L) x -= L (fmod is exact)."""
+    L = PERIODIC[0]
+    c = X(math.fmod(c.v, L.v), c.ok)
+    if c < 0: c = c + L
+    if not c < L: c = c - L
+    return c
+
+
 def pair_time(p, q, sigma2):
-    dx, dy = q[0] - p[0], q[1] - p[1]
+    dx, dy = wrap(q[0] - p[0]), wrap(q[1] - p[1])
     dvx, dvy = q[2] - p[2], q[3] - p[3]
     b = dx * dvx + dy * dvy
     dd = dx * dx + dy * dy
@@ -79,6 +102,9 @@ def pair_time(p, q, sigma2):
 
 def finish(d, t1, lo, hi):
     rem = X(1) - t1
+    if PERIODIC is not None:  # no wall, no stop
+        d[0], d[1] = d[0] + d[2] * rem, d[1] + d[3] * rem
+        return
     tx, ty = wall_time(d[0], d[2], lo, hi), wall_time(d[1], d[3], lo, hi)
     t2 = ty if ty < tx else tx
     if t2 <= rem:
@@ -92,7 +118,7 @@ def finish(d, t1, lo, hi):
 def step(ds, cnt, lo, hi, sigma2):
     n = len(ds)
     ev = []
-    for i in range(n):
+    for i in range(n if PERIODIC is None else 0):
         tx, ty = wall_time(ds[i][0], ds[i][2], lo, hi), wall_time(ds[i][1], ds[i][3], lo, hi)
         tw = ty if ty < tx else tx
         if tw <= 1: ev.append((tw, 0, i, i))
@@ -125,7 +151,7 @@ def step(ds, cnt, lo, hi, sigma2):
             p, q = ds[a], ds[b]
             for d in (p, q):
                 d[0], d[1] = d[0] + d[2] * t1, d[1] + d[3] * t1
-            nx, ny = q[0] - p[0], q[1] - p[1]
+            nx, ny = wrap(q[0] - p[0]), wrap(q[1] - p[1])
             ln = sqrt(nx * nx + ny * ny)
             if not ln == 0:
                 ux, uy = nx / ln, ny / ln
@@ -139,6 +165,9 @@ def step(ds, cnt, lo, hi, sigma2):
             cnt[b][0] += 1
     for d in ds:
         for k in (0, 1):
+            if PERIODIC is not None:
+                d[k] = into_box(d[k])
+                continue
             if d[k] < lo: d[k] = lo
             if d[k] > hi: d[k] = hi
 
@@ -149,13 +178,16 @@ def fmt(v):
 
 
 def main():
-    global EXACT
+    global EXACT, PERIODIC
     args = sys.argv[1:]
-    if args[0] == "--inexact":
-        EXACT = False
+    periodic = False
+    while args[0] in ("--inexact", "--periodic"):
+        EXACT = EXACT and args[0] != "--inexact"
+        periodic = periodic or args[0] == "--periodic"
         args = args[1:]
     tok = [l.split() for l in open(args[0]) if l.strip()]
     n, L, r, S, mode = int(tok[0][0]), X(tok[1][0]), X(tok[2][0]), int(tok[3][0]), tok[4][0]
+    if periodic: PERIODIC = (L, L / X(2))
     ds = [None] * n
     for t in tok[5:]:
         ds[int(t[0])] = [X(s) for s in t[1:5]]
