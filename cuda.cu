@@ -160,6 +160,9 @@ typedef struct {
     int levels;     /* speed levels (disk_level): 1 where K = 1 */
     double vlev;    /* the largest velocity component the grid is fitted to, which sets the levels */
     int wb[WMAX + 1]; /* window w holds slices wb[w] to wb[w + 1] - 1 (window_start) */
+    int periodic;   /* --periodic: the cells wrap (1 or at least 3 a side, so no cell neighbours
+                       another twice), and so do the differences between disks (wrap_delta) */
+    real Lw, halfw; /* L and L / 2 as Params holds them */
 } Grid;
 
 /* Speed levels. A disk whose velocity components are at most vmax / 2^l (vmax: the largest component
@@ -252,6 +255,7 @@ typedef struct {
     double L, r;
     int max_slices;   /* K never exceeds this: what the device holds entries for, capped */
     int64_t cell_cap; /* cells (slices x g^2) count and start hold */
+    int periodic;     /* --periodic */
 } GridLimits;
 
 /* Time slices for a step whose largest velocity component is vmax: K trades binning work (n K entries)
@@ -287,7 +291,11 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;
     if (!(gf >= 1)) gf = 1;
+    if (lim->periodic && gf == 2) gf = 1; /* two cells a side would neighbour each other twice */
     gr.g = (int64_t)gf;
+    gr.periodic = lim->periodic;
+    gr.Lw = (real)L;
+    gr.halfw = gr.Lw / 2;
     gr.cs = L / (double)gr.g;
     gr.inv_cs = (double)gr.g / L;
     gr.ncell = (uint32_t)(gr.g * gr.g);
@@ -377,8 +385,10 @@ static __device__ __forceinline__ int64_t cell_of(double c, double inv_cs, int64
     return (int64_t)q;
 }
 
-static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, real vy, real lo, real hi)
+static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, real vy, const Params &par)
 {
+    if (par.periodic) return NO_EVENT; /* no walls */
+    real lo = par.lo, hi = par.hi;
     real tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
@@ -587,6 +597,11 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         real2 pos = st.pos[s];
         double f = slice_mid(k, l, gr.K);
         double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
+        if (gr.periodic) { /* into [0, L): the cells wrap with the box */
+            double L = (double)gr.Lw;
+            mx = mx - L * floor(mx / L);
+            my = my - L * floor(my / L);
+        }
         int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
         uint32_t key = (uint32_t)(x.row * gr.ncell + cy * gr.g + cx);
         keys[e] = key;
@@ -625,7 +640,7 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     out.pos[p] = pos;
     out.vel[p] = vel;
     out.id[p] = id;
-    slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi), wall_hi, best_hi, best_lo, partner);
+    slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
@@ -775,7 +790,7 @@ __global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par
     int l = 0;
     if (s < n) {
         real2 pos = st.pos[s], vel = st.vel[s];
-        uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par.lo, par.hi);
+        uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par);
         slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
         uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);
         wall_win[s] = seen;
@@ -859,7 +874,10 @@ typedef struct {
     uint64_t wall;
     int32_t id;
     uint32_t k, c, na, b0, nb;
-    float4 mid;
+    union {
+        float4 mid; /* K > 1 */
+        uint4 edge; /* K = 1 in the periodic box: two more runs across the edges (first, count twice) */
+    };
 } Probe;
 
 #define PROBE_LEVEL(k) ((k) >> 16)
@@ -889,9 +907,18 @@ static __device__ __forceinline__ float fast_rcp(float a)
  * float operations against the pair test's dozens in double and its 40 bytes of loads: in the assignment's
  * random scene the cells are as wide as the fastest disk's travel in a slice, and most pairs in
  * neighbouring cells pass far from each other. Not finite (speeds near the float range): kept. */
-static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, float h, float pad2)
+static __device__ __forceinline__ float wrap_float(float d, bool periodic, float L, float half)
 {
-    float dx = __fmaf_rn(c.z, dt, c.x - m.x), dy = __fmaf_rn(c.w, dt, c.y - m.y); /* c - m at the probe's middle */
+    if (periodic) d = d > half ? d - L : (d < -half ? d + L : d);
+    return d;
+}
+
+static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, float h, float pad2, bool periodic,
+                                                 float L, float half)
+{
+    /* c - m at the probe's middle (periodic: the nearest image) */
+    float dx = __fmaf_rn(c.z, dt, wrap_float(c.x - m.x, periodic, L, half));
+    float dy = __fmaf_rn(c.w, dt, wrap_float(c.y - m.y, periodic, L, half));
     float ux = c.z - m.z, uy = c.w - m.w;                                         /* and its rate */
     float a = __fmaf_rn(ux, ux, uy * uy), b = __fmaf_rn(dx, ux, dy * uy);
     float tau = fminf(fmaxf(-b * fast_rcp(a), -h), h); /* a = 0: NaN, then -h (any time is closest) */
@@ -919,7 +946,9 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
-    real t = pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
+    real t = gr.periodic ? pair_time_wrap(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y,
+                                          sigma2, gr.Lw, gr.halfw, 1)
+                         : pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
     if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
@@ -1007,15 +1036,17 @@ static __device__ __forceinline__ float level_offset(const Probe &pr, uint32_t b
  * the column's length (bits 16 and up) and where its levels begin (Cursor: lv); returns its
  * candidates. k0, k1: the window's slices. */
 static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Grid &gr, int k0, int k1,
-                                                      const uint32_t *__restrict__ start, uint2 *runs, float *dts,
-                                                      uint32_t t, uint32_t *shape)
+                                                      const uint32_t *__restrict__ start, uint4 edge, uint2 *runs,
+                                                      float *dts, uint32_t t, uint32_t *shape)
 {
     uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
     uint32_t cy = pr.c / g, cx = pr.c - cy * g;
     uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
     uint32_t slots = 0, lv = 0;
     if (pr.nb > 0) runs[slots++ * THREADS + t] = make_uint2(pr.b0, pr.b0 + pr.nb);
-    uint32_t total = pr.na + pr.nb;
+    if (edge.y > 0) runs[slots++ * THREADS + t] = make_uint2(edge.x, edge.x + edge.y); /* periodic: one level */
+    if (edge.w > 0) runs[slots++ * THREADS + t] = make_uint2(edge.z, edge.z + edge.w);
+    uint32_t total = pr.na + pr.nb + edge.y + edge.w;
     dts[t] = 0;
     for (uint32_t b = a + 1; b < (uint32_t)gr.levels; b++) {
         lv |= slots << (8 * (b - a - 1));
@@ -1073,6 +1104,40 @@ static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t &q0, uin
     cu.q = got0 ? cu.q + 2 : cu.q;
 }
 
+/* The periodic box's runs of a probe in cell cx of a row whose first cell is `row` (g >= 3 cells a
+ * side), the row below it starting at `below` (row 0 below the last): the three cells below, cx - 1 to
+ * cx + 1 wrapped, as the run *b0, *nb of the two that lie together and a second run of the third where
+ * the row wraps (edge.x, edge.y); the cell right of the last one, the row's first (edge.z, edge.w).
+ * Every pair of neighbouring cells is then searched once, as in the walled box's half of the 3x3 cells. */
+static __device__ __forceinline__ uint4 edge_runs(const uint32_t *__restrict__ start, uint32_t row, uint32_t below,
+                                                  uint32_t cx, uint32_t g, uint32_t *b0, uint32_t *nb)
+{
+    uint4 e = make_uint4(0, 0, 0, 0);
+    uint32_t lo = cx == 0 ? 0 : cx - 1, hi = cx + 1 < g ? cx + 1 : g - 1; /* the cells below that lie together */
+    *b0 = __ldg(&start[below + lo]);
+    *nb = __ldg(&start[below + hi + 1]) - *b0;
+    uint32_t w = cx == 0 ? g - 1 : (cx == g - 1 ? 0 : g); /* the cell below across the edge, g: none */
+    if (w < g) {
+        e.x = __ldg(&start[below + w]);
+        e.y = __ldg(&start[below + w + 1]) - e.x;
+    }
+    if (cx == g - 1) {
+        e.z = __ldg(&start[row]);
+        e.w = __ldg(&start[row + 1]) - e.z;
+    }
+    return e;
+}
+
+/* Candidate i of probe po at entry p: its own row's rest, the row below, then the edges' runs. */
+static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p, uint32_t i)
+{
+    if (i < po.na) return p + 1 + i;
+    i -= po.na;
+    if (i < po.nb) return po.b0 + i;
+    i -= po.nb;
+    return i < po.edge.y ? po.edge.x + i : po.edge.z + (i - po.edge.y);
+}
+
 /* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
  * window's launch is sized for all of its disks, of which few are left), else one tile each (the loop's
  * state spilled registers: 6% slower at N = 32000). */
@@ -1121,7 +1186,10 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             }
             pr.c = c;
             pr.na = __ldg(&start[row + x1 + 1]) - (p + 1);
-            if (cy + 1 < g) {
+            uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */
+            if (gr.periodic && g >= 3) {
+                edge = edge_runs(start, row, kl * gr.ncell + (cy + 1 < g ? (cy + 1) * g : 0), cx, g, &pr.b0, &pr.nb);
+            } else if (cy + 1 < g) {
                 pr.b0 = __ldg(&start[row + g + x0]);
                 pr.nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
             }
@@ -1130,7 +1198,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             pr.id = __ldg(&en.id[p]);
             pr.wall = __ldg(&en.wall[p]);
             if (MID) pr.mid = __ldg(&en.mid[p]);
-            if (MID) seen = probe_runs(pr, gr, (int)k0, (int)k1, start, runs, dts, threadIdx.x, &first[threadIdx.x]);
+            else pr.edge = edge;
+            if (MID)
+                seen = probe_runs(pr, gr, (int)k0, (int)k1, start, edge, runs, dts, threadIdx.x, &first[threadIdx.x]);
         } else if (MID) {
             first[threadIdx.x] = 0;
         }
@@ -1154,6 +1224,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             const float4 m = mine.mid;
             const int2 span = level_span(PROBE_LEVEL(mine.k), PROBE_SLICE(mine.k), gr.K);
             const float h = (float)(span.y - span.x) / (float)(2 * gr.K), pad2 = gr.pad * gr.pad;
+            const bool wrap = gr.periodic;
+            const float wl = (float)gr.Lw, wh = wl / 2;
             Cursor cu = cursor_start(p, mine.na, first[threadIdx.x], end, p0);
             uint32_t *wq = queue[warp];
             uint8_t *wo = queue_owner[warp];
@@ -1165,7 +1237,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if (!__any_sync(0xffffffffu, got0)) break;
                 float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
                 /* screened whether got or not (cursor_take: an entry there is), so no branch */
-                bool keep0 = near_path(m, m0, cu.dt, h, pad2) & got0, keep1 = near_path(m, m1, cu.dt, h, pad2) & got1;
+                bool keep0 = near_path(m, m0, cu.dt, h, pad2, wrap, wl, wh) & got0;
+                bool keep1 = near_path(m, m1, cu.dt, h, pad2, wrap, wl, wh) & got1;
                 if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
                 held = queue_push(wq, wo, held, keep0, q0, lane);
                 held = queue_push(wq, wo, held, keep1, q1, lane);
@@ -1188,7 +1261,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits,
              * and is exact wherever it is within the limit */
             const uint32_t deal = DEAL_MAX * THREADS;
-            uint32_t count = pr.na + pr.nb, offset, total;
+            uint32_t count = pr.na + pr.nb + pr.edge.y + pr.edge.w, offset, total;
             Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
             if (total > deal) { /* block-uniform */
                 __syncthreads();
@@ -1197,8 +1270,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair(en, gr, po, p, i < po.na ? p + 1 + i : po.b0 + (i - po.na), sigma2, &be, ev, cap,
-                              found, best_hi);
+                    test_pair(en, gr, po, p, candidate(po, p, i), sigma2, &be, ev, cap, found, best_hi);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -1207,8 +1279,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    uint32_t q = i < po.na ? p0 + o + 1 + i : po.b0 + (i - po.na);
-                    test_pair(en, gr, po, p0 + o, q, sigma2, &be, ev, cap, found, best_hi);
+                    test_pair(en, gr, po, p0 + o, candidate(po, p0 + o, i), sigma2, &be, ev, cap, found, best_hi);
                 }
             }
         }
@@ -1402,16 +1473,22 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
             real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
             real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
-            pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
+            if (par.periodic)
+                (void)pair_contact_wrap(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1, par.L, par.half);
+            else
+                (void)pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
             x = mine_first ? xi : xj, y = mine_first ? yi : yj;
             vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
-            finish_step(&x, &y, vx, vy, t1, lo, hi);
+            if (par.periodic)
+                fly_rest(&x, &y, vx, vy, t1);
+            else
+                finish_step(&x, &y, vx, vy, t1, lo, hi);
             pc[id]++;
             accepted = mine_first;
         }
         real2 pos1, vel1;
-        pos1.x = clamp_coord(x, lo, hi);
-        pos1.y = clamp_coord(y, lo, hi);
+        pos1.x = par.periodic ? wrap_coord(x, par.L) : clamp_coord(x, lo, hi);
+        pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
         vel1.x = vx;
         vel1.y = vy;
         out.pos[s] = pos1;
@@ -1690,6 +1767,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     lim->n = n;
     lim->L = par->L;
     lim->r = par->r;
+    lim->periodic = par->periodic;
     lim->max_slices = cap / n >= 1 ? (int)(cap / n) : 1;
     int64_t entry_most = n * lim->max_slices;
     lim->cell_cap = 3 * entry_most > (1LL << 22) ? 3 * entry_most : (1LL << 22);
@@ -1872,8 +1950,8 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
     /* speed levels, as many as the slices and windows allow: a window's first slice must be a multiple
      * of every level's slice length (window_start: F, 2F, 4F, ...), and its rows of cells must fit the
      * cell table (a step's gate takes these levels, with no more slices nor cells per side) */
-    pl.levels = 1;
-    if (pl.K > 1)
+    pl.levels = 1; /* the periodic box: one level, so that its runs across the edges fit a probe's column */
+    if (pl.K > 1 && !c->par.periodic)
         while (pl.levels < LEVELS && (1 << pl.levels) < pl.K && (pl.W == 1 || pl.F % (1 << pl.levels) == 0))
             pl.levels++;
     for (;;) {
@@ -2636,7 +2714,7 @@ static void cuda_prepare(const Params *par)
 /* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
 static const Backend cuda_backend = {
     "cuda" SIM_SUFFIX, "",
-    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_CHECKPOINT | SIM_FEATURE_STEP0,
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_CHECKPOINT | SIM_FEATURE_STEP0 | SIM_FEATURE_PERIODIC,
     cuda_run, cuda_prepare, cuda_parallel,
 };
 

@@ -31,8 +31,7 @@ same_bytes() {
 }
 
 # on_backends NAME EXPECTED_FILE ARGS...: same_bytes for seq, omp at 1, 2, 3 and 7 threads, and cuda
-# (SKIP without a GPU), each run as ./PROG ARGS --quiet. With CUDA_REFUSES=PATTERN cuda must refuse
-# ARGS instead, with one line matching it (an option it does not take yet: --periodic).
+# (SKIP without a GPU), each run as ./PROG ARGS --quiet.
 on_backends() {
     local name=$1 expected=$2 t
     shift 2
@@ -42,8 +41,6 @@ on_backends() {
     done
     if ! have_gpu; then
         skip "$name cuda" "no GPU"
-    elif [ -n "${CUDA_REFUSES:-}" ]; then
-        expect_error "$name cuda refuses it" "$CUDA_REFUSES" ./cuda "$@" --quiet
     else
         same_bytes "$name cuda" "$expected" ./cuda "$@" --quiet
     fi

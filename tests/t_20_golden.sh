@@ -5,9 +5,8 @@ for f in inputs/*.in; do
     b=$(basename "$f" .in)
     on_backends "golden/$b" "outputs/$b.out" "$f"
 done
-# inputs/periodic/: the periodic box (SPEC.md 7), run with --periodic; cuda does not take it yet and
-# must refuse it with one line (mpi runs these in t_86)
+# inputs/periodic/: the periodic box (SPEC.md 7), run with --periodic (mpi runs these in t_86)
 for f in inputs/periodic/*.in; do
     b=$(basename "$f" .in)
-    CUDA_REFUSES="--periodic is not supported" on_backends "golden/periodic/$b" "outputs/periodic/$b.out" "$f" --periodic
+    on_backends "golden/periodic/$b" "outputs/periodic/$b.out" "$f" --periodic
 done

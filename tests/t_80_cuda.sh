@@ -25,7 +25,12 @@ cuda_scenes() {
     echo "dense_fast tools/gen 3000 --assignment --L 2000 --overlap --steps 6"
     echo "spread     tools/gen 3000 --fraction 0.05 --speed 200 --steps 15 --seed 12"
 }
+# (the quick suite: every scene in print mode, and in perf and single precision every other one)
+k=0
 while read -r name cmd; do
+    k=$((k + 1))
+    full=1
+    if ! all_suite && [ $((k % 2)) = 0 ]; then full=0; fi
     if ! have_gpu; then
         for suf in "" _f32; do
             skip "cuda$suf/$name print" "no GPU"
@@ -47,6 +52,7 @@ while read -r name cmd; do
         for mode in print perf; do
             sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$mode.in"
             ./seq$suf "$TMP/cuda_${name}_$mode.in" --quiet > "$TMP/cuda${suf}_${name}_$mode.expected"
+            if [ "$full" = 0 ] && { [ -n "$suf" ] || [ "$mode" = perf ]; }; then continue; fi
             same_bytes "cuda$suf/$name $mode" "$TMP/cuda${suf}_${name}_$mode.expected" \
                 ./cuda$suf "$TMP/cuda_${name}_$mode.in" --quiet
         done
@@ -59,7 +65,9 @@ done <<< "$(cuda_scenes)"
 # events, so steps overflow it, are refused while batches of other plans are in flight, and run again
 # from the last committed state. The bytes stay seq's, and --stats must report both paths, or the case
 # tested nothing.
-for name in slow fast overlap walls random; do
+# (the quick suite: two of the scenes, here and in the matrices below)
+pick() { if all_suite; then echo "$1"; else echo "$2"; fi; }
+for name in $(pick "slow fast overlap walls random" "fast walls"); do
     for mode in print perf; do
         for speed in 0.5 0,1; do
             label="cuda/$name $mode, plans at $speed of the speed, refused steps"
@@ -86,7 +94,7 @@ done
 # of 2 overflows on these scenes: the --stats cases above count the refusals; without --stats the
 # graphs stay on). Each kernel of a step starts launching while the one before it drains (programmatic
 # dependent launch, cuda.cu step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
-for name in fast random dense spread; do
+for name in $(pick "fast random dense spread" "random spread"); do
     for what in "kernel by kernel" "graphs, refused steps" "graphs, no programmatic launches"; do
         label="cuda/$name perf, $what"
         if ! have_gpu; then
@@ -105,7 +113,7 @@ done
 # bin_place_launch). These scenes' tables are short; SIM_CUDA_SCAN_TILES=-1 sends every other batch to
 # cub, so the short scans also follow cub's, in graphs and (with SIM_CUDA_WINDOW=1) across windows.
 # --stats counts the tables each way: both must have been taken.
-for name in slow fast walls random spread mixed_gas; do
+for name in $(pick "slow fast walls random spread mixed_gas" "slow spread"); do
     for mode in print perf; do
         label="cuda/$name $mode, cell tables scanned short and by cub in turn"
         if ! have_gpu; then
@@ -137,7 +145,8 @@ done
 # (F = 3 and the plans: the scenes whose steps have more than 3 slices; random_r5 and fast_walls have 2
 # or 3.) Speed levels take windows whose first slice is a multiple of their slices' length: F = 2 and 4
 # allow 2 and 3 levels, on the scene whose 8 to 11 slices hold every level (spread).
-for name in fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast spread; do
+for name in $(pick "fast random random_r5 fast_walls fast_mid mixed_gas mixed_dil tiny_r dense_fast spread" \
+    "random fast_walls spread"); do
     for run in "1 print" "1 perf" "3 perf" "1 perf f32" "1 print refused" "1 print plan0.5" "1 perf plan0,1" \
         "2 perf" "4 print" "2 perf f32" "4 perf refused"; do
         read -r F mode what <<< "$run"
@@ -167,7 +176,7 @@ done
 
 # SIM_CUDA_ROUNDS sets the grid-wide rounds of the choice (adapted to the events found otherwise): one
 # leaves the one-block finish nearly all the events, eight run to the last
-for name in dense overlap random dense_fast; do
+for name in $(pick "dense overlap random dense_fast" "dense dense_fast"); do
     for rounds in 1 8; do
         label="cuda/$name perf, $rounds grid-wide choice rounds"
         if ! have_gpu; then
@@ -180,7 +189,7 @@ for name in dense overlap random dense_fast; do
 done
 
 # --substeps K: cuda runs the K sub-steps of each step and hands out whole steps, like seq
-for name in slow fast walls random; do
+for name in $(pick "slow fast walls random" "fast walls"); do
     for k in 2 4; do
         if ! have_gpu; then
             skip "cuda/$name --substeps $k" "no GPU"
@@ -192,6 +201,44 @@ for name in slow fast walls random; do
             ./cuda "$in" --quiet --substeps $k
     done
 done
+
+# The periodic box (--periodic, SPEC.md 7): the cells and the differences between disks wrap (cuda.cu,
+# edge_runs), one cell a side or at least three; steps of one slice and of several (one speed level),
+# time windows, sub-steps, random placement, a crystal near close packing, single precision.
+periodic_scenes() {
+    echo "p_gas      tools/gen 2000 --periodic --fraction 0.3 --speed 0.5 --steps 40 --seed 21"
+    echo "p_dense    tools/gen 1500 --periodic --fraction 0.5 --speed 1 --steps 30 --seed 22"
+    echo "p_fast     tools/gen 1200 --periodic --assignment --fraction 0.05 --steps 20 --seed 23"
+    echo "p_one_cell tools/gen 6 --periodic --L 9 --speed 3 --steps 80 --seed 24"
+    echo "p_three    tools/gen 30 --periodic --L 14 --speed 2 --steps 60 --seed 25"
+    echo "p_crystal  tools/gen 780 --lattice --fraction 0.85 --speed 0.3 --steps 30 --seed 26"
+    echo "p_random   printf 1500\n20000\n1\n20\nperf\n"
+}
+while read -r name cmd; do
+    runs="print perf f32 windows substeps"
+    all_suite || runs="print f32 windows"
+    if ! have_gpu; then
+        for run in $runs; do skip "cuda/$name --periodic $run" "no GPU"; done
+        continue
+    fi
+    if [ "${cmd%% *}" = printf ]; then
+        printf "${cmd#printf }" > "$TMP/cuda_$name.in"
+    elif ! $cmd > "$TMP/cuda_$name.in"; then
+        fail "cuda/$name --periodic" "cannot generate the scene"
+        continue
+    fi
+    for run in $runs; do
+        mode=print suf="" envs="" extra=""
+        case $run in perf) mode=perf ;; f32) suf=_f32 ;; windows) mode=perf envs="SIM_CUDA_WINDOW=1" ;;
+            substeps) extra="--substeps 2" ;; esac
+        sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$run.in"
+        # shellcheck disable=SC2086
+        ./seq$suf "$TMP/cuda_${name}_$run.in" --quiet --periodic $extra > "$TMP/cuda_${name}_$run.expected"
+        # shellcheck disable=SC2086
+        same_bytes "cuda$suf/$name --periodic $run" "$TMP/cuda_${name}_$run.expected" \
+            env $envs ./cuda$suf "$TMP/cuda_${name}_$run.in" --quiet --periodic $extra
+    done
+done <<< "$(periodic_scenes)"
 
 # --pressure is not offered by cuda: one line on stderr, nothing on stdout, non-zero exit
 if [ -x ./cuda ]; then

@@ -96,6 +96,19 @@ do_memcheck() {
             ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
             cmp -s "$DATA/$f.seq" "$DATA/$f.out" && echo "memcheck $f output == seq" || echo "memcheck $f output DIFFERS"
         done
+        # the periodic box: one slice a step, several, and the windows
+        tools/gen 3000 --periodic --fraction 0.3 --speed 2 --steps 5 --seed 13 > "$DATA/san_periodic.in"
+        tools/gen 1500 --periodic --assignment --fraction 0.05 --steps 4 --seed 14 > "$DATA/san_pfast.in"
+        for f in san_periodic san_pfast; do
+            for w in "" 1; do
+                SIM_CUDA_WINDOW=$w "$san" --tool memcheck --leak-check full --error-exitcode 9 \
+                    --log-file "$OUT/memcheck_$f$w.log" ./cuda "$DATA/$f.in" --quiet --periodic > "$DATA/$f.out" \
+                    && echo "memcheck $f${w:+ windows}: clean" \
+                    || { echo "memcheck $f${w:+ windows}: ERRORS"; tail -20 "$OUT/memcheck_$f$w.log"; }
+                ./seq "$DATA/$f.in" --quiet --periodic | cmp -s - "$DATA/$f.out" \
+                    && echo "memcheck $f${w:+ windows} output == seq" || echo "memcheck $f${w:+ windows} output DIFFERS"
+            done
+        done
         # the time windows, forced from one slice (a scene this small gets one window otherwise)
         SIM_CUDA_WINDOW=1 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
             --log-file "$OUT/memcheck_windows.log" ./cuda "$DATA/san_random.in" --quiet > "$DATA/win.out" \
