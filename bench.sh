@@ -24,6 +24,8 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
   mpi         mpi's strong and weak scaling and memory per rank on gases, against omp (needs mpirun)
   accuracy    what accuracy costs in time: sub-steps, --exact and float against the hard-disk
               equation of state (--quick: CI-sized)
+  dense       the periodic box's equation of state, fluid to melting, against published references
+              (PARTS="fluid loop rungs"; --quick: seconds)
   gpu-check   on a GPU machine: build, make test, compute-sanitizer memcheck
   gpu-perf    on a GPU machine: cuda against omp on gases and the random scene (also gpu-host,
               gpu-big, gpu-profile, gpu-kernels, gpu-targets, gpu-goals: see bench/cmd/gpu.sh)
@@ -52,7 +54,7 @@ while [ $# -gt 0 ]; do
         -h | --help)
             if [ $given = 0 ]; then usage; exit 0; fi
             args+=("$1"); shift ;;
-        sweep | targets | phases | io | exact | mpi | accuracy | gpu-sweep | variants | viewer | plots | gpu-*)
+        sweep | targets | phases | io | exact | mpi | accuracy | dense | gpu-sweep | variants | viewer | plots | gpu-*)
             if [ $given = 0 ] && [ ${#args[@]} -eq 0 ]; then cmd=$1 given=1; else args+=("$1"); fi
             shift ;;
         *) args+=("$1"); shift ;;
@@ -72,7 +74,7 @@ if [ "${1:-}" = --help ] && [ "$cmd" != sweep ] && [ "$cmd" != accuracy ]; then
     exit 0
 fi
 case $cmd in
-    sweep | targets | phases | io | exact | mpi | accuracy | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
+    sweep | targets | phases | io | exact | mpi | accuracy | dense | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
     gpu-sweep) exec bash bench/cmd/gpu_sweep.sh "$@" ;;
     gpu-check | gpu-memcheck | gpu-perf | gpu-host | gpu-big | gpu-profile | gpu-kernels | gpu-targets | gpu-goals | gpu-bytes | gpu-all)
         exec bash bench/cmd/gpu.sh "${cmd#gpu-}" "$@" ;;
