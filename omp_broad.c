@@ -517,7 +517,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
  * gives the same bits either way round (swapping the disks negates dx, dy, dvx and dvy exactly, and
  * only their products and squares follow), so the indices are read only for the few pairs with an
  * event; so are the wall event times, found again (wall_t need not hold them, see wall_lists). */
-static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b, int wrap)
+static SIM_INLINE void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b, int wrap)
 {
     const Slots *s = &w->s;
     const Params *p = w->p;
@@ -561,7 +561,7 @@ static inline unsigned box_hit(__m128 p, const Box *b)
  * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
  * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
  * entries) and masks them off. With SSE2 each box is one comparison of four lanes (Box). */
-static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
+static SIM_INLINE void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
 {
     const Box *bx = w->boxes, *ba = &w->boxes[a];
 #ifdef SIM_SSE2

@@ -408,7 +408,7 @@ static inline int box_cell(const Paths *pp, Entry *x, double T, int64_t i, int64
 /* Every entry is stored and the bucket's length grows by whether it counts: no branch. Where the box
  * lies in one tile (most boxes), that length stays in a register; else it goes through each cell's
  * bucket in memory, and each cell waits for the previous one's store. */
-static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
+static SIM_INLINE void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
                      const double *ea, const double *eb, const double *dt, Bucket *bk)
 {
     int64_t gt = pp->pl.gt, m = (c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1);
@@ -446,7 +446,7 @@ static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, cons
  * mispredicts about once per line. The times at which the centre crosses the grown edges of
  * consecutive cells step by h / v: each entry is a few additions, a minimum and a maximum. (The
  * steps add rounding errors of about g units of the box's, far inside the margin.) */
-static void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
+static SIM_INLINE void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
                        const int64_t *c0, const int64_t *c1, const double *ea, const double *eb,
                        const double *dt, int64_t in_lo, int64_t in_hi, Bucket *bk)
 {
