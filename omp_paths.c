@@ -541,9 +541,19 @@ static void path_setup(const Paths *pp, const double *c, double *v, double T, in
  * far more. */
 static void path_cells_periodic(const Paths *pp, const Body *b, int32_t slot, Bucket *bk);
 
+/* Whether a path of the periodic box, grown by G, lies inside [0, L)^2: binned as a walled box's. */
+static inline int path_inside(const Paths *pp, const Body *b)
+{
+    double G = pp->pl.grow, L = pp->pl.L, T = b->cap;
+    double ex = (double)b->x + (double)b->vx * T, ey = (double)b->y + (double)b->vy * T;
+    double xl = b->x < ex ? b->x : ex, xh = b->x < ex ? ex : b->x;
+    double yl = b->y < ey ? b->y : ey, yh = b->y < ey ? ey : b->y;
+    return xl - G > 0 && xh + G < L && yl - G > 0 && yh + G < L;
+}
+
 static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
 {
-    if (pp->pl.periodic) {
+    if (pp->pl.periodic && !path_inside(pp, b)) { /* most paths are inside */
         path_cells_periodic(pp, b, slot, bk);
         return;
     }
