@@ -676,21 +676,37 @@ static void move_event(Work *w, const Mover *c, int64_t i, int32_t v, Moved *m)
 
 /* Moves the disks of this thread's range and notes the largest velocity component it leaves and
  * its events. node_of is left all -1 for the next step. */
+/* Moves the disks of slots [from, to) but those marked with step (mark: the choice's, of paths steps
+ * whose choice runs beside the moves; NULL: every disk, by its node). A loop for each box (wrap), so
+ * that the walled box's flights stay as they were: move_slots is inline with wrap a constant. */
+static inline void move_slots(Work *w, const Mover *c, int64_t from, int64_t to, const int64_t *mark,
+                              int64_t step, int wrap, Moved *m)
+{
+    Slots *s = c->s;
+    real lo = c->lo, hi = wrap ? c->L : c->hi;
+    const real *wall_t = c->wall_t;
+    for (int64_t i = from; i < to; i++) {
+        if (mark && mark[i] == step) continue;
+        int32_t v = mark ? -1 : w->node_of[i];
+        if (flies(wall_t, i, v)) fly(s, i, lo, hi, wrap, m);
+        else move_event(w, c, i, v, m);
+    }
+}
+
+static inline void move_slots_in_box(Work *w, const Mover *c, int64_t from, int64_t to, const int64_t *mark,
+                                     int64_t step, Moved *m)
+{
+    if (c->periodic) move_slots(w, c, from, to, mark, step, 1, m);
+    else move_slots(w, c, from, to, mark, step, 0, m);
+}
+
 static void move_range(Work *w, int tid)
 {
     Moved m = {0, 0};
     Mover c = mover_of(w, tid);
-    Slots *s = c.s;
-    real lo = c.lo, hi = c.periodic ? c.L : c.hi;
-    const real *wall_t = c.wall_t;
-    int wrap = c.periodic;
     int64_t from, to;
     range_of(w->p->n, tid, w->nt, &from, &to);
-    for (int64_t i = from; i < to; i++) {
-        int32_t v = w->node_of[i];
-        if (flies(wall_t, i, v)) fly(s, i, lo, hi, wrap, &m);
-        else move_event(w, &c, i, v, &m);
-    }
+    move_slots_in_box(w, &c, from, to, NULL, 0, &m);
     c.th->vmax = m.vm;
     w->th[tid].events += m.events;
 }
@@ -713,10 +729,6 @@ static void choose_move(Work *w, int tid, int64_t step)
 {
     Moved m = {0, 0};
     Mover c = mover_of(w, tid);
-    Slots *s = c.s;
-    real lo = c.lo, hi = c.periodic ? c.L : c.hi;
-    const real *wall_t = c.wall_t;
-    int wrap = c.periodic;
     int64_t n = w->p->n, chunk = n / (8 * w->nt) + 1;
     const int64_t *mark = w->paired;
 #pragma omp single nowait
@@ -727,11 +739,7 @@ static void choose_move(Work *w, int tid, int64_t step)
 #pragma omp for schedule(dynamic, 1) nowait
     for (int64_t k = 0; k < (n + chunk - 1) / chunk; k++) {
         int64_t to = (k + 1) * chunk < n ? (k + 1) * chunk : n;
-        for (int64_t i = k * chunk; i < to; i++) {
-            if (mark[i] == step) continue;
-            if (flies(wall_t, i, -1)) fly(s, i, lo, hi, wrap, &m);
-            else move_event(w, &c, i, -1, &m);
-        }
+        move_slots_in_box(w, &c, k * chunk, to, mark, step, &m);
     }
     phase_mark(&w->b, tid, PHASE_MOVE);
 #pragma omp barrier

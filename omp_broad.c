@@ -339,7 +339,9 @@ static inline void span_frame(const Broad *b, Span *sp)
 {
     double L = (double)b->p->L;
     double mx = ((double)sp->xlo + (double)sp->xhi) * 0.5, my = ((double)sp->ylo + (double)sp->yhi) * 0.5;
-    double kx = b->wrap_x ? floor(mx / L) : floor((mx - b->frame_x) / L + 0.5), ky = floor(my / L);
+    double ox = b->wrap_x ? mx : mx - b->frame_x + L / 2; /* in [0, L) for the image wanted */
+    if (ox >= 0 && ox < L && my >= 0 && my < L) return; /* most boxes: no division */
+    double kx = floor(ox / L), ky = floor(my / L);
     if (kx != 0) {
         sp->xlo = (real)((double)sp->xlo - kx * L);
         sp->xhi = (real)((double)sp->xhi - kx * L);
@@ -517,7 +519,7 @@ static void bin_grid(Broad *b, int tid, int reorder)
  * gives the same bits either way round (swapping the disks negates dx, dy, dvx and dvy exactly, and
  * only their products and squares follow), so the indices are read only for the few pairs with an
  * event; so are the wall event times, found again (wall_t need not hold them, see wall_lists). */
-static inline void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b, int wrap)
+static SIM_INLINE void try_pair(const Broad *w, BroadThread *th, int32_t a, int32_t b, int wrap)
 {
     const Slots *s = &w->s;
     const Params *p = w->p;
@@ -561,7 +563,7 @@ static inline unsigned box_hit(__m128 p, const Box *b)
  * a branch per box: ranges hold a few boxes each, and a branch per box and per range end would be
  * mispredicted about once per box. The last group reads boxes past b1 (boxes has SCAN_WIDTH spare
  * entries) and masks them off. With SSE2 each box is one comparison of four lanes (Box). */
-static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
+static SIM_INLINE void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_t b0, int32_t b1)
 {
     const Box *bx = w->boxes, *ba = &w->boxes[a];
 #ifdef SIM_SSE2
@@ -587,31 +589,33 @@ static inline void scan_range(const Broad *w, BroadThread *th, int32_t a, int32_
 /* Tests every box against the later boxes of its own cell and those of the cells east, north-west,
  * north and north-east: each pair of neighbouring cells once. The east cell follows the own cell in
  * memory and the three northern cells are contiguous, so two ranges cover them. */
+static SIM_INLINE void scan_cell(Broad *b, BroadThread *th, int64_t cx, int64_t cy)
+{
+    const int32_t *cs = b->cell_start;
+    int64_t gx = b->plan.gx, gy = b->plan.gy, c = cy * gx + cx;
+    int32_t end1 = cs[cx + 1 < gx ? c + 2 : c + 1];
+    int32_t lo2 = 0, end2 = 0;
+    if (cy + 1 < gy) {
+        int64_t first = (cy + 1) * gx + (cx > 0 ? cx - 1 : 0);
+        int64_t last = (cy + 1) * gx + (cx + 1 < gx ? cx + 1 : cx);
+        lo2 = cs[first];
+        end2 = cs[last + 1];
+    }
+    for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
+        scan_range(b, th, a, a + 1, end1);
+        scan_range(b, th, a, lo2, end2);
+    }
+}
+
 static void scan_grid(Broad *b, int tid)
 {
     const Plan *pl = &b->plan;
     BroadThread *th = &b->th[tid];
-    const int32_t *cs = b->cell_start;
     int64_t gx = pl->gx, gy = pl->gy;
     int64_t chunk = gy / (8 * b->nt) + 1;
 #pragma omp for schedule(dynamic, chunk)
-    for (int64_t cy = 0; cy < gy; cy++) {
-        for (int64_t cx = 0; cx < gx; cx++) {
-            int64_t c = cy * gx + cx;
-            int32_t end1 = cs[cx + 1 < gx ? c + 2 : c + 1];
-            int32_t lo2 = 0, end2 = 0;
-            if (cy + 1 < gy) {
-                int64_t first = (cy + 1) * gx + (cx > 0 ? cx - 1 : 0);
-                int64_t last = (cy + 1) * gx + (cx + 1 < gx ? cx + 1 : cx);
-                lo2 = cs[first];
-                end2 = cs[last + 1];
-            }
-            for (int32_t a = cs[c]; a < cs[c + 1]; a++) {
-                scan_range(b, th, a, a + 1, end1);
-                scan_range(b, th, a, lo2, end2);
-            }
-        }
-    }
+    for (int64_t cy = 0; cy < gy; cy++)
+        for (int64_t cx = 0; cx < gx; cx++) scan_cell(b, th, cx, cy);
 }
 
 /* The periodic box's grid: every box against the later boxes of its own cell and those of the cells
@@ -619,7 +623,8 @@ static void scan_grid(Broad *b, int tid)
  * cell has no neighbours along it: wrap_cells never leaves 2, whose two neighbours would be one).
  * Across an edge, and everywhere where an axis that wraps has one cell, the boxes lie in frames L
  * apart: their pairs skip the screen (the few that a box straddling the edge has), but for the empty
- * boxes of a mixed step's fast disks, which the paths pair. */
+ * boxes of a mixed step's fast disks, which the paths pair. A cell whose neighbours lie over no edge
+ * takes the walled grid's two ranges (scan_cell). */
 static void scan_grid_periodic(Broad *b, int tid)
 {
     static const int offset[4][2] = {{1, 0}, {-1, 1}, {0, 1}, {1, 1}};
@@ -632,6 +637,10 @@ static void scan_grid_periodic(Broad *b, int tid)
     for (int64_t cy = 0; cy < gy; cy++) {
         for (int64_t cx = 0; cx < gx; cx++) {
             int64_t c = cy * gx + cx;
+            if (!whole && cy + 1 < gy && (!b->wrap_x || (cx > 0 && cx + 1 < gx))) {
+                scan_cell(b, th, cx, cy);
+                continue;
+            }
             for (int k = -1; k < 4; k++) {
                 int64_t nx = cx, ny = cy;
                 int across = 0;

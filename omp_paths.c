@@ -408,7 +408,7 @@ static inline int box_cell(const Paths *pp, Entry *x, double T, int64_t i, int64
 /* Every entry is stored and the bucket's length grows by whether it counts: no branch. Where the box
  * lies in one tile (most boxes), that length stays in a register; else it goes through each cell's
  * bucket in memory, and each cell waits for the previous one's store. */
-static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
+static SIM_INLINE void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, const int64_t *c1,
                      const double *ea, const double *eb, const double *dt, Bucket *bk)
 {
     int64_t gt = pp->pl.gt, m = (c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1);
@@ -443,12 +443,14 @@ static void path_box(const Paths *pp, Entry x, double T, const int64_t *c0, cons
 
 /* The cells of a longer path: the outer loop runs over the lines of cells across the path's shorter
  * axis o, the inner one along each line: the fewer lines, the fewer loop exits, which a processor
- * mispredicts about once per line. The times at which the centre crosses the grown edges of
+ * mispredicts about once per line. With clip (a piece of a path in the periodic box) a line's cells
+ * are cut to the piece's [c0, c1], and a line with none there is skipped; else they are those of its
+ * positions, which lie over the grid. The times at which the centre crosses the grown edges of
  * consecutive cells step by h / v: each entry is a few additions, a minimum and a maximum. (The
  * steps add rounding errors of about g units of the box's, far inside the margin.) */
-static void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
+static SIM_INLINE void path_lines(const Paths *pp, Entry x, double T, const double *c, const double *v,
                        const int64_t *c0, const int64_t *c1, const double *ea, const double *eb,
-                       const double *dt, int64_t in_lo, int64_t in_hi, Bucket *bk)
+                       const double *dt, int clip, Bucket *bk)
 {
     double G = pp->pl.grow;
     float bins = (float)pp->pl.bins;
@@ -465,7 +467,12 @@ static void path_lines(const Paths *pp, Entry x, double T, const double *c, cons
         if (ta > tb) continue;
         double ia = c[in] + v[in] * ta, ib = c[in] + v[in] * tb;
         int64_t u0, u1;
-        if (!cells_within(pp, (ia < ib ? ia : ib) - G, (ia < ib ? ib : ia) + G, in_lo, in_hi, &u0, &u1)) continue;
+        if (!clip) {
+            u0 = cell_of(pp, (ia < ib ? ia : ib) - G);
+            u1 = cell_of(pp, (ia < ib ? ib : ia) + G);
+        } else if (!cells_within(pp, (ia < ib ? ia : ib) - G, (ia < ib ? ib : ia) + G, c0[in], c1[in], &u0, &u1)) {
+            continue;
+        }
         Bucket *line = bk + (size_t)pp->tile_of[l] * (size_t)to;
         int64_t lpart = (int64_t)pp->in_tile[l] * so;
         double ua = ea[in] + (double)u0 * dt[in], ub = eb[in] + (double)u0 * dt[in];
@@ -534,9 +541,19 @@ static void path_setup(const Paths *pp, const double *c, double *v, double T, in
  * far more. */
 static void path_cells_periodic(const Paths *pp, const Body *b, int32_t slot, Bucket *bk);
 
+/* Whether a path of the periodic box, grown by G, lies inside [0, L)^2: binned as a walled box's. */
+static inline int path_inside(const Paths *pp, const Body *b)
+{
+    double G = pp->pl.grow, L = pp->pl.L, T = b->cap;
+    double ex = (double)b->x + (double)b->vx * T, ey = (double)b->y + (double)b->vy * T;
+    double xl = b->x < ex ? b->x : ex, xh = b->x < ex ? ex : b->x;
+    double yl = b->y < ey ? b->y : ey, yh = b->y < ey ? ey : b->y;
+    return xl - G > 0 && xh + G < L && yl - G > 0 && yh + G < L;
+}
+
 static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
 {
-    if (pp->pl.periodic) {
+    if (pp->pl.periodic && !path_inside(pp, b)) { /* most paths are inside */
         path_cells_periodic(pp, b, slot, bk);
         return;
     }
@@ -558,7 +575,7 @@ static void path_cells(const Paths *pp, const Body *b, int32_t slot, Bucket *bk)
     }
 #endif
     if ((c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) <= BOX_CELLS) path_box(pp, x, T, c0, c1, ea, eb, dt, bk);
-    else path_lines(pp, x, T, c, v, c0, c1, ea, eb, dt, 0, pp->pl.g - 1, bk);
+    else path_lines(pp, x, T, c, v, c0, c1, ea, eb, dt, 0, bk);
 }
 
 /* The first image (the multiple of L) of the cells [lo, hi] counted on from the grid's, and the last:
@@ -598,8 +615,7 @@ static void path_cells_periodic(const Paths *pp, const Body *b, int32_t slot, Bu
             }
             Entry x = {0, 0, 0, slot, (float)cs[0], (float)cs[1], (float)b->vx, (float)b->vy};
             if ((c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) <= BOX_CELLS) path_box(pp, x, T, c0, c1, ea, eb, dt, bk);
-            else path_lines(pp, x, T, cs, v, c0, c1, ea, eb, dt, c0[1 - (fabs(v[1]) <= fabs(v[0]))],
-                            c1[1 - (fabs(v[1]) <= fabs(v[0]))], bk);
+            else path_lines(pp, x, T, cs, v, c0, c1, ea, eb, dt, 1, bk);
         }
 }
 

@@ -28,6 +28,14 @@ static inline __m128d select_pd(__m128d mask, __m128d a, __m128d b) /* mask ? a 
 #define SIM_X86_TARGETS 1
 #endif
 
+/* A helper the compiler must inline wherever it is called: where a loop calls it from two callers (the
+ * walled and the periodic box's), each gets its own copy, specialised for its constants. */
+#if defined(__GNUC__) || defined(__clang__)
+#define SIM_INLINE inline __attribute__((always_inline))
+#else
+#define SIM_INLINE inline
+#endif
+
 /* The disks in slot order: SoA like Sim, plus each slot's original index. */
 typedef struct {
     real *x, *y, *vx, *vy;

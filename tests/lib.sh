@@ -81,3 +81,42 @@ expect_error() {
     grep -Eq -e "$pattern" "$TMP/err" || problems="$problems message '$(head -c 200 "$TMP/err")';"
     if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
 }
+
+# ---- mpi (t_86, t_78) ----
+# mpi_env: mpirun's settings here (as root, more ranks than cores), and MPIRUN, its command.
+mpi_env() {
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+    # more ranks than cores: a rank waiting in MPI yields its core (Open MPI busy-polls by default, and
+    # then one rank's wait takes the core its neighbour needs: 3 ranks on 2 cores 20x slower here)
+    export OMPI_MCA_mpi_yield_when_idle=1
+    # and the ranks' OpenMP threads sleep at a barrier rather than spin (3 ranks of 2 threads on 2
+    # cores: 40x slower spinning)
+    export OMP_WAIT_POLICY=passive
+    # one machine: shared memory through ob1 (the default pml probes UCX's devices first, 0.2 s a launch)
+    export OMPI_MCA_pml=ob1
+    MPIRUN=(mpirun)
+    mpirun -q -np 1 true > /dev/null 2>&1 && MPIRUN+=(-q)
+}
+
+# run_mpi P T ARGS...: mpi on P ranks of T threads (after mpi_env).
+run_mpi() {
+    local p=$1 t=$2
+    shift 2
+    "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi "$@" --threads "$t"
+}
+
+# expect_mpi_error NAME PATTERN ARGS...: expect_error for mpi on 3 ranks, but for mpirun's own notice
+# of the failed job, which an mpirun without -q (Open MPI 5) adds: there only the program's lines
+# ("mpi: ...") are counted.
+expect_mpi_error() {
+    local name=$1 pattern=$2 rc problems=""
+    shift 2
+    "${MPIRUN[@]}" -np 3 --oversubscribe ./mpi "$@" > "$TMP/eout" 2> "$TMP/eerr" < /dev/null
+    rc=$?
+    [ "${#MPIRUN[@]}" -eq 2 ] || { grep '^mpi: ' "$TMP/eerr" > "$TMP/eerr1"; mv "$TMP/eerr1" "$TMP/eerr"; }
+    [ "$rc" -ne 0 ] || problems="exit status 0;"
+    [ ! -s "$TMP/eout" ] || problems="$problems $(wc -c < "$TMP/eout") bytes on stdout;"
+    [ "$(wc -l < "$TMP/eerr")" -eq 1 ] || problems="$problems $(wc -l < "$TMP/eerr") stderr lines;"
+    grep -Eq -e "$pattern" "$TMP/eerr" || problems="$problems message '$(head -c 200 "$TMP/eerr")';"
+    if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
+}

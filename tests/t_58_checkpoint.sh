@@ -5,7 +5,8 @@
 #   first checkpoint (some runs checkpoint every step, so that kills land inside a checkpoint's
 #   writing), and resumed, some by another backend or thread count, some killed again while resumed.
 #   The interrupted stdout cut after the checkpoint's step (perf: after step 0), followed by the resumed
-#   runs' stdout, must be the uninterrupted run's bytes.
+#   runs' stdout, must be the uninterrupted run's bytes. Runs of the periodic box (--periodic) among
+#   them, taking the option from the checkpoint.
 # - Damaged, cut, extended, other-version and other-precision checkpoints, and the option conflicts,
 #   are refused with one stderr line, nothing on stdout and a non-zero exit.
 # CK_SEED=N repeats the random moments of an earlier run (its seed is in the first line).
@@ -20,6 +21,10 @@ CK_KILLS=0
 ./tools/gen 3000 --fraction 0.3 --steps 1000 --seed 5 > "$C/gas.in"
 ./tools/gen 200 --assignment --L 300 --steps 250 --mode print --seed 6 > "$C/exact.in"
 ./tools/gen 500 --fraction 0.3 --steps 40 --mode print --seed 7 > "$C/small.in"
+# the periodic box (SPEC.md 7): fast paths over the edges, and a small print-mode gas
+./tools/gen 300 --periodic --assignment --L 300 --steps 400 --seed 8 > "$C/periodic.in"
+./tools/gen 150 --periodic --speed 0.5 --steps 1500 --mode print --seed 9 > "$C/pprint.in"
+./tools/gen 500 --periodic --fraction 0.3 --steps 40 --mode print --seed 7 > "$C/psmall.in"
 
 # ---- a checkpointing run prints what a plain run prints; its checkpoints agree across backends ----
 ./seq "$C/small.in" --quiet > "$C/small.ref"
@@ -57,12 +62,12 @@ fi
 # ---- a finished run's last checkpoint, resumed: the tail of its stdout, and the same stderr lines ----
 # (print mode, 40 steps, checkpoints every 13: the file holds step 39; the resumed run prints the final
 # state only, with what the options of the checkpoint ask: %.17g, the pressure over the whole run)
-ck_tail() { # NAME PROGRAM [OPTIONS]
-    local name=$1 prog=$2
+ck_tail() { # NAME PROGRAM [OPTIONS]: on small.in (with CK_IN=FILE: FILE, of 500 disks too)
+    local name=$1 prog=$2 in=${CK_IN:-$C/small.in}
     shift 2
     rm -f "$C/tail.ck"
-    ./$prog "$C/small.in" --quiet "$@" > "$C/tail.ref" 2> "$C/tail.ref.err"
-    ./$prog "$C/small.in" --quiet "$@" --checkpoint "$C/tail.ck" --checkpoint-every 13 > /dev/null 2>&1
+    ./$prog "$in" --quiet "$@" > "$C/tail.ref" 2> "$C/tail.ref.err"
+    ./$prog "$in" --quiet "$@" --checkpoint "$C/tail.ck" --checkpoint-every 13 > /dev/null 2>&1
     if ! ./$prog --resume "$C/tail.ck" --quiet > "$C/tail.out" 2> "$C/tail.err"; then
         fail "$name" "exit: $(head -c 200 "$C/tail.err")"
     elif ! tail -n 500 "$C/tail.ref" | cmp -s - "$C/tail.out"; then
@@ -78,6 +83,9 @@ ck_tail "resume: --pressure comes from the checkpoint, the pressure line over th
 ck_tail "resume: --substeps 4 --pressure" omp --substeps 4 --pressure --threads 3
 ck_tail "resume: --exact --pressure" seq --exact --pressure
 ck_tail "resume: float, --pressure" omp_f32 --pressure --threads 2
+CK_IN=$C/psmall.in ck_tail "resume: --periodic --pressure (the virial's blocks come from the checkpoint)" omp \
+    --periodic --pressure --threads 3
+CK_IN=$C/psmall.in ck_tail "resume: --periodic --exact --pressure" seq --periodic --exact --pressure
 
 # ---- kill trials ----
 # ck_start SEGMENT MAXDELAY COMMAND...: runs COMMAND (stdout $C/seg.SEGMENT, stderr .err) in the
@@ -162,11 +170,14 @@ ck_trial() {
 ./omp "$C/gas.in" --quiet --substeps 2 --pressure > "$C/gas_sub.ref" 2> /dev/null
 ./seq "$C/exact.in" --quiet --exact > "$C/exact.ref"
 ./seq_f32 "$C/fast.in" --quiet > "$C/fast_f32.ref"
+./omp "$C/periodic.in" --periodic --quiet --substeps 2 --pressure > "$C/periodic.ref" 2> /dev/null
+./seq "$C/pprint.in" --periodic --quiet > "$C/pprint.ref"
 
 P=$C/print.in F=$C/fast.in G=$C/gas.in X=$C/exact.in
-# the quick suite runs six of the trials (print, perf, every step, twice, --exact, float), at least 7 kills
-min_kills=7
-all_suite && min_kills=20
+# the quick suite runs seven of the trials (print, perf, every step, twice, --exact, float, periodic), at
+# least 8 kills
+min_kills=8
+all_suite && min_kills=23
 all_suite && ck_trial "kill: seq print, resumed by seq" "$C/print.ref" 150 print 50 0.12 "./seq $P" "./seq"
 ck_trial "kill: seq print, resumed by omp 3 threads" "$C/print.ref" 150 print 7 0.12 "./seq $P" "./omp --threads 3"
 all_suite && ck_trial "kill: omp 3 threads print every step, resumed by seq" "$C/print.ref" 150 print 1 0.8 \
@@ -199,6 +210,13 @@ all_suite && ck_trial "kill: seq_f32 perf, resumed by omp_f32 3 threads" "$C/fas
     "./seq_f32 $F" "./omp_f32 --threads 3"
 ck_trial "kill: omp_f32 2 threads perf every step, resumed by seq_f32" "$C/fast_f32.ref" 400 perf 1 0.4 \
     "./omp_f32 $F --threads 2" "./seq_f32"
+ck_trial "kill: seq --periodic print, resumed by omp 3 threads" "$C/pprint.ref" 150 print 7 0.12 \
+    "./seq $C/pprint.in --periodic" "./omp --threads 3"
+all_suite && ck_trial "kill: omp --periodic --substeps 2 --pressure perf, twice, resumed by seq then omp 7 threads" \
+    "$C/periodic.ref" 300 perf 10 0.15 "./omp $C/periodic.in --periodic --substeps 2 --pressure --threads 2" "./seq" \
+    "./omp --threads 7"
+all_suite && ck_trial "kill: omp --periodic print every step, resumed by omp 2 threads" "$C/pprint.ref" 150 print 1 \
+    0.6 "./omp $C/pprint.in --periodic --threads 3" "./omp --threads 2"
 if have_gpu; then
     ck_trial "kill: cuda print, resumed by cuda" "$C/print.ref" 150 print 20 0.5 "./cuda $P" "./cuda"
     ck_trial "kill: cuda print every step, resumed by omp 3 threads" "$C/print.ref" 150 print 1 1 \

@@ -16,40 +16,13 @@
 #   keeps mpirun's own notice of the failed job off stderr; an mpirun without -q (Open MPI 5) adds
 #   it, and there only the program's lines ("mpi: ...") are counted.
 # SKIP where mpirun or ./mpi is missing (.ci/run installs OpenMPI).
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-# more ranks than cores: a rank waiting in MPI yields its core (Open MPI busy-polls by default, and
-# then one rank's wait takes the core its neighbour needs: 3 ranks on 2 cores 20x slower here)
-export OMPI_MCA_mpi_yield_when_idle=1
-# and the ranks' OpenMP threads sleep at a barrier rather than spin (3 ranks of 2 threads on 2 cores:
-# 40x slower spinning)
-export OMP_WAIT_POLICY=passive
-# one machine: shared memory through ob1 (the default pml probes UCX's devices first, 0.2 s a launch)
-export OMPI_MCA_pml=ob1
 M=$TMP/mpi
 mkdir -p "$M"
 if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi ]; then
     skip "mpi" "no mpirun or no ./mpi (apt-get install openmpi-bin libopenmpi-dev, then make)"
 else
-    MPIRUN=(mpirun)
-    mpirun -q -np 1 true > /dev/null 2>&1 && MPIRUN+=(-q)
+    mpi_env
     pick() { if all_suite; then echo "$1"; else echo "$2"; fi; } # the whole suite's, or the quick one's
-    run_mpi() { # P T ARGS...: mpi on P ranks of T threads
-        local p=$1 t=$2
-        shift 2
-        "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi "$@" --threads "$t"
-    }
-    expect_mpi_error() { # NAME PATTERN ARGS...: expect_error, but for mpirun's own notice without -q
-        local name=$1 pattern=$2 rc problems=""
-        shift 2
-        "${MPIRUN[@]}" -np 3 --oversubscribe ./mpi "$@" > "$M/eout" 2> "$M/eerr" < /dev/null
-        rc=$?
-        [ "${#MPIRUN[@]}" -eq 2 ] || { grep '^mpi: ' "$M/eerr" > "$M/eerr1"; mv "$M/eerr1" "$M/eerr"; }
-        [ "$rc" -ne 0 ] || problems="exit status 0;"
-        [ ! -s "$M/eout" ] || problems="$problems $(wc -c < "$M/eout") bytes on stdout;"
-        [ "$(wc -l < "$M/eerr")" -eq 1 ] || problems="$problems $(wc -l < "$M/eerr") stderr lines;"
-        grep -Eq -e "$pattern" "$M/eerr" || problems="$problems message '$(head -c 200 "$M/eerr")';"
-        if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
-    }
     ranks() { # NAME EXPECTED "P[xT]..." ARGS...: mpi at each rank (x thread) count prints EXPECTED's bytes
         local name=$1 expected=$2 counts=$3 c p t bad=""
         shift 3

@@ -165,7 +165,7 @@ fi
 # usage: --help on stdout with status 0, none or too many arguments on stderr with status 2
 tools/xyz --help > "$X/out" 2> "$X/err"
 rc=$?
-if [ "$rc" -eq 0 ] && grep -q '^usage: tools/xyz INPUT' "$X/out" && [ ! -s "$X/err" ]; then
+if [ "$rc" -eq 0 ] && grep -q '^usage: tools/xyz \[--periodic\] INPUT' "$X/out" && [ ! -s "$X/err" ]; then
     pass "xyz/--help"
 else
     fail "xyz/--help" "exit status $rc"
