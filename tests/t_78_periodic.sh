@@ -2,7 +2,7 @@
 # - hand-derived cases (tests/periodic/README.md): two disks meeting across an edge (t = 0, then t = 1),
 #   pairs across the edges and a corner, a lone disk over the corner, a disk crossing half the box, an
 #   overlapped pair parting across an edge; --exact: two disks meeting twice a step, once each way
-#   around; seq, omp at 1, 2, 3 and 7 threads, mpi, cuda refusing --periodic; the exact-rational
+#   around; seq, omp at 1, 2, 3 and 7 threads, mpi, cuda (refusing only --exact); the exact-rational
 #   derivation (tests/hard/derive.py --periodic) of the step cases, and its double model on a scene;
 # - omp against seq on generated scenes (gas, fast paths over the edges, mixed, dense, tiny boxes of
 #   one or three cells a side) at 1, 2, 3 and 7 threads, under every --broad, --check; --substeps,
@@ -13,8 +13,8 @@
 #   apart) under --exact: seq and omp the same bytes, no pair closer than 2r by more than 1e-12 of 2r,
 #   kinetic energy kept (drift < 1e-12);
 # - bad input (a centre at L or below 0, L = 4r, --periodic beside --resume), checkpoints (the same
-#   file from seq and omp, resumed across, format 1 read as a walled run, cuda refusing a periodic
-#   one), random placement, tools/gen, check, measure and xyz with --periodic.
+#   file from seq and omp, resumed across by omp and cuda, format 1 read as a walled run), random
+#   placement, tools/gen, check, measure and xyz with --periodic.
 Q=$TMP/periodic
 mkdir -p "$Q"
 
@@ -24,7 +24,7 @@ for f in tests/periodic/*.out; do
     case $b in
         *_exact) ;;
         walled_*) continue ;;
-        *) CUDA_REFUSES="--periodic is not supported" on_backends "periodic/$b" "$f" "${f%.out}.in" --periodic
+        *) on_backends "periodic/$b" "$f" "${f%.out}.in" --periodic
            continue ;;
     esac
     same_bytes "periodic/$b seq" "$f" ./seq "${f%.out}.in" --periodic --exact --quiet
@@ -205,7 +205,6 @@ printf '2\n10\n1\n3\nperf\n0 5 5 0 0\n1 2 -0.5 0 0\n' > "$Q/below.in"
 printf '2\n4\n1\n3\nperf\n' > "$Q/four_r.in"
 printf '2\n4.0000001\n1\n3\nperf\n0 1 1 0.5 0\n1 3 3 0 0\n' > "$Q/just_fits.in"
 for prog in $(backend_list); do
-    [ "$prog" = cuda ] && continue
     expect_error "periodic $prog: a centre at x = L" "at_L.in:6: x must be within \[0, L\) = \[0, 10\) with --periodic \(found '10'\)" \
         ./$prog "$Q/at_L.in" --periodic
     expect_error "periodic $prog: a centre below 0" "below.in:7: y must be within \[0, L\)" ./$prog "$Q/below.in" --periodic
@@ -215,10 +214,11 @@ for prog in $(backend_list); do
         ./$prog --resume "$Q/none.ck" --periodic
 done
 same_bytes "periodic: L just above 4r runs" <(./seq "$Q/just_fits.in" --periodic --quiet) ./omp "$Q/just_fits.in" --periodic --quiet
-if [ -x ./cuda ]; then
-    expect_error "periodic: cuda refuses --periodic" "--periodic is not supported by cuda" ./cuda "$Q/at_L.in" --periodic
+if have_gpu; then
+    expect_error "periodic: cuda refuses --periodic --exact" "--exact is not supported by cuda" \
+        ./cuda "$Q/just_fits.in" --periodic --exact
 else
-    skip "periodic: cuda refuses --periodic" "no ./cuda"
+    skip "periodic: cuda refuses --periodic --exact" "no GPU"
 fi
 
 # ---- checkpoints ----
@@ -242,10 +242,17 @@ if tail -n $((4 * 20)) "$Q/v1.ref" | cmp -s - "$Q/v1.out" && cmp -s "$Q/v1.out.e
 else
     fail "checkpoint of format 1" "$(head -c 300 "$Q/v1.out.err")"
 fi
-if [ -x ./cuda ]; then
-    ./seq "$Q/tiny.in" --periodic --quiet --checkpoint "$Q/plain.ck" --checkpoint-every 10 > /dev/null
-    expect_error "periodic: cuda refuses a periodic checkpoint" "a checkpoint of a --periodic run, which cuda" \
-        ./cuda --resume "$Q/plain.ck"
+if have_gpu; then
+    ./seq "$Q/gas_print.in" --periodic --quiet > "$Q/plain.ref"
+    ./seq "$Q/gas_print.in" --periodic --quiet --checkpoint "$Q/plain.ck" --checkpoint-every 6 > /dev/null
+    if ./cuda --resume "$Q/plain.ck" --quiet > "$Q/plain.out" 2> "$Q/plain.err" &&
+        tail -n $((3 * 500)) "$Q/plain.ref" | cmp -s - "$Q/plain.out"; then
+        pass "periodic checkpoint: seq's of step 12 resumed by cuda, steps 13 to 15"
+    else
+        fail "periodic checkpoint: resumed by cuda" "$(head -c 300 "$Q/plain.err")"
+    fi
+else
+    skip "periodic checkpoint: resumed by cuda" "no GPU"
 fi
 
 # ---- random placement: [0, L)^2, no overlaps by the nearest image, the same disks on every thread count ----
