@@ -106,6 +106,16 @@ static void exact_count(ExactDisks *d, int64_t i, int32_t *c)
     ++*c;
 }
 
+/* Whether processing e (valid) would stop the run: exact_count's two limits. */
+int exact_stops(const ExactDisks *d, const ExactEvent *e)
+{
+    const Sim *s = d->sim;
+    int64_t i = e->i, j = e->j;
+    if (i == j) return d->step_events[i] >= EXACT_MAX_STEP_EVENTS || s->wc[i] == INT32_MAX;
+    return d->step_events[i] >= EXACT_MAX_STEP_EVENTS || d->step_events[j] >= EXACT_MAX_STEP_EVENTS ||
+           s->pc[i] == INT32_MAX || s->pc[j] == INT32_MAX;
+}
+
 /* Processes event e (valid: predicted from the disks' current versions). */
 void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
 {

@@ -86,6 +86,9 @@ real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i);
 real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j);
 /* Whether e was predicted from its disks' current versions (else it is stale and dropped). */
 int exact_valid(const ExactDisks *d, const ExactEvent *e);
+/* Whether processing e (valid) would stop the run: a disk at its step's EXACT_MAX_STEP_EVENTS or a
+ * count at INT32_MAX (exact_apply then fails with its message). */
+int exact_stops(const ExactDisks *d, const ExactEvent *e);
 /* Processes event e (valid). */
 void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e);
 /* The end of the step for disk i: flight to t = 1, clocks back to 0 for the next step. */

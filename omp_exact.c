@@ -1,21 +1,56 @@
-/* omp_exact.c: omp's --exact engine (exact.h): seq's events, in seq's order, found among grid neighbours.
+/* omp_exact.c: omp's --exact engine (exact.h): seq's events, found among grid neighbours, processed on
+ * all threads so that every disk has seq's events in seq's order.
  *
- * Each step is cut into time windows [T0, T1]. At a window's start every disk's position is projected
- * to T0 by flight (x + vx * (T0 - t): for binning only, never written back) and binned into square cells
- * wider than any distance from which two disks can touch within the window: 2r + 2 * vbound * (T1 - T0)
- * plus rounding margins, where vbound bounds every velocity component during the window (wall
- * reflections keep the components' sizes; a collision that leaves one above vbound ends the window).
- * Then:
- * - in parallel: every disk's wall event and its pair events with the disks of the 3 x 3 cells around
- *   its own (each pair once, from its lower index); those with te <= T1 go into the heap;
- * - sequentially: the event loop of seq.c, processing the smallest valid event by key and predicting
- *   the changed disks again against their neighbour cells. The window ends at T1, or right after an
- *   event that leaves a velocity component above vbound or is a disk's WINDOW_EVENTS-th in the window
- *   (which bounds the rounding that the margins must cover); the next window starts there.
- * Every valid event with te <= T1 is in the heap, so the loop processes exactly seq's events in seq's
- * order, and windows never change a disk's arithmetic: the same bytes at every thread count. Only the
- * prediction at each window start and the flights at the end of a step run in parallel; the event
- * loop is sequential, since events are processed in global time order.
+ * Windows. Each step is cut into time windows [T0, T1]. At a window's start every disk's position is
+ * projected to T0 by flight (x + vx * (T0 - t): for binning only, never written back) and binned into
+ * square cells wider than any distance from which two disks can touch within the window: 2r + 2 *
+ * vbound * (T1 - T0) plus rounding margins, where vbound bounds every velocity component during the
+ * window (wall reflections keep the components' sizes; a collision that leaves one above vbound ends
+ * the window). Only disks in neighbouring cells can meet before T1. A window also ends after a disk's
+ * WINDOW_EVENTS-th event in it, which bounds the rounding the margins cover. Windows never change a
+ * disk's arithmetic, so where they end does not change the bytes.
+ *
+ * The sequential window (one thread, a grid too narrow to cut, the instant after a stop, see below):
+ * every disk's events up to T1 are predicted in parallel into one heap, then seq.c's loop processes
+ * the smallest valid event by key and predicts the changed disks again against their neighbour cells.
+ * Every valid event with te <= T1 is in the heap, so this is seq's loop.
+ *
+ * The parallel window. Within a window seq repeatedly processes the smallest event predicted from the
+ * disks' current states, and an event reads and writes its own two disks only: any schedule that
+ * processes the same events, each disk's in seq's order, leaves the same state. The grid's columns are
+ * cut into one strip a thread; each disk belongs to the strip of its cell.
+ * - Phase 1, the strips concurrently: each runs seq's loop over its own disks and their pairs, and
+ *   keeps for each disk z a taint time tau_z before which no disk whose motion the strip does not know
+ *   can touch z. Unknown are the disks of the other strips from T0 on, and a strip's own disk y from
+ *   tau_y on. Every disk moves no faster than sbound during the window (else the window stops, below),
+ *   so an unknown disk known to be at p at time t0 is within sbound (t - t0) of p at t >= t0, and z,
+ *   at q at time now and moving at speed |v_z| until its next event, cannot touch it before now + (|q -
+ *   p| - 2r - margins - sbound (now - t0)) / (sbound + |v_z|). tau_z is the least such bound over its
+ *   unknown neighbours, lowered as they become unknown (a taint event at tau_y, processed before the
+ *   real events at its time: a Dijkstra beside the event loop) and computed again after each of z's
+ *   events (its motion changes). The strip processes an event only if it comes before the taus of
+ *   both its disks, and leaves the others. By induction in the order of the strip's loop, each event
+ *   it processes has, in seq, the same two states (an earlier event of either disk in seq would be with
+ *   a disk the strip knows, hence processed, or with an unknown one, hence after its tau), so it is
+ *   seq's event, and every event of seq before both taus is found. An event of seq at t >= tau of one
+ *   disk has t >= tau of the other (they touch at t), so what remains of the window is among the
+ *   tainted disks (tau <= T1) alone, each of which has had every event before its tau.
+ * - Phase 2, the bands concurrently: the tainted disks lie near the cuts. A column of a strip without a
+ *   tainted disk separates the cut to its left from the cut to its right (disks two columns apart
+ *   cannot touch within the window), so each band between two such columns runs seq's loop over its
+ *   tainted disks alone, from the states phase 1 left (a disk's phase-1 events all come before its tau,
+ *   its phase-2 events after it). A strip with no clean column merges the bands on either side.
+ * - Stops. An event that would stop the run (exact_stops), leave a component above vbound or a speed
+ *   above sbound, or be a disk's WINDOW_EVENTS-th, is not processed in parallel: its strip or band
+ *   stops there, the others at that time, and every disk's state as it was before its first event in
+ *   the window is put back. The window runs again up to the time just before the earliest such event
+ *   (where phase 2 may meet an earlier one: again, up to that), and the next window is that event's
+ *   instant alone, run sequentially: there the event stops the run or ends the window exactly as in
+ *   seq's loop, and the windows after it plan with the velocities it left. A deferred pair whose other
+ *   disk is not tainted (the margins not covering rounding, which they must) puts the states back too,
+ *   and the window runs sequentially. So every window is seq's, at every thread count.
+ * In a periodic box the first and last strips would be neighbours across the edge: one more cut
+ * (edge_bound's neighbour columns) and a band that wraps (plan_bands).
  */
 #include "exact.h"
 #include "omp_step.h"
@@ -34,7 +69,8 @@
 #define WINDOW_EVENTS 4096
 #endif
 
-#define VBOUND_FACTOR 1.5 /* vbound over the fastest component at the window's start */
+#define VBOUND_FACTOR 1.5 /* vbound over the fastest component, sbound over the fastest speed, at the
+                             window's start */
 #define WINDOW_CHOICES 24 /* window lengths tried: the rest of the step over 1, 2, 4, ... */
 
 /* Relative costs for choosing the window length: binning one disk, one pair prediction, the heap
@@ -43,9 +79,35 @@
 #define COST_PAIR 1.0
 #define COST_EVENT 4.0
 
+#define STRIPS_PER_THREAD 1 /* strips of a parallel window per thread (phase 2 has one band fewer) */
+#define STRIP_MIN_COLS 6    /* narrowest strip, in columns: room for a clean column between two bands */
+
+/* A taint event: from tau on, disk i's motion is no longer known to its strip. */
 typedef struct {
-    ExactHeap buf; /* events this thread predicted at the window's start (unordered) */
+    double tau;
+    int32_t i;
+} XTaint;
+
+/* A disk's state before its first event in a parallel window, to put back if the window is undone. */
+typedef struct {
+    real x, y, vx, vy, t;
+    double wi;
+    uint32_t ver, step_events;
+    int32_t i, last, pc, wc;
+} XSaved;
+
+typedef struct {
+    ExactHeap buf;   /* sequential start: this thread's predictions (unordered); parallel: the heap of
+                        the strip or band at hand */
+    XTaint *taint;   /* the strip's taint events, a min-heap by tau */
+    size_t taint_len, taint_cap;
+    XSaved *saved;   /* states put aside in this window */
+    size_t saved_len, saved_cap;
+    int32_t *list;   /* a band's tainted disks */
+    size_t list_cap;
     uint64_t tests;
+    uint64_t ev1, ev2, tainted; /* this parallel window's events by phase, tainted disks */
+    double stop_t;   /* the time of the first event this thread found that stops the window, or inf */
     char pad[64];
 } XThread;
 
@@ -55,19 +117,43 @@ typedef struct {
     int nt;
     int check;            /* --check: all pairs after every window (check_window) */
     XThread *th;
-    ExactHeap heap;
-    /* the window's grid */
+    ExactHeap heap;       /* the sequential window's events */
+    /* the window's grid: cells in column-major order (c = cx * g + cy), so that a strip of columns is
+       one range of cells */
     int64_t g, max_cells; /* cells per side; most cells allowed */
     double origin, inv_w; /* lower corner (both axes) and 1 / cell width */
     int32_t *cell_of;     /* n: each disk's cell */
     int32_t *cell_start;  /* max_cells + 1: first entry of each cell in members */
     int32_t *members;     /* n: disk indices in cell order */
+    int32_t *by_strip;    /* n: disk indices in strip order (binning's first pass) */
     uint32_t *win_events; /* n: events of each disk in the window */
     double vbound;        /* bound on |vx|, |vy| within the window */
+    double sbound;        /* bound on the speed within a parallel window */
     double rate;          /* events per time unit, estimated from the last window */
-    uint64_t windows;     /* for --stats: windows run, */
-    double start_s, loop_s; /* seconds in their starts (parallel) and event loops (sequential) */
+    /* the strips and bands of a parallel window */
+    int strips, max_strips;
+    int32_t *col_lo;      /* max_strips + 1: each strip's first column */
+    int32_t *strip_of;    /* g: each column's strip */
+    int64_t *strip_count; /* nt * max_strips: binning's counts, then offsets, by thread and strip */
+    int64_t *strip_first; /* max_strips + 1: each strip's first entry in by_strip */
+    double *tau;          /* n: each disk's taint time (phase 1) */
+    double *x0, *y0;      /* n: each disk's position at the window's start */
+    unsigned char *cell_tainted; /* max_cells: whether a cell holds a disk whose taint time has come */
+    unsigned char *col_tainted; /* g: whether a column holds a tainted disk after phase 1 */
+    int bands;
+    int32_t *band_lo;     /* max_strips + 1: each band's first column, then its end */
+    double touch;         /* the taint bound's contact distance: 2r and cell_width's margins */
+    double stop_t;        /* the earliest event found so far that stops the parallel window, or inf */
+    int bound_failed;     /* a deferred pair whose other disk was not tainted: the window runs again
+                             sequentially */
+    real instant;         /* >= 0: the next window is the events at this one instant, sequentially */
+    /* for --stats */
+    uint64_t windows, par_windows, retried, redone, instants, merged;
+    uint64_t ev_seq, ev1, ev2, tainted;
+    double bin_s, start_s, loop_s, phase1_s, phase2_s;
 } XWork;
+
+/* ==== the window's plan and grid ==================================================================== */
 
 /* Width of cells from which two disks can touch within a window of length h (see the top comment).
  * The graze term is the error of pair_time's contact distance near D == 0 (omp.c plan_step). */
@@ -87,21 +173,39 @@ static int64_t cells_per_side(const XWork *w, double width, double extent)
     return g < 1 ? 1 : g;
 }
 
+/* The strips of the window: max_strips of equal width, fewer where the grid is narrow; one strip
+ * (the sequential window) on one thread or where parallel is 0. */
+static void plan_strips(XWork *w, int parallel)
+{
+    int64_t s = w->g / STRIP_MIN_COLS;
+    if (s > w->max_strips) s = w->max_strips;
+    if (!parallel || w->nt < 2 || s < 2) s = 1;
+    w->strips = (int)s;
+    for (int k = 0; k <= w->strips; k++) w->col_lo[k] = (int32_t)(w->g * k / w->strips);
+    for (int k = 0; k < w->strips; k++)
+        for (int32_t c = w->col_lo[k]; c < w->col_lo[k + 1]; c++) w->strip_of[c] = k;
+}
+
 /* Chooses the end of the window starting at t0 and its grid, trading the window's start-up (binning
- * and predicting every disk, in parallel) against the neighbours each event tests. */
-static real plan_window(XWork *w, real t0, double vmax)
+ * and predicting every disk) against the neighbours each event tests; instant: the window is the
+ * instant t0 alone, sequential. Both parts run on all threads in a parallel window; in a sequential
+ * one only the start-up does, and the windows are shorter. */
+static real plan_window(XWork *w, real t0, double vmax, double smax, int instant)
 {
     const Params *p = w->p;
     double n = (double)p->n, rest = 1 - (double)t0;
     w->vbound = VBOUND_FACTOR * vmax;
+    w->sbound = VBOUND_FACTOR * smax;
     double margin = REL_MARGIN * (double)(p->L + p->r), extent = (double)(p->hi - p->lo) + 2 * margin;
     double best = -1, h = rest;
-    for (int k = 0; k < WINDOW_CHOICES; k++) {
+    int parallel = w->nt > 1; /* (unless the grid turns out too narrow for strips) */
+    for (int k = 0; k < WINDOW_CHOICES && !instant; k++) {
         double hk = ldexp(rest, -k);
         int64_t g = cells_per_side(w, cell_width(p, w->vbound, hk), extent);
         double near = 9 * n / ((double)g * (double)g);
-        double cost = n * (COST_BIN + COST_PAIR * near / 2) / (w->nt * hk) +
-                      w->rate * (COST_EVENT + 2 * COST_PAIR * near);
+        double start = n * (COST_BIN + COST_PAIR * near / 2) / hk;
+        double loop = w->rate * (COST_EVENT + 2 * COST_PAIR * near);
+        double cost = parallel ? start + loop : start / w->nt + loop;
         if (best < 0 || cost < best) {
             best = cost;
             h = hk;
@@ -110,9 +214,15 @@ static real plan_window(XWork *w, real t0, double vmax)
     }
     real t1 = h == rest ? 1 : t0 + (real)h;
     if (!(t1 > t0) || t1 > 1) t1 = 1;
-    w->g = cells_per_side(w, cell_width(p, w->vbound, (double)t1 - (double)t0), extent);
+    if (instant) t1 = t0;
+    double len = (double)t1 - (double)t0;
+    w->g = cells_per_side(w, cell_width(p, w->vbound, len), extent);
     w->origin = (double)p->lo - margin;
     w->inv_w = (double)w->g / extent;
+    plan_strips(w, !instant);
+    double reach = 2 * (double)p->r + 2 * w->vbound * len;
+    w->touch = 2 * (double)p->r + 2 * broad_margin(p->r, (double)p->L + 2 * w->vbound * len, reach,
+                                                   REL_MARGIN);
     return t1;
 }
 
@@ -124,24 +234,73 @@ static inline int32_t cell_coord(const XWork *w, double c)
     return (int32_t)u;
 }
 
-/* Bins the disks by their positions projected to t0: cells in parallel, a counting sort. */
+/* Bins the disks by their positions projected to t0, on all threads: each thread counts its range of
+ * disks by strip, the disks go to their strips in index order, and each strip sorts its own by cell
+ * (a counting sort). Clears the window's per-disk counts and taint times on the way. */
 static void bin_disks(XWork *w, real t0)
 {
     const Sim *s = w->d.sim;
-    int64_t n = w->p->n, cells = w->g * w->g;
-#pragma omp parallel for schedule(static)
-    for (int64_t i = 0; i < n; i++) {
-        double dt = (double)t0 - (double)w->d.t[i];
-        double x = (double)s->x[i] + (double)s->vx[i] * dt, y = (double)s->y[i] + (double)s->vy[i] * dt;
-        w->cell_of[i] = cell_coord(w, y) * (int32_t)w->g + cell_coord(w, x);
+    int64_t n = w->p->n, g = w->g;
+    int strips = w->strips;
+#pragma omp parallel
+    {
+        int tid = omp_get_thread_num(), nth = omp_get_num_threads();
+        int64_t from = n * tid / nth, to = n * (tid + 1) / nth;
+        int64_t *count = w->strip_count + (size_t)tid * (size_t)w->max_strips;
+        for (int k = 0; k < strips; k++) count[k] = 0;
+        for (int64_t i = from; i < to; i++) {
+            double dt = (double)t0 - (double)w->d.t[i];
+            double x = (double)s->x[i] + (double)s->vx[i] * dt, y = (double)s->y[i] + (double)s->vy[i] * dt;
+            int32_t cx = cell_coord(w, x);
+            w->cell_of[i] = cx * (int32_t)g + cell_coord(w, y);
+            w->x0[i] = x;
+            w->y0[i] = y;
+            w->win_events[i] = 0;
+            w->tau[i] = INFINITY;
+            count[w->strip_of[cx]]++;
+        }
+#pragma omp barrier
+#pragma omp single
+        {
+            int64_t at = 0;
+            for (int k = 0; k < strips; k++) {
+                w->strip_first[k] = at;
+                for (int t = 0; t < nth; t++) {
+                    int64_t *c = &w->strip_count[(size_t)t * (size_t)w->max_strips + (size_t)k];
+                    int64_t v = *c;
+                    *c = at;
+                    at += v;
+                }
+            }
+            w->strip_first[strips] = at;
+        }
+        for (int64_t i = from; i < to; i++) w->by_strip[count[w->strip_of[w->cell_of[i] / g]]++] = (int32_t)i;
+#pragma omp barrier
+#pragma omp for schedule(dynamic, 1)
+        for (int k = 0; k < strips; k++) {
+            int32_t *start = w->cell_start;
+            int64_t c0 = (int64_t)w->col_lo[k] * g, c1 = (int64_t)w->col_lo[k + 1] * g;
+            int64_t f0 = w->strip_first[k], f1 = w->strip_first[k + 1];
+            for (int64_t c = c0; c < c1; c++) start[c] = 0;
+            for (int64_t m = f0; m < f1; m++) start[w->cell_of[w->by_strip[m]]]++;
+            int64_t at = f0;
+            for (int64_t c = c0; c < c1; c++) {
+                int64_t v = start[c];
+                start[c] = (int32_t)at;
+                at += v;
+            }
+            for (int64_t m = f0; m < f1; m++) {
+                int32_t i = w->by_strip[m];
+                w->members[start[w->cell_of[i]]++] = i;
+            }
+            for (int64_t c = c1 - 1; c > c0; c--) start[c] = start[c - 1];
+            start[c0] = (int32_t)f0;
+        }
     }
-    memset(w->cell_start, 0, (size_t)(cells + 1) * sizeof *w->cell_start);
-    for (int64_t i = 0; i < n; i++) w->cell_start[w->cell_of[i] + 1]++;
-    for (int64_t c = 0; c < cells; c++) w->cell_start[c + 1] += w->cell_start[c];
-    for (int64_t i = 0; i < n; i++) w->members[w->cell_start[w->cell_of[i]]++] = (int32_t)i;
-    for (int64_t c = cells; c > 0; c--) w->cell_start[c] = w->cell_start[c - 1];
-    w->cell_start[0] = 0;
+    w->cell_start[g * g] = (int32_t)n;
 }
+
+/* ==== prediction ===================================================================================== */
 
 static inline void buf_add(ExactHeap *b, const ExactDisks *d, real t, int64_t i, int64_t j)
 {
@@ -150,10 +309,15 @@ static inline void buf_add(ExactHeap *b, const ExactDisks *d, real t, int64_t i,
     b->e[b->len++] = e;
 }
 
-/* Disk i's events up to t1: its wall event and its pair events with the disks in the 3 x 3 cells
- * around its own, except skip, and (from_lower) except those with a lower index. Into the heap, or
- * appended to b. Returns the pair predictions made. */
-static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, real t1, ExactHeap *b)
+/* Which neighbours predict_near pairs a disk with: all, those of strip `part` (phase 1), or the
+ * tainted ones (phase 2). */
+enum { NEAR_ALL, NEAR_STRIP, NEAR_TAINTED };
+
+/* Disk i's events up to t1: its wall event and its pair events with the disks of the 3 x 3 cells
+ * around its own that `near` admits, except skip, and (from_lower) except those with a lower index.
+ * Into the heap, or appended to b. Returns the pair predictions made. */
+static inline uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, real t1,
+                                    ExactHeap *b, int near, int part)
 {
     const ExactDisks *d = &w->d;
     const Params *p = w->p;
@@ -163,14 +327,15 @@ static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, 
         if (from_lower) buf_add(b, d, t, i, i);
         else exact_heap_push(b, d, t, i, i);
     }
-    int64_t g = w->g, c = w->cell_of[i], cx = c % g, cy = c / g;
-    for (int64_t ny = cy - 1; ny <= cy + 1; ny++) {
-        if (ny < 0 || ny >= g) continue;
-        int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : cx;
-        int32_t m0 = w->cell_start[ny * g + x0], m1 = w->cell_start[ny * g + x1 + 1];
+    int64_t g = w->g, c = w->cell_of[i], cx = c / g, cy = c % g;
+    int64_t y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g ? cy + 1 : cy;
+    for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
+        if (nx < 0 || nx >= g || (near == NEAR_STRIP && w->strip_of[nx] != part)) continue;
+        int32_t m0 = w->cell_start[nx * g + y0], m1 = w->cell_start[nx * g + y1 + 1];
         for (int32_t m = m0; m < m1; m++) {
             int64_t k = w->members[m];
             if (k == i || k == skip || (from_lower && k < i)) continue;
+            if (near == NEAR_TAINTED && !(w->tau[k] <= (double)t1)) continue;
             int64_t a = k < i ? k : i, bb = k < i ? i : k;
             tests++;
             t = exact_pair_time(d, p, a, bb);
@@ -180,14 +345,6 @@ static uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, 
         }
     }
     return tests;
-}
-
-/* One more event of disk i in this window; 1 if the window must end after it. */
-static inline int window_ends(XWork *w, int64_t i)
-{
-    const Sim *s = w->d.sim;
-    return ++w->win_events[i] >= WINDOW_EVENTS || fabs((double)s->vx[i]) > w->vbound ||
-           fabs((double)s->vy[i]) > w->vbound;
 }
 
 /* --check: after a window that ended at t1, no disk or pair may have an event before t1 (or at t1,
@@ -211,20 +368,23 @@ static void check_window(const XWork *w, real t0, real t1, int early)
     }
 }
 
-/* Runs the window starting at t0; returns where it ended and sets *done when the step is over. */
-static real run_window(XWork *w, real t0, int *done, RunStats *st)
+/* ==== the sequential window ========================================================================== */
+
+/* One more event of disk i in this window; 1 if the window must end after it. */
+static inline int window_ends(XWork *w, int64_t i)
+{
+    const Sim *s = w->d.sim;
+    return ++w->win_events[i] >= WINDOW_EVENTS || fabs((double)s->vx[i]) > w->vbound ||
+           fabs((double)s->vy[i]) > w->vbound;
+}
+
+/* Runs the window [t0, t1] as seq.c's loop on the grid; returns where it ended and sets *early when
+ * that is before its plan's end. */
+static real run_sequential(XWork *w, real t0, real t1, int *early, RunStats *st)
 {
     const Params *p = w->p;
     int64_t n = p->n;
-    double vmax = 0, clock0 = sim_clock();
-#pragma omp parallel for schedule(static) reduction(max : vmax)
-    for (int64_t i = 0; i < n; i++) {
-        double ax = fabs((double)w->d.sim->vx[i]), ay = fabs((double)w->d.sim->vy[i]);
-        if (ax > vmax) vmax = ax;
-        if (ay > vmax) vmax = ay;
-    }
-    real t1 = plan_window(w, t0, vmax);
-    bin_disks(w, t0);
+    double clock0 = sim_clock();
 
     /* every disk's events in the window, each pair once, in parallel */
 #pragma omp parallel
@@ -234,7 +394,7 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
 #pragma omp for schedule(dynamic, 256)
         for (int64_t i = 0; i < n; i++) {
             w->win_events[i] = 0;
-            th->tests += predict_near(w, i, -1, 1, t1, &th->buf);
+            th->tests += predict_near(w, i, -1, 1, t1, &th->buf, NEAR_ALL, 0);
         }
     }
     size_t total = 0;
@@ -251,7 +411,8 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
 
     /* the events in key order, as seq.c processes them */
     uint64_t events = 0;
-    int early = 0;
+    *early = 0;
+    (void)t0;
     while (w->heap.len && w->heap.e[0].t <= t1) {
         ExactEvent e;
         exact_heap_pop(&w->heap, &e);
@@ -262,20 +423,512 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
         if (e.j != e.i) end |= window_ends(w, e.j);
         if (end) {
             t1 = e.t;
-            early = 1;
+            *early = 1;
             break;
         }
-        st->pair_tests += predict_near(w, e.i, e.j, 0, t1, &w->heap);
-        if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap);
+        st->pair_tests += predict_near(w, e.i, e.j, 0, t1, &w->heap, NEAR_ALL, 0);
+        if (e.j != e.i) st->pair_tests += predict_near(w, e.j, e.i, 0, t1, &w->heap, NEAR_ALL, 0);
     }
     st->events += events;
-    w->windows++;
+    w->ev_seq += events;
     w->start_s += clock1 - clock0;
     w->loop_s += sim_clock() - clock1;
+    return t1;
+}
+
+/* ==== the parallel window ============================================================================ */
+
+/* Event e stops the parallel window (see parallel_apply): the earliest such time is kept. */
+static void stop_at(XWork *w, XThread *th, real t)
+{
+    if ((double)t < th->stop_t) th->stop_t = (double)t;
+#pragma omp critical(exact_stop)
+    if ((double)t < w->stop_t) w->stop_t = (double)t;
+}
+
+/* Whether events at time t are past an event that stops the window (or the window runs again
+ * sequentially): no use processing them. */
+static inline int past_stop(XWork *w, real t)
+{
+    double stop;
+    int failed;
+#pragma omp atomic read
+    stop = w->stop_t;
+#pragma omp atomic read
+    failed = w->bound_failed;
+    return failed || (double)t >= stop;
+}
+
+static void taint_push(XThread *th, double tau, int32_t i)
+{
+    if (th->taint_len == th->taint_cap)
+        th->taint = sim_grow(th->taint, &th->taint_cap, th->taint_len + 1, sizeof *th->taint);
+    XTaint x = {tau, i};
+    size_t k = th->taint_len++;
+    while (k > 0) {
+        size_t up = (k - 1) / 2;
+        if (!(tau < th->taint[up].tau)) break;
+        th->taint[k] = th->taint[up];
+        k = up;
+    }
+    th->taint[k] = x;
+}
+
+static XTaint taint_pop(XThread *th)
+{
+    XTaint top = th->taint[0], x = th->taint[--th->taint_len];
+    size_t k = 0, len = th->taint_len;
+    for (;;) {
+        size_t c = 2 * k + 1;
+        if (c >= len) break;
+        if (c + 1 < len && th->taint[c + 1].tau < th->taint[c].tau) c++;
+        if (!(th->taint[c].tau < x.tau)) break;
+        th->taint[k] = th->taint[c];
+        k = c;
+    }
+    if (len) th->taint[k] = x;
+    return top;
+}
+
+/* Disk i's position at time t by flight (for the taint bound only). */
+static inline void flown(const XWork *w, int64_t i, double t, double *x, double *y)
+{
+    const Sim *s = w->d.sim;
+    double dt = t - (double)w->d.t[i];
+    *x = (double)s->x[i] + (double)s->vx[i] * dt;
+    *y = (double)s->y[i] + (double)s->vy[i] * dt;
+}
+
+/* The earliest time after now at which disk z, at (zx, zy) at now and moving at speed zs until its
+ * next event, can touch a disk that was at (px, py) at time from <= now and has moved no faster than
+ * sbound since. */
+static inline double taint_bound(const XWork *w, double now, double zx, double zy, double zs, double px,
+                                 double py, double from)
+{
+    double dx = px - zx, dy = py - zy;
+    double gap = sqrt(dx * dx + dy * dy) - w->touch - w->sbound * (now - from) * (1 + REL_MARGIN);
+    return gap > 0 ? now + gap / ((w->sbound + zs) * (1 + REL_MARGIN)) : now;
+}
+
+static inline double speed_of(const XWork *w, int64_t i)
+{
+    const Sim *s = w->d.sim;
+    double vx = (double)s->vx[i], vy = (double)s->vy[i];
+    return sqrt(vx * vx + vy * vy);
+}
+
+/* Disk z's taint time bounded by the disks of the column next to strip k's edge column cx (the
+ * neighbour strip's, unknown from t0 on), z being at (zx, zy) at now. */
+static double edge_bound(const XWork *w, int k, int64_t cx, int64_t cy, double now, double zx, double zy,
+                         double zs, real t0)
+{
+    int64_t g = w->g, y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g ? cy + 1 : cy;
+    double tau = INFINITY;
+    for (int side = 0; side < 2; side++) {
+        int64_t ox = side ? cx + 1 : cx - 1;
+        if (ox < 0 || ox >= g || w->strip_of[ox] == k) continue; /* the wall (a periodic box: across it) */
+        for (int32_t q = w->cell_start[ox * g + y0]; q < w->cell_start[ox * g + y1 + 1]; q++) {
+            int32_t o = w->members[q];
+            double b = taint_bound(w, now, zx, zy, zs, w->x0[o], w->y0[o], (double)t0);
+            if (b < tau) tau = b;
+        }
+    }
+    return tau;
+}
+
+/* Strip k's disks at t0: the taint times that its edge columns get from the neighbour strips. */
+static void edge_taint(XWork *w, int k, real t0)
+{
+    int64_t g = w->g;
+    for (int32_t c = w->col_lo[k]; c < w->col_lo[k + 1]; c++) {
+        memset(w->cell_tainted + (int64_t)c * g, 0, (size_t)g);
+        if (c != w->col_lo[k] && c != w->col_lo[k + 1] - 1) continue;
+        for (int64_t cy = 0; cy < g; cy++)
+            for (int32_t m = w->cell_start[c * g + cy]; m < w->cell_start[c * g + cy + 1]; m++) {
+                int32_t z = w->members[m];
+                w->tau[z] = edge_bound(w, k, c, cy, (double)t0, w->x0[z], w->y0[z], speed_of(w, z), t0);
+            }
+    }
+}
+
+/* Disk z's taint time again after its event at now, from its new motion: bounded by the disks of
+ * the strip whose taint time has come and by those of the neighbour strips. */
+static double renew_bound(const XWork *w, int k, int32_t z, double now, real t0)
+{
+    int64_t g = w->g, c = w->cell_of[z], cx = c / g, cy = c % g;
+    int64_t y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g ? cy + 1 : cy;
+    double zx, zy, zs = speed_of(w, z), tau = INFINITY;
+    int edge = cx == w->col_lo[k] || cx == w->col_lo[k + 1] - 1;
+    int near = 0;
+    for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
+        if (nx < 0 || nx >= g || w->strip_of[nx] != k) continue;
+        for (int64_t ny = y0; ny <= y1; ny++) near |= w->cell_tainted[nx * g + ny];
+    }
+    if (!edge && !near) return INFINITY;
+    flown(w, z, now, &zx, &zy);
+    if (edge) tau = edge_bound(w, k, cx, cy, now, zx, zy, zs, t0);
+    if (!near) return tau;
+    for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
+        if (nx < 0 || nx >= g || w->strip_of[nx] != k) continue;
+        for (int32_t m = w->cell_start[nx * g + y0]; m < w->cell_start[nx * g + y1 + 1]; m++) {
+            int32_t y = w->members[m];
+            double ty = w->tau[y];
+            if (y == z || !(ty <= now)) continue;
+            double px, py;
+            flown(w, y, ty, &px, &py);
+            double b = taint_bound(w, now, zx, zy, zs, px, py, ty);
+            if (b < tau) tau = b;
+        }
+    }
+    return tau;
+}
+
+/* From tau on, disk y's motion is unknown to strip k: the bound for each of its neighbours in the
+ * strip (their states are those at tau: every event before tau is processed). */
+static void taint_spread(XWork *w, XThread *th, int k, int32_t y, double tau, real t1)
+{
+    int64_t g = w->g, c = w->cell_of[y], cx = c / g, cy = c % g;
+    int64_t y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g ? cy + 1 : cy;
+    double px, py;
+    flown(w, y, tau, &px, &py);
+    w->cell_tainted[c] = 1;
+    for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
+        if (nx < 0 || nx >= g || w->strip_of[nx] != k) continue;
+        for (int32_t m = w->cell_start[nx * g + y0]; m < w->cell_start[nx * g + y1 + 1]; m++) {
+            int32_t z = w->members[m];
+            if (z == y || w->tau[z] <= tau) continue;
+            double zx, zy;
+            flown(w, z, tau, &zx, &zy);
+            double b = taint_bound(w, tau, zx, zy, speed_of(w, z), px, py, tau);
+            if (b < w->tau[z]) {
+                w->tau[z] = b;
+                if (b <= (double)t1) taint_push(th, b, z);
+            }
+        }
+    }
+}
+
+/* Puts disk i's state aside before its first event in the window. */
+static void save_disk(XWork *w, XThread *th, int32_t i)
+{
+    if (w->win_events[i]) return;
+    if (th->saved_len == th->saved_cap)
+        th->saved = sim_grow(th->saved, &th->saved_cap, th->saved_len + 1, sizeof *th->saved);
+    const Sim *s = w->d.sim;
+    XSaved *v = &th->saved[th->saved_len++];
+    v->x = s->x[i];
+    v->y = s->y[i];
+    v->vx = s->vx[i];
+    v->vy = s->vy[i];
+    v->t = w->d.t[i];
+    v->wi = s->wi ? s->wi[i] : 0;
+    v->ver = w->d.ver[i];
+    v->step_events = w->d.step_events[i];
+    v->i = i;
+    v->last = w->d.last[i];
+    v->pc = s->pc[i];
+    v->wc = s->wc[i];
+}
+
+static void restore_disks(XWork *w)
+{
+    Sim *s = w->d.sim;
+    for (int t = 0; t < w->nt; t++) {
+        XThread *th = &w->th[t];
+#pragma omp parallel for schedule(static)
+        for (size_t k = 0; k < th->saved_len; k++) {
+            const XSaved *v = &th->saved[k];
+            int32_t i = v->i;
+            s->x[i] = v->x;
+            s->y[i] = v->y;
+            s->vx[i] = v->vx;
+            s->vy[i] = v->vy;
+            w->d.t[i] = v->t;
+            if (s->wi) s->wi[i] = v->wi;
+            w->d.ver[i] = v->ver;
+            w->d.step_events[i] = v->step_events;
+            w->d.last[i] = v->last;
+            s->pc[i] = v->pc;
+            s->wc[i] = v->wc;
+        }
+    }
+}
+
+/* One more event of disk i in a parallel window; 1 if the window must be undone (the sequential
+ * window would end here, or the taint bound's speed no longer holds). */
+static inline int outruns(XWork *w, int64_t i)
+{
+    const Sim *s = w->d.sim;
+    double vx = (double)s->vx[i], vy = (double)s->vy[i];
+    return ++w->win_events[i] >= WINDOW_EVENTS || fabs(vx) > w->vbound || fabs(vy) > w->vbound ||
+           vx * vx + vy * vy > w->sbound * w->sbound;
+}
+
+/* Processes valid event e in a parallel window; 1 if the window must be undone. */
+static int parallel_apply(XWork *w, XThread *th, const ExactEvent *e)
+{
+    if (exact_stops(&w->d, e)) return 1;
+    save_disk(w, th, e->i);
+    if (e->j != e->i) save_disk(w, th, e->j);
+    exact_apply(&w->d, w->p, e);
+    int bad = outruns(w, e->i);
+    if (e->j != e->i) bad |= outruns(w, e->j);
+    return bad;
+}
+
+/* Phase 1 of strip k: seq's loop over the strip's disks, each event before both its disks' taus. */
+static void strip_events(XWork *w, XThread *th, int k, real t0, real t1)
+{
+    int64_t g = w->g;
+    int32_t m0 = w->cell_start[(int64_t)w->col_lo[k] * g], m1 = w->cell_start[(int64_t)w->col_lo[k + 1] * g];
+    ExactHeap *h = &th->buf;
+    h->len = 0;
+    th->taint_len = 0;
+    for (int32_t m = m0; m < m1; m++) {
+        int32_t i = w->members[m];
+        th->tests += predict_near(w, i, -1, 1, t1, h, NEAR_STRIP, k);
+        if (w->tau[i] <= (double)t1) taint_push(th, w->tau[i], i);
+    }
+    exact_heap_build(h);
+    uint64_t events = 0;
+    int check = 0;
+    for (;;) {
+        int real_next = h->len && h->e[0].t <= t1;
+        if (th->taint_len && (!real_next || th->taint[0].tau <= (double)h->e[0].t)) {
+            XTaint x = taint_pop(th);
+            if (x.tau == w->tau[x.i]) taint_spread(w, th, k, x.i, x.tau, t1);
+            continue;
+        }
+        if (!real_next) break;
+        if (++check % 64 == 0 && past_stop(w, h->e[0].t)) return;
+        ExactEvent e;
+        exact_heap_pop(h, &e);
+        if (!exact_valid(&w->d, &e)) continue;
+        double te = (double)e.t;
+        if (te >= w->tau[e.i] || te >= w->tau[e.j]) { /* phase 2's */
+            if (!(w->tau[e.i] <= te && w->tau[e.j] <= te)) {
+#pragma omp atomic write
+                w->bound_failed = 1;
+                return;
+            }
+            continue;
+        }
+        if (parallel_apply(w, th, &e)) {
+            stop_at(w, th, e.t);
+            return;
+        }
+        events++;
+        th->tests += predict_near(w, e.i, e.j, 0, t1, h, NEAR_STRIP, k);
+        if (e.j != e.i) th->tests += predict_near(w, e.j, e.i, 0, t1, h, NEAR_STRIP, k);
+        for (int d = 0; d < 1 + (e.j != e.i); d++) { /* a new motion: a new bound */
+            int32_t z = d ? e.j : e.i;
+            double tau = renew_bound(w, k, z, te, t0);
+            if (tau != w->tau[z]) {
+                w->tau[z] = tau;
+                if (tau <= (double)t1) taint_push(th, tau, z);
+            }
+        }
+    }
+    th->ev1 += events;
+    for (int32_t c = w->col_lo[k]; c < w->col_lo[k + 1]; c++) {
+        unsigned char any = 0;
+        for (int32_t m = w->cell_start[c * g]; m < w->cell_start[(c + 1) * g]; m++) {
+            int tainted = w->tau[w->members[m]] <= (double)t1;
+            any |= tainted;
+            th->tainted += tainted;
+        }
+        w->col_tainted[c] = any;
+    }
+}
+
+/* The bands of phase 2: the columns between consecutive clean columns, one chosen in each strip
+ * (nearest its middle); a strip without one joins the bands on either side. */
+static void plan_bands(XWork *w)
+{
+    int b = 0;
+    w->band_lo[0] = 0;
+    for (int k = 0; k < w->strips; k++) {
+        int32_t lo = w->col_lo[k], hi = w->col_lo[k + 1], mid = lo + (hi - lo) / 2, clean = -1;
+        for (int32_t d = 0; clean < 0 && (mid - d >= lo || mid + d < hi); d++) {
+            if (mid - d >= lo && !w->col_tainted[mid - d]) clean = mid - d;
+            else if (mid + d < hi && !w->col_tainted[mid + d]) clean = mid + d;
+        }
+        if (clean < 0) {
+            w->merged++;
+            continue;
+        }
+        w->band_lo[++b] = clean; /* band b - 1 ends before it; band b starts after it */
+        w->band_lo[++b] = clean + 1;
+    }
+    w->band_lo[++b] = (int32_t)w->g;
+    w->bands = b / 2 + 1; /* pairs (band_lo[2a], band_lo[2a + 1]): each band's columns */
+}
+
+/* Phase 2 of band b: seq's loop over its tainted disks. */
+static void band_events(XWork *w, XThread *th, int b, real t1)
+{
+    int64_t g = w->g;
+    int32_t c0 = w->band_lo[2 * b], c1 = w->band_lo[2 * b + 1];
+    size_t len = 0;
+    for (int32_t m = w->cell_start[(int64_t)c0 * g]; m < w->cell_start[(int64_t)c1 * g]; m++) {
+        int32_t i = w->members[m];
+        if (!(w->tau[i] <= (double)t1)) continue;
+        if (len == th->list_cap) th->list = sim_grow(th->list, &th->list_cap, len + 1, sizeof *th->list);
+        th->list[len++] = i;
+    }
+    if (!len) return;
+    ExactHeap *h = &th->buf;
+    h->len = 0;
+    for (size_t k = 0; k < len; k++) th->tests += predict_near(w, th->list[k], -1, 1, t1, h, NEAR_TAINTED, 0);
+    exact_heap_build(h);
+    uint64_t events = 0;
+    int check = 0;
+    while (h->len && h->e[0].t <= t1) {
+        if (++check % 64 == 0 && past_stop(w, h->e[0].t)) return;
+        ExactEvent e;
+        exact_heap_pop(h, &e);
+        if (!exact_valid(&w->d, &e)) continue;
+        if (parallel_apply(w, th, &e)) {
+            stop_at(w, th, e.t);
+            return;
+        }
+        events++;
+        th->tests += predict_near(w, e.i, e.j, 0, t1, h, NEAR_TAINTED, 0);
+        if (e.j != e.i) th->tests += predict_near(w, e.j, e.i, 0, t1, h, NEAR_TAINTED, 0);
+    }
+    th->ev2 += events;
+}
+
+/* The window's taint times and counts as at its start (a window run again after a stop). */
+static void clear_window(XWork *w)
+{
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < w->p->n; i++) {
+        w->win_events[i] = 0;
+        w->tau[i] = INFINITY;
+    }
+}
+
+enum { PARALLEL_DONE, PARALLEL_STOPPED, PARALLEL_FAILED };
+
+/* Runs the window [t0, t1] in strips and bands. PARALLEL_DONE: it is done. Otherwise every disk's state
+ * is as at t0 again, and PARALLEL_STOPPED sets *stop to the earliest event found that stops it (every
+ * strip runs to its first, so that the next try, which ends before it, finds none in phase 1; phase 2
+ * likewise), PARALLEL_FAILED means it must run sequentially. */
+static int run_parallel(XWork *w, real t0, real t1, real *stop, RunStats *st)
+{
+    double clock0 = sim_clock(), clock1 = 0;
+    w->stop_t = INFINITY;
+    w->bound_failed = 0;
+    for (int t = 0; t < w->nt; t++) {
+        XThread *th = &w->th[t];
+        th->saved_len = 0;
+        th->ev1 = th->ev2 = th->tainted = 0;
+        th->stop_t = INFINITY;
+    }
+#pragma omp parallel
+    {
+        XThread *th = &w->th[omp_get_thread_num()];
+#pragma omp for schedule(dynamic, 1)
+        for (int k = 0; k < w->strips; k++) edge_taint(w, k, t0);
+#pragma omp for schedule(dynamic, 1)
+        for (int k = 0; k < w->strips; k++) strip_events(w, th, k, t0, t1);
+#pragma omp single
+        {
+            clock1 = sim_clock();
+            w->bands = 0;
+            if (w->stop_t == INFINITY && !w->bound_failed) plan_bands(w);
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (int b = 0; b < w->bands; b++) band_events(w, th, b, t1);
+    }
+    w->phase1_s += clock1 - clock0;
+    w->phase2_s += sim_clock() - clock1;
+    if (w->stop_t < INFINITY || w->bound_failed) {
+        restore_disks(w);
+        *stop = (real)w->stop_t;
+        return w->bound_failed ? PARALLEL_FAILED : PARALLEL_STOPPED;
+    }
+    uint64_t ev1 = 0, ev2 = 0;
+    for (int t = 0; t < w->nt; t++) {
+        ev1 += w->th[t].ev1;
+        ev2 += w->th[t].ev2;
+        w->tainted += w->th[t].tainted;
+    }
+    w->ev1 += ev1;
+    w->ev2 += ev2;
+    st->events += ev1 + ev2;
+    w->par_windows++;
+    return PARALLEL_DONE;
+}
+
+/* ==== the step ======================================================================================= */
+
+/* The largest time before t. */
+static inline real time_below(real t)
+{
+#ifdef SIM_FLOAT
+    return nextafterf(t, -INFINITY);
+#else
+    return nextafter(t, -INFINITY);
+#endif
+}
+
+/* Runs the window starting at t0; returns where it ended and sets *done when the step is over.
+ *
+ * A parallel window that meets an event it may not process (parallel_apply) at time ts runs again,
+ * up to the time just before ts, where it finds no such event unless phase 2 meets an earlier one
+ * (then again, up to that). The next window is then the events at the instant ts alone, run
+ * sequentially: it processes the event as seq does (ending the window after it, or stopping the
+ * run), and the windows after it plan with the velocities it left. */
+static real run_window(XWork *w, real t0, int *done, RunStats *st)
+{
+    int64_t n = w->p->n;
+    real instant = w->instant;
+    w->instant = -1;
+    if (instant >= 0) {
+        t0 = instant;
+        w->instants++;
+    }
+    double vmax = 0, smax2 = 0, clock0 = sim_clock();
+#pragma omp parallel for schedule(static) reduction(max : vmax, smax2)
+    for (int64_t i = 0; i < n; i++) {
+        double vx = (double)w->d.sim->vx[i], vy = (double)w->d.sim->vy[i];
+        double ax = fabs(vx), ay = fabs(vy), s2 = vx * vx + vy * vy;
+        if (ax > vmax) vmax = ax;
+        if (ay > vmax) vmax = ay;
+        if (s2 > smax2) smax2 = s2;
+    }
+    real t1 = plan_window(w, t0, vmax, sqrt(smax2), instant >= 0);
+    bin_disks(w, t0);
+    w->bin_s += sim_clock() - clock0;
+    uint64_t events0 = st->events;
+    int early = 0, sequential = w->strips < 2;
+    while (!sequential) {
+        real stop;
+        int r = run_parallel(w, t0, t1, &stop, st);
+        if (r == PARALLEL_DONE) break;
+        if (r == PARALLEL_FAILED) {
+            w->redone++;
+            sequential = 1;
+            break;
+        }
+        w->retried++;
+        if (stop <= t0) { /* at the window's first instant: that instant alone, sequentially */
+            t1 = t0;
+            sequential = 1;
+            break;
+        }
+        t1 = time_below(stop);
+        w->instant = stop;
+        clear_window(w);
+    }
+    if (sequential) t1 = run_sequential(w, t0, t1, &early, st);
+    w->windows++;
     double len = (double)t1 - (double)t0;
-    if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)events / len;
+    if (len > 0) w->rate = 0.5 * w->rate + 0.5 * (double)(st->events - events0) / len;
     if (w->check) check_window(w, t0, t1, early);
-    *done = !early && t1 == 1;
+    *done = !early && t1 == 1 && w->instant < 0;
     return t1;
 }
 
@@ -290,11 +943,25 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     exact_alloc(&w.d, sim, par);
     w.th = sim_calloc_lines((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
+    int64_t max_g = (int64_t)sqrt((double)n) + 2;
+    w.max_strips = w.nt * STRIPS_PER_THREAD;
     w.cell_of = sim_calloc((size_t)n, sizeof *w.cell_of);
     w.cell_start = sim_calloc((size_t)w.max_cells + 1, sizeof *w.cell_start);
     w.members = sim_calloc((size_t)n, sizeof *w.members);
+    w.by_strip = sim_calloc((size_t)n, sizeof *w.by_strip);
     w.win_events = sim_calloc((size_t)n, sizeof *w.win_events);
+    w.tau = sim_calloc((size_t)n, sizeof *w.tau);
+    w.x0 = sim_calloc((size_t)n, sizeof *w.x0);
+    w.y0 = sim_calloc((size_t)n, sizeof *w.y0);
+    w.cell_tainted = sim_calloc((size_t)w.max_cells, 1);
+    w.col_lo = sim_calloc((size_t)w.max_strips + 1, sizeof *w.col_lo);
+    w.strip_of = sim_calloc((size_t)max_g, sizeof *w.strip_of);
+    w.strip_count = sim_calloc((size_t)w.nt * (size_t)w.max_strips, sizeof *w.strip_count);
+    w.strip_first = sim_calloc((size_t)w.max_strips + 1, sizeof *w.strip_first);
+    w.col_tainted = sim_calloc((size_t)max_g, sizeof *w.col_tainted);
+    w.band_lo = sim_calloc(2 * (size_t)w.max_strips + 2, sizeof *w.band_lo);
     w.rate = (double)n;
+    w.instant = -1;
 
     double t0 = sim_clock();
     for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
@@ -308,21 +975,45 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         io_progress(out, step);
     }
     st->seconds = sim_clock() - t0;
-    if (opt->stats)
-        fprintf(stderr, "%s: --exact: %llu windows; %.6f s in their starts (parallel), %.6f s in "
-                "their event loops (sequential)\n", sim_program, (unsigned long long)w.windows,
-                w.start_s, w.loop_s);
+    if (opt->stats) {
+        fprintf(stderr, "%s: --exact: %llu windows: %llu in strips on all threads, %llu sequential (%llu "
+                "at one instant after a parallel window stopped before it, %llu run again sequentially); "
+                "%llu parallel tries stopped and run again to just before the stop; binning %.6f s\n",
+                sim_program, (unsigned long long)w.windows, (unsigned long long)w.par_windows,
+                (unsigned long long)(w.windows - w.par_windows), (unsigned long long)w.instants,
+                (unsigned long long)w.redone, (unsigned long long)w.retried, w.bin_s);
+        fprintf(stderr, "%s: --exact: events: %llu in the strips (phase 1, %.6f s), %llu among the %llu "
+                "disks tainted near the cuts (phase 2, %.6f s; %llu strips without a clean column), %llu in "
+                "sequential windows (start %.6f s, loop %.6f s)\n",
+                sim_program, (unsigned long long)w.ev1, w.phase1_s, (unsigned long long)w.ev2,
+                (unsigned long long)w.tainted, w.phase2_s, (unsigned long long)w.merged,
+                (unsigned long long)w.ev_seq, w.start_s, w.loop_s);
+    }
 
     for (int t = 0; t < w.nt; t++) {
         st->pair_tests += w.th[t].tests;
         free(w.th[t].buf.e);
+        free(w.th[t].taint);
+        free(w.th[t].saved);
+        free(w.th[t].list);
     }
     exact_free(&w.d);
     free(w.th);
     free(w.cell_of);
     free(w.cell_start);
     free(w.members);
+    free(w.by_strip);
     free(w.win_events);
+    free(w.tau);
+    free(w.x0);
+    free(w.y0);
+    free(w.cell_tainted);
+    free(w.col_lo);
+    free(w.strip_of);
+    free(w.strip_count);
+    free(w.strip_first);
+    free(w.col_tainted);
+    free(w.band_lo);
     free(w.heap.e);
     return 0;
 }
