@@ -88,7 +88,7 @@ typedef struct {
     int32_t i;
 } XTaint;
 
-/* A disk's state before its first event in a parallel window, to put back if the window is undone. */
+/* A slot's state before its first event in a parallel window, to put back if the window stops. */
 typedef struct {
     real x, y, vx, vy, t;
     double wi;
@@ -108,11 +108,17 @@ typedef struct {
     uint64_t tests;
     uint64_t ev1, ev2, tainted; /* this parallel window's events by phase, tainted disks */
     double stop_t;   /* the time of the first event this thread found that stops the window, or inf */
+    double busy1, busy2; /* for --stats: seconds in strips and in bands */
     char pad[64];
 } XThread;
 
 typedef struct {
-    ExactDisks d;
+    ExactDisks d;         /* the disks in slot order (on ss) */
+    Sim *sim;             /* the run's state, in index order */
+    Sim ss;               /* the state in slot order; its last holds slots */
+    int32_t *id;          /* n: each slot's disk */
+    int32_t *slot_of;     /* n: each disk's slot */
+    void *spare[16];      /* reorder_slots' second copy of each array it moves */
     const Params *p;
     int nt;
     int check;            /* --check: all pairs after every window (check_window) */
@@ -122,11 +128,11 @@ typedef struct {
        one range of cells */
     int64_t g, max_cells; /* cells per side; most cells allowed */
     double origin, inv_w; /* lower corner (both axes) and 1 / cell width */
-    int32_t *cell_of;     /* n: each disk's cell */
+    int32_t *cell_of;     /* n: each slot's cell */
     int32_t *cell_start;  /* max_cells + 1: first entry of each cell in members */
-    int32_t *members;     /* n: disk indices in cell order */
-    int32_t *by_strip;    /* n: disk indices in strip order (binning's first pass) */
-    uint32_t *win_events; /* n: events of each disk in the window */
+    int32_t *members;     /* n: the slots in cell order */
+    int32_t *by_strip;    /* n: the slots in strip order (binning's first pass) */
+    uint32_t *win_events; /* n: events of each slot in the window */
     double vbound;        /* bound on |vx|, |vy| within the window */
     double sbound;        /* bound on the speed within a parallel window */
     double rate;          /* events per time unit, estimated from the last window */
@@ -136,17 +142,18 @@ typedef struct {
     int32_t *strip_of;    /* g: each column's strip */
     int64_t *strip_count; /* nt * max_strips: binning's counts, then offsets, by thread and strip */
     int64_t *strip_first; /* max_strips + 1: each strip's first entry in by_strip */
-    double *tau;          /* n: each disk's taint time (phase 1) */
-    double *x0, *y0;      /* n: each disk's position at the window's start */
+    double *tau;          /* n: each slot's taint time (phase 1) */
+    double *x0, *y0;      /* n: each slot's position at the window's start */
     unsigned char *cell_tainted; /* max_cells: whether a cell holds a disk whose taint time has come */
     unsigned char *col_tainted; /* g: whether a column holds a tainted disk after phase 1 */
     int bands;
-    int32_t *band_lo;     /* max_strips + 1: each band's first column, then its end */
+    int32_t *band_lo;     /* 2 max_strips + 2: each band's first column and its end */
     double touch;         /* the taint bound's contact distance: 2r and cell_width's margins */
     double stop_t;        /* the earliest event found so far that stops the parallel window, or inf */
     int bound_failed;     /* a deferred pair whose other disk was not tainted: the window runs again
                              sequentially */
     real instant;         /* >= 0: the next window is the events at this one instant, sequentially */
+    int reorder;          /* the next window's binning puts the slots in its cells' order */
     /* for --stats */
     uint64_t windows, par_windows, retried, redone, instants, merged;
     uint64_t ev_seq, ev1, ev2, tainted;
@@ -300,22 +307,176 @@ static void bin_disks(XWork *w, real t0)
     w->cell_start[g * g] = (int32_t)n;
 }
 
+/* ==== the slots ====================================================================================== */
+
+/* The disks live in slots, an order of omp_exact.c's own: at each step's first window the slots take the
+ * order of the window's cells (reorder_slots), so that a strip's disks lie together in memory, apart
+ * from the other threads' (no cache line written by two threads) and a cell's neighbours near it.
+ * Events keep seq's keys, the disks' indices; exact.c's arithmetic runs on slots, each pair's lower
+ * index first as in seq. */
+
+/* One per-slot array and the size of its elements (4 or 8 bytes). */
+typedef struct {
+    void **a;
+    size_t size;
+} XArray;
+
+/* The per-disk arrays of state s (x, y, vx, vy, pc, wc, last, and wi where --pressure keeps it) into
+ * a; returns how many. */
+static int state_arrays(Sim *s, XArray *a)
+{
+    XArray all[] = {
+        {(void **)&s->x, sizeof(real)},     {(void **)&s->y, sizeof(real)},
+        {(void **)&s->vx, sizeof(real)},    {(void **)&s->vy, sizeof(real)},
+        {(void **)&s->pc, sizeof(int32_t)}, {(void **)&s->wc, sizeof(int32_t)},
+        {(void **)&s->last, sizeof(int32_t)}, {(void **)&s->wi, sizeof(double)},
+    };
+    int count = 8 - (s->wi ? 0 : 1);
+    memcpy(a, all, (size_t)count * sizeof *a);
+    return count;
+}
+
+/* dst[k] = src[from[k]] (or, scatter, dst[from[k]] = src[k]) for k < n, on the calling team. */
+static void permute(const XArray *dst, const XArray *src, const int32_t *from, int scatter, int64_t n)
+{
+    if (dst->size == 8) {
+        uint64_t *d = *dst->a;
+        const uint64_t *q = *src->a;
+#pragma omp for schedule(static) nowait
+        for (int64_t k = 0; k < n; k++) {
+            if (scatter) d[from[k]] = q[k];
+            else d[k] = q[from[k]];
+        }
+    } else {
+        uint32_t *d = *dst->a;
+        const uint32_t *q = *src->a;
+#pragma omp for schedule(static) nowait
+        for (int64_t k = 0; k < n; k++) {
+            if (scatter) d[from[k]] = q[k];
+            else d[k] = q[from[k]];
+        }
+    }
+}
+
+/* Puts the slots in the order of the window's cells (members): slot k takes the disk of slot
+ * members[k]. Every per-slot array moves; last is renumbered. */
+static void reorder_slots(XWork *w)
+{
+    int64_t n = w->p->n;
+    XArray moved[16] = {
+        {(void **)&w->d.t, sizeof(real)},       {(void **)&w->d.ver, sizeof(uint32_t)},
+        {(void **)&w->d.step_events, sizeof(uint32_t)}, {(void **)&w->cell_of, sizeof(int32_t)},
+        {(void **)&w->id, sizeof(int32_t)},     {(void **)&w->x0, sizeof(double)},
+        {(void **)&w->y0, sizeof(double)},
+    };
+    int count = 7 + state_arrays(&w->ss, moved + 7);
+    XArray spare[16];
+    for (int k = 0; k < count; k++) {
+        if (!w->spare[k]) w->spare[k] = sim_calloc((size_t)n, moved[k].size);
+        spare[k].a = &w->spare[k];
+        spare[k].size = moved[k].size;
+    }
+    const int32_t *from = w->members;
+    int32_t *slot_now = w->by_strip; /* binning is done with it: each old slot's new slot */
+#pragma omp parallel
+    {
+        for (int k = 0; k < count; k++) permute(&spare[k], &moved[k], from, 0, n);
+#pragma omp for schedule(static)
+        for (int64_t k = 0; k < n; k++) slot_now[from[k]] = (int32_t)k;
+    }
+    for (int k = 0; k < count; k++) {
+        void *old = *moved[k].a;
+        *moved[k].a = w->spare[k];
+        w->spare[k] = old;
+    }
+    w->d.last = w->ss.last;
+    w->d.id = w->id;
+#pragma omp parallel for schedule(static)
+    for (int64_t k = 0; k < n; k++) {
+        int32_t l = w->ss.last[k];
+        if (l >= 0) w->ss.last[k] = slot_now[l];
+        w->slot_of[w->id[k]] = (int32_t)k;
+        w->members[k] = (int32_t)k;
+    }
+}
+
+/* The run's state in index order from the slots (for output, checkpoints and the end). */
+static void slots_to_sim(XWork *w)
+{
+    XArray to[8], from[8];
+    int count = state_arrays(w->sim, to);
+    state_arrays(&w->ss, from);
+    int32_t *last = w->sim->last;
+#pragma omp parallel
+    {
+        for (int k = 0; k < count; k++) permute(&to[k], &from[k], w->id, 1, w->p->n);
+#pragma omp barrier
+#pragma omp for schedule(static)
+        for (int64_t i = 0; i < w->p->n; i++)
+            if (last[i] >= 0) last[i] = w->id[last[i]];
+    }
+}
+
+/* The slots, in index order, from the run's state (its last partners -1 where none came with it). */
+static void slots_from_sim(XWork *w, Sim *sim)
+{
+    int64_t n = w->p->n;
+    if (!sim->last) {
+        sim->last = sim_calloc((size_t)n, sizeof *sim->last);
+        for (int64_t i = 0; i < n; i++) sim->last[i] = -1;
+    }
+    w->sim = sim;
+    w->ss.wi = sim->wi; /* (for state_arrays' count) */
+    XArray to[8], from[8];
+    int count = state_arrays(&w->ss, to);
+    state_arrays(sim, from);
+    for (int k = 0; k < count; k++) *to[k].a = sim_calloc((size_t)n, to[k].size);
+    w->id = sim_calloc((size_t)n, sizeof *w->id);
+    w->slot_of = sim_calloc((size_t)n, sizeof *w->slot_of);
+    for (int64_t i = 0; i < n; i++) w->id[i] = w->slot_of[i] = (int32_t)i; /* last needs no renumbering */
+#pragma omp parallel
+    for (int k = 0; k < count; k++) permute(&to[k], &from[k], w->id, 0, n);
+}
+
 /* ==== prediction ===================================================================================== */
 
-static inline void buf_add(ExactHeap *b, const ExactDisks *d, real t, int64_t i, int64_t j)
+/* The event at t of slots a and b (a == b: a wall event; else a's disk has the lower index), keyed by
+ * the disks' indices as seq keys it, with the slots' versions. */
+static inline ExactEvent slot_event(const XWork *w, real t, int64_t a, int64_t b)
 {
+    ExactEvent e = {t, w->id[a], w->id[b], w->d.ver[a], w->d.ver[b]};
+    return e;
+}
+
+/* Event e (keyed by disk indices) in slots, as exact.c processes it; 1 if it was predicted from the
+ * slots' current versions. */
+static inline int event_slots(const XWork *w, const ExactEvent *e, ExactEvent *s)
+{
+    s->t = e->t;
+    s->i = w->slot_of[e->i];
+    s->j = w->slot_of[e->j];
+    s->vi = e->vi;
+    s->vj = e->vj;
+    return w->d.ver[s->i] == e->vi && w->d.ver[s->j] == e->vj;
+}
+
+static inline void add_event(ExactHeap *b, const ExactEvent *e, int unordered)
+{
+    if (!unordered) {
+        exact_heap_add(b, e);
+        return;
+    }
     exact_heap_reserve(b, b->len + 1);
-    ExactEvent e = {t, (int32_t)i, (int32_t)j, d->ver[i], d->ver[j]};
-    b->e[b->len++] = e;
+    b->e[b->len++] = *e;
 }
 
 /* Which neighbours predict_near pairs a disk with: all, those of strip `part` (phase 1), or the
  * tainted ones (phase 2). */
 enum { NEAR_ALL, NEAR_STRIP, NEAR_TAINTED };
 
-/* Disk i's events up to t1: its wall event and its pair events with the disks of the 3 x 3 cells
- * around its own that `near` admits, except skip, and (from_lower) except those with a lower index.
- * Into the heap, or appended to b. Returns the pair predictions made. */
+/* Slot i's events up to t1: its wall event and its pair events with the slots of the 3 x 3 cells
+ * around its own that `near` admits, except skip, and (from_lower) except lower slots (each pair
+ * once). Into the heap, or (from_lower) appended to b. Returns the pair predictions made. */
 static inline uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_lower, real t1,
                                     ExactHeap *b, int near, int part)
 {
@@ -324,9 +485,10 @@ static inline uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_
     uint64_t tests = 0;
     real t = exact_wall_time(d, p, i);
     if (t >= 0 && t <= t1) {
-        if (from_lower) buf_add(b, d, t, i, i);
-        else exact_heap_push(b, d, t, i, i);
+        ExactEvent e = slot_event(w, t, i, i);
+        add_event(b, &e, from_lower);
     }
+    int32_t id = w->id[i];
     int64_t g = w->g, c = w->cell_of[i], cx = c / g, cy = c % g;
     int64_t y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g ? cy + 1 : cy;
     for (int64_t nx = cx - 1; nx <= cx + 1; nx++) {
@@ -336,12 +498,13 @@ static inline uint64_t predict_near(XWork *w, int64_t i, int64_t skip, int from_
             int64_t k = w->members[m];
             if (k == i || k == skip || (from_lower && k < i)) continue;
             if (near == NEAR_TAINTED && !(w->tau[k] <= (double)t1)) continue;
-            int64_t a = k < i ? k : i, bb = k < i ? i : k;
+            int lower = w->id[k] < id;
+            int64_t a = lower ? k : i, bb = lower ? i : k;
             tests++;
             t = exact_pair_time(d, p, a, bb);
             if (t < 0 || t > t1) continue;
-            if (from_lower) buf_add(b, d, t, a, bb);
-            else exact_heap_push(b, d, t, a, bb);
+            ExactEvent e = slot_event(w, t, a, bb);
+            add_event(b, &e, from_lower);
         }
     }
     return tests;
@@ -354,12 +517,13 @@ static void check_window(const XWork *w, real t0, real t1, int early)
     const ExactDisks *d = &w->d;
     const Params *p = w->p;
     for (int64_t i = 0; i < p->n; i++) {
-        real t = exact_wall_time(d, p, i);
+        int64_t a = w->slot_of[i];
+        real t = exact_wall_time(d, p, a);
         if (t >= 0 && (t < t1 || (!early && t == t1)))
             sim_fail("--check: window [%.17g, %.17g] left the wall event of disk %lld at t = %.17g",
                     (double)t0, (double)t1, (long long)i, (double)t);
         for (int64_t j = i + 1; j < p->n; j++) {
-            t = exact_pair_time(d, p, i, j);
+            t = exact_pair_time(d, p, a, w->slot_of[j]);
             if (t >= 0 && (t < t1 || (!early && t == t1)))
                 sim_fail("--check: window [%.17g, %.17g] missed the event of disks %lld and %lld at "
                         "t = %.17g",
@@ -414,9 +578,9 @@ static real run_sequential(XWork *w, real t0, real t1, int *early, RunStats *st)
     *early = 0;
     (void)t0;
     while (w->heap.len && w->heap.e[0].t <= t1) {
-        ExactEvent e;
-        exact_heap_pop(&w->heap, &e);
-        if (!exact_valid(&w->d, &e)) continue;
+        ExactEvent key, e;
+        exact_heap_pop(&w->heap, &key);
+        if (!event_slots(w, &key, &e)) continue;
         exact_apply(&w->d, p, &e);
         events++;
         int end = window_ends(w, e.i);
@@ -536,7 +700,8 @@ static double edge_bound(const XWork *w, int k, int64_t cx, int64_t cy, double n
     return tau;
 }
 
-/* Strip k's disks at t0: the taint times that its edge columns get from the neighbour strips. */
+/* Strip k's disks at t0: the taint times that its edge columns get from the neighbour strips (from
+ * their positions at t0, which no strip writes). */
 static void edge_taint(XWork *w, int k, real t0)
 {
     int64_t g = w->g;
@@ -654,8 +819,8 @@ static void restore_disks(XWork *w)
     }
 }
 
-/* One more event of disk i in a parallel window; 1 if the window must be undone (the sequential
- * window would end here, or the taint bound's speed no longer holds). */
+/* One more event of slot i in a parallel window; 1 if the window stops at it (the sequential window
+ * would end here, or the taint bound's speed no longer holds). */
 static inline int outruns(XWork *w, int64_t i)
 {
     const Sim *s = w->d.sim;
@@ -664,7 +829,8 @@ static inline int outruns(XWork *w, int64_t i)
            vx * vx + vy * vy > w->sbound * w->sbound;
 }
 
-/* Processes valid event e in a parallel window; 1 if the window must be undone. */
+/* Processes valid event e (in slots) in a parallel window; 1 if the window stops at it (and e was not
+ * processed where it would stop the run). */
 static int parallel_apply(XWork *w, XThread *th, const ExactEvent *e)
 {
     if (exact_stops(&w->d, e)) return 1;
@@ -684,6 +850,7 @@ static void strip_events(XWork *w, XThread *th, int k, real t0, real t1)
     ExactHeap *h = &th->buf;
     h->len = 0;
     th->taint_len = 0;
+    edge_taint(w, k, t0);
     for (int32_t m = m0; m < m1; m++) {
         int32_t i = w->members[m];
         th->tests += predict_near(w, i, -1, 1, t1, h, NEAR_STRIP, k);
@@ -701,9 +868,9 @@ static void strip_events(XWork *w, XThread *th, int k, real t0, real t1)
         }
         if (!real_next) break;
         if (++check % 64 == 0 && past_stop(w, h->e[0].t)) return;
-        ExactEvent e;
-        exact_heap_pop(h, &e);
-        if (!exact_valid(&w->d, &e)) continue;
+        ExactEvent key, e;
+        exact_heap_pop(h, &key);
+        if (!event_slots(w, &key, &e)) continue;
         double te = (double)e.t;
         if (te >= w->tau[e.i] || te >= w->tau[e.j]) { /* phase 2's */
             if (!(w->tau[e.i] <= te && w->tau[e.j] <= te)) {
@@ -785,9 +952,9 @@ static void band_events(XWork *w, XThread *th, int b, real t1)
     int check = 0;
     while (h->len && h->e[0].t <= t1) {
         if (++check % 64 == 0 && past_stop(w, h->e[0].t)) return;
-        ExactEvent e;
-        exact_heap_pop(h, &e);
-        if (!exact_valid(&w->d, &e)) continue;
+        ExactEvent key, e;
+        exact_heap_pop(h, &key);
+        if (!event_slots(w, &key, &e)) continue;
         if (parallel_apply(w, th, &e)) {
             stop_at(w, th, e.t);
             return;
@@ -830,9 +997,11 @@ static int run_parallel(XWork *w, real t0, real t1, real *stop, RunStats *st)
     {
         XThread *th = &w->th[omp_get_thread_num()];
 #pragma omp for schedule(dynamic, 1)
-        for (int k = 0; k < w->strips; k++) edge_taint(w, k, t0);
-#pragma omp for schedule(dynamic, 1)
-        for (int k = 0; k < w->strips; k++) strip_events(w, th, k, t0, t1);
+        for (int k = 0; k < w->strips; k++) {
+            double c = sim_clock();
+            strip_events(w, th, k, t0, t1);
+            th->busy1 += sim_clock() - c;
+        }
 #pragma omp single
         {
             clock1 = sim_clock();
@@ -840,7 +1009,11 @@ static int run_parallel(XWork *w, real t0, real t1, real *stop, RunStats *st)
             if (w->stop_t == INFINITY && !w->bound_failed) plan_bands(w);
         }
 #pragma omp for schedule(dynamic, 1)
-        for (int b = 0; b < w->bands; b++) band_events(w, th, b, t1);
+        for (int b = 0; b < w->bands; b++) {
+            double c = sim_clock();
+            band_events(w, th, b, t1);
+            th->busy2 += sim_clock() - c;
+        }
     }
     w->phase1_s += clock1 - clock0;
     w->phase2_s += sim_clock() - clock1;
@@ -901,6 +1074,10 @@ static real run_window(XWork *w, real t0, int *done, RunStats *st)
     }
     real t1 = plan_window(w, t0, vmax, sqrt(smax2), instant >= 0);
     bin_disks(w, t0);
+    if (w->reorder) {
+        reorder_slots(w);
+        w->reorder = 0;
+    }
     w->bin_s += sim_clock() - clock0;
     uint64_t events0 = st->events;
     int early = 0, sequential = w->strips < 2;
@@ -940,7 +1117,9 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     w.p = par;
     w.check = opt->check;
     w.nt = omp_get_max_threads();
-    exact_alloc(&w.d, sim, par);
+    slots_from_sim(&w, sim);
+    exact_alloc(&w.d, &w.ss, par);
+    w.d.id = w.id;
     w.th = sim_calloc_lines((size_t)w.nt, sizeof *w.th);
     w.max_cells = n;
     int64_t max_g = (int64_t)sqrt((double)n) + 2;
@@ -967,27 +1146,38 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
     for (int64_t step = par->first_step + 1; step <= par->steps; step++) {
         int done = 0;
         real from = 0;
+        w.reorder = 1;
         while (!done) from = run_window(&w, from, &done, st);
 #pragma omp parallel for schedule(static)
         for (int64_t i = 0; i < n; i++) exact_finish(&w.d, par, i);
-        if (par->print && step < par->steps) io_write_lines(out, step, sim, n, 0);
-        if (io_checkpoint_due(out, step)) io_checkpoint(out, sim, step);
+        int print = par->print && step < par->steps, checkpoint = io_checkpoint_due(out, step);
+        if (print || checkpoint) slots_to_sim(&w);
+        if (print) io_write_lines(out, step, sim, n, 0);
+        if (checkpoint) io_checkpoint(out, sim, step);
         io_progress(out, step);
     }
+    slots_to_sim(&w);
     st->seconds = sim_clock() - t0;
     if (opt->stats) {
+        double busy1 = 0, busy2 = 0;
+        for (int t = 0; t < w.nt; t++) {
+            busy1 += w.th[t].busy1;
+            busy2 += w.th[t].busy2;
+        }
         fprintf(stderr, "%s: --exact: %llu windows: %llu in strips on all threads, %llu sequential (%llu "
                 "at one instant after a parallel window stopped before it, %llu run again sequentially); "
                 "%llu parallel tries stopped and run again to just before the stop; binning %.6f s\n",
                 sim_program, (unsigned long long)w.windows, (unsigned long long)w.par_windows,
                 (unsigned long long)(w.windows - w.par_windows), (unsigned long long)w.instants,
                 (unsigned long long)w.redone, (unsigned long long)w.retried, w.bin_s);
-        fprintf(stderr, "%s: --exact: events: %llu in the strips (phase 1, %.6f s), %llu among the %llu "
-                "disks tainted near the cuts (phase 2, %.6f s; %llu strips without a clean column), %llu in "
-                "sequential windows (start %.6f s, loop %.6f s)\n",
-                sim_program, (unsigned long long)w.ev1, w.phase1_s, (unsigned long long)w.ev2,
-                (unsigned long long)w.tainted, w.phase2_s, (unsigned long long)w.merged,
-                (unsigned long long)w.ev_seq, w.start_s, w.loop_s);
+        fprintf(stderr, "%s: --exact: events: %llu in the strips (phase 1, %.6f s, the threads busy %.0f%% "
+                "of it), %llu among the %llu disks tainted near the cuts (phase 2, %.6f s, busy %.0f%%; "
+                "%llu strips without a clean column), %llu in sequential windows (start %.6f s, loop %.6f "
+                "s)\n",
+                sim_program, (unsigned long long)w.ev1, w.phase1_s,
+                w.phase1_s > 0 ? 100 * busy1 / (w.nt * w.phase1_s) : 0, (unsigned long long)w.ev2,
+                (unsigned long long)w.tainted, w.phase2_s, w.phase2_s > 0 ? 100 * busy2 / (w.nt * w.phase2_s) : 0,
+                (unsigned long long)w.merged, (unsigned long long)w.ev_seq, w.start_s, w.loop_s);
     }
 
     for (int t = 0; t < w.nt; t++) {
@@ -998,6 +1188,17 @@ int omp_exact_run(Sim *sim, const Params *par, const Options *opt, Output *out, 
         free(w.th[t].list);
     }
     exact_free(&w.d);
+    free(w.ss.x);
+    free(w.ss.y);
+    free(w.ss.vx);
+    free(w.ss.vy);
+    free(w.ss.pc);
+    free(w.ss.wc);
+    free(w.ss.wi);
+    free(w.ss.last);
+    free(w.id);
+    free(w.slot_of);
+    for (size_t k = 0; k < sizeof w.spare / sizeof *w.spare; k++) free(w.spare[k]);
     free(w.th);
     free(w.cell_of);
     free(w.cell_start);

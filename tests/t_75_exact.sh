@@ -107,14 +107,8 @@ exact_compare random "$X/random.in" "" --seed 7
 # threads, and a lattice of diagonal velocities whose collisions outrun the velocity bound (the window
 # stops, runs again up to just before the stop, and the instant after it runs sequentially), in both
 # builds at 1, 2, 3, 7 and 16 threads (more threads than cores).
-diag_lattice() { # K STEPS: K x K disks, r = 1, velocities (+-0.6, +-0.6)
-    awk -v k="$1" -v steps="$2" 'BEGIN { srand(7); s = 2.6; printf "%d\n%.10g\n1\n%d\nprint\n", k * k, k * s + 0.4, steps
-        for (a = 0; a < k; a++) for (b = 0; b < k; b++)
-            printf "%d %.10g %.10g %.10g %.10g\n", a * k + b, 1.2 + a * s + 0.3 * rand(), 1.2 + b * s + 0.3 * rand(),
-                   rand() < 0.5 ? -0.6 : 0.6, rand() < 0.5 ? -0.6 : 0.6 }'
-}
-tools/gen 1500 --fraction 0.5 --speed 1 --steps 6 > "$X/half.in"
-tools/gen 1500 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 6 > "$X/crossing.in"
+tools/gen 1000 --fraction 0.5 --speed 1 --steps 5 > "$X/half.in"
+tools/gen 1000 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 4 > "$X/crossing.in"
 tools/gen 150 --fraction 0.3 --speed 1 --steps 20 --mode print > "$X/few.in"
 diag_lattice 30 3 > "$X/lattice.in"
 for name in half crossing few lattice; do
