@@ -16,6 +16,7 @@ void exact_alloc(ExactDisks *d, Sim *sim, const Params *p)
 {
     int64_t n = p->n;
     d->sim = sim;
+    d->id = NULL;
     real slack = 64 * (real)SIM_EPS * p->L * (p->r + p->r), most = p->r * p->r;
     d->slack = slack < most ? slack : most;
     d->t = sim_calloc((size_t)n, sizeof *d->t);
@@ -127,13 +128,13 @@ real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j)
 /* One more event of disk i: its version, its step budget and the count c (p or w). */
 static void exact_count(ExactDisks *d, int64_t i, int32_t *c)
 {
+    long long disk = d->id ? d->id[i] : i;
     d->ver[i]++;
     if (++d->step_events[i] > EXACT_MAX_STEP_EVENTS)
         sim_fail("--exact: disk %lld collided more than %u times within one step (a cascade that "
                 "does not advance in time); stopping",
-                (long long)i, EXACT_MAX_STEP_EVENTS);
-    if (*c == INT32_MAX)
-        sim_fail("--exact: the collision count of disk %lld exceeds %d", (long long)i, INT32_MAX);
+                disk, EXACT_MAX_STEP_EVENTS);
+    if (*c == INT32_MAX) sim_fail("--exact: the collision count of disk %lld exceeds %d", disk, INT32_MAX);
     ++*c;
 }
 
@@ -147,6 +148,16 @@ static void exact_into_box(Sim *s, const Params *p, int64_t i)
         s->x[i] = clamp_coord(s->x[i], p->lo, p->hi);
         s->y[i] = clamp_coord(s->y[i], p->lo, p->hi);
     }
+}
+
+/* Whether processing e (valid) would stop the run: exact_count's two limits. */
+int exact_stops(const ExactDisks *d, const ExactEvent *e)
+{
+    const Sim *s = d->sim;
+    int64_t i = e->i, j = e->j;
+    if (i == j) return d->step_events[i] >= EXACT_MAX_STEP_EVENTS || s->wc[i] == INT32_MAX;
+    return d->step_events[i] >= EXACT_MAX_STEP_EVENTS || d->step_events[j] >= EXACT_MAX_STEP_EVENTS ||
+           s->pc[i] == INT32_MAX || s->pc[j] == INT32_MAX;
 }
 
 /* Processes event e (valid: predicted from the disks' current versions). */
@@ -243,8 +254,15 @@ void exact_heap_build(ExactHeap *h)
 /* Adds the event (t, i, j) predicted from the disks' current versions (j == i: wall). */
 void exact_heap_push(ExactHeap *h, const ExactDisks *d, real t, int64_t i, int64_t j)
 {
-    exact_heap_reserve(h, h->len + 1);
     ExactEvent x = {t, (int32_t)i, (int32_t)j, d->ver[i], d->ver[j]};
+    exact_heap_add(h, &x);
+}
+
+/* Adds event e as it is. */
+void exact_heap_add(ExactHeap *h, const ExactEvent *e)
+{
+    exact_heap_reserve(h, h->len + 1);
+    ExactEvent x = *e;
     size_t k = h->len++;
     while (k > 0) {
         size_t up = (k - 1) / 2;

@@ -60,6 +60,8 @@ typedef struct {
     int32_t *last;        /* partner of the disk's last event; -1 after a wall event or none */
     uint32_t *step_events; /* events of the disk in this step, for EXACT_MAX_STEP_EVENTS */
     real slack;           /* overlap (-c) that still counts as touching: rounding, not an overlap */
+    const int32_t *id;    /* the disk's index at each position of the arrays, for messages; NULL: the
+                             position (omp_exact.c keeps the disks in an order of its own) */
 } ExactDisks;
 
 /* A predicted event: the key (t, kind, i, j) with kind 0 (wall) when i == j, and the versions of the
@@ -93,6 +95,9 @@ real exact_wall_time(const ExactDisks *d, const Params *p, int64_t i);
 real exact_pair_time(const ExactDisks *d, const Params *p, int64_t i, int64_t j);
 /* Whether e was predicted from its disks' current versions (else it is stale and dropped). */
 int exact_valid(const ExactDisks *d, const ExactEvent *e);
+/* Whether processing e (valid) would stop the run: a disk at its step's EXACT_MAX_STEP_EVENTS or a
+ * count at INT32_MAX (exact_apply then fails with its message). */
+int exact_stops(const ExactDisks *d, const ExactEvent *e);
 /* Processes event e (valid). */
 void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e);
 /* The end of the step for disk i: flight to t = 1, clocks back to 0 for the next step. */
@@ -106,6 +111,8 @@ void exact_heap_reserve(ExactHeap *h, size_t need);
 void exact_heap_build(ExactHeap *h);
 /* Adds the event (t, i, j) predicted from the disks' current versions (j == i: wall). */
 void exact_heap_push(ExactHeap *h, const ExactDisks *d, real t, int64_t i, int64_t j);
+/* Adds event e as it is. */
+void exact_heap_add(ExactHeap *h, const ExactEvent *e);
 /* Removes the smallest event into *e. */
 void exact_heap_pop(ExactHeap *h, ExactEvent *e);
 

@@ -61,6 +61,15 @@ threads_mismatch() {
     done
 }
 
+# diag_lattice K STEPS: a print-mode scene of K x K disks of radius 1 on a jittered lattice, velocities
+# (+-0.6, +-0.6): its collisions leave velocity components above the largest at the window's start,
+# which stops omp --exact's parallel windows (omp_exact.c).
+diag_lattice() {
+    awk -v k="$1" -v steps="$2" 'BEGIN { srand(7); s = 2.6; printf "%d\n%.10g\n1\n%d\nprint\n", k * k, k * s + 0.4, steps
+        for (a = 0; a < k; a++) for (b = 0; b < k; b++)
+            printf "%d %.10g %.10g %.10g %.10g\n", a * k + b, 1.2 + a * s + 0.3 * rand(), 1.2 + b * s + 0.3 * rand(),
+                   rand() < 0.5 ? -0.6 : 0.6, rand() < 0.5 ? -0.6 : 0.6 }'
+}
 # The programs that must reject bad input the same way: seq, omp, and cuda where a GPU answers.
 backend_list() {
     echo seq omp

@@ -1,9 +1,9 @@
 # ThreadSanitizer on omp (make omp_tsan: clang -fsanitize=thread with LLVM's OpenMP runtime, whose
 # Archer tool tells the sanitizer about OpenMP's barriers and locks): at 3 threads, on fast, mixed,
-# dense, print, --substeps and --exact scenes, with each broad phase forced as well as chosen, the
-# random placement and checkpoints every step; any report of a race fails, and so does a changed
-# output (it must stay seq's). SKIP only where clang, libomp or Archer is missing (.ci/run installs
-# them).
+# dense, print, --substeps and --exact scenes (--exact: strips, merged bands, windows stopped and run
+# again), with each broad phase forced as well as chosen, the random placement and checkpoints every
+# step; any report of a race fails, and so does a changed output (it must stay seq's). SKIP only where
+# clang, libomp or Archer is missing (.ci/run installs them).
 T=$TMP/tsan
 mkdir -p "$T"
 tsan_skip=""
@@ -61,6 +61,9 @@ else
     tsan_run print "$T/print.in" auto
     tsan_run "print --substeps 4" "$T/print.in" auto --substeps 4
     tsan_run "print --exact" "$T/print.in" auto --exact
+    tsan_run "rounds --exact --pressure (bands merged)" "$T/rounds.in" auto --exact --pressure
+    diag_lattice 24 3 > "$T/lattice.in"
+    tsan_run "lattice --exact (windows stopped and run again)" "$T/lattice.in" auto --exact
     tsan_run "rounds of the parallel choice" "$T/rounds.in" auto
     # the random placement's windows on all threads (20000 disks: windows of several tasks)
     printf '20000\n20000\n1\n2\nperf\n' > "$T/placed.in"

@@ -5,6 +5,11 @@
 # - the physics: kinetic energy kept to rounding (relative drift < 1e-12 over 300 steps), no overlaps
 #   on non-overlapping starts (tools/check --exact, which must also catch the overlaps of SPEC.md's step);
 # - omp --exact --check (every window against all pairs) on scenes of thousands of disks; seq_san;
+# - the parallel event loop (omp_exact.c: strips, taint times, bands near the cuts, windows stopped and
+#   run again): scenes that load the cuts (a gas at area fraction 0.5, fast disks crossing strips, 150
+#   disks in strips on 16 threads, a lattice whose collisions outrun the velocity bound) at 1, 2, 3, 7
+#   and 16 threads in both builds; seq's event count, --pressure line and checkpoint file; a smaller
+#   team than asked for (OMP_DYNAMIC);
 # - option handling: cuda rejects --exact, --exact with --substeps is an error.
 X=$TMP/exact
 mkdir -p "$X"
@@ -69,16 +74,16 @@ overlap_deep     3000 --fraction 3 --overlap --speed 0.3 --steps 3 --mode print
 SCENES
 }
 
-exact_compare() { # name input suffix [extra options]
-    local name=$1 in=$2 suf=$3 bad
+exact_compare() { # name input suffix [extra options]; EXACT_THREADS: the thread counts
+    local name=$1 in=$2 suf=$3 bad threads=${EXACT_THREADS:-1 2 3 7}
     shift 3
     if ! ./seq$suf "$in" --exact --quiet "$@" > "$X/$name.ref" 2> "$X/err"; then
         fail "exact/$name seq$suf" "$(head -c 300 "$X/err")"
         return
     fi
-    bad=$(threads_mismatch "1 2 3 7" "$X/$name.ref" ./omp$suf "$in" --exact --quiet "$@")
+    bad=$(threads_mismatch "$threads" "$X/$name.ref" ./omp$suf "$in" --exact --quiet "$@")
     if [ -z "$bad" ]; then
-        pass "exact/$name omp$suf --exact same bytes as seq$suf at 1 2 3 7 threads"
+        pass "exact/$name omp$suf --exact same bytes as seq$suf at $threads threads"
     else
         fail "exact/$name omp$suf --exact" "$bad"
     fi
@@ -95,6 +100,59 @@ while read -r name args; do
 done < <(exact_scenes)
 printf '300\n400\n1\n10\nprint\n' > "$X/random.in"
 exact_compare random "$X/random.in" "" --seed 7
+
+# The parallel event loop (omp_exact.c): each window's strips run their events concurrently and the
+# disks near the cuts (tainted) run in bands after them. Scenes that load the cuts: a gas at area
+# fraction 0.5, fast disks that cross strips within a window, 150 disks cut into strips on up to 16
+# threads, and a lattice of diagonal velocities whose collisions outrun the velocity bound (the window
+# stops, runs again up to just before the stop, and the instant after it runs sequentially), in both
+# builds at 1, 2, 3, 7 and 16 threads (more threads than cores).
+tools/gen 1000 --fraction 0.5 --speed 1 --steps 5 > "$X/half.in"
+tools/gen 1000 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 4 > "$X/crossing.in"
+tools/gen 150 --fraction 0.3 --speed 1 --steps 20 --mode print > "$X/few.in"
+diag_lattice 30 3 > "$X/lattice.in"
+for name in half crossing few lattice; do
+    for suf in "" _f32; do
+        if [ "$suf" = _f32 ] && ! all_suite && [ "$name" != lattice ]; then continue; fi
+        EXACT_THREADS="1 2 3 7 16" exact_compare "$name" "$X/$name.in" "$suf"
+    done
+done
+./omp "$X/lattice.in" --exact --stats --quiet --threads 3 > /dev/null 2> "$X/lattice.err"
+if grep -Eq ' [1-9][0-9]* parallel tries stopped' "$X/lattice.err"; then
+    pass "exact/lattice stops a parallel window and runs it again"
+else
+    fail "exact/lattice stops a parallel window" "$(grep 'exact:' "$X/lattice.err" | head -c 300)"
+fi
+# On the gas, at each thread count: seq's event count, split by --stats into the strips' events, the
+# bands' (some) and those of sequential windows; seq's --pressure line (each disk's impulses added in
+# its own event order); seq's checkpoint file (the last partners included); and under OMP_DYNAMIC, a
+# team smaller than asked for.
+half_run() { # PROGRAM [OPTIONS]: stdout, stderr and checkpoint into $X/half.run.*
+    "$@" "$X/half.in" --exact --stats --pressure --quiet --checkpoint "$X/half.run.ck" --checkpoint-every 2 \
+        > "$X/half.run.out" 2> "$X/half.run.err"
+}
+events_of() { sed -n 's/.* \([0-9]*\) events$/\1/p' "$1"; }
+pressure_of() { sed -n 's/^[a-z_0-9]*: \(pressure: .*\)/\1/p' "$1"; }
+half_run ./seq
+for f in out err ck; do mv "$X/half.run.$f" "$X/half.seq.$f"; done
+for t in 1 2 7 16 4:OMP_DYNAMIC=true; do
+    if [ "${t#*:}" != "$t" ]; then half_run env "${t#*:}" ./omp --threads "${t%%:*}"; else half_run ./omp --threads "$t"; fi
+    split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$X/half.run.err")
+    read -r in_strips in_bands in_seq <<< "${split:-x x x}"
+    total=$(events_of "$X/half.seq.err")
+    if ! cmp -s "$X/half.run.out" "$X/half.seq.out"; then
+        fail "exact/half omp --threads $t: output differs from seq's"
+    elif [ "$(events_of "$X/half.run.err")" != "$total" ] || [ "$((in_strips + in_bands + in_seq))" != "$total" ] ||
+        { [ "${t%%:*}" -gt 1 ] && [ "$in_bands" = 0 ]; }; then
+        fail "exact/half omp --threads $t --stats" "seq: $total events; omp: $(grep -h 'events' "$X/half.run.err" | head -c 300)"
+    elif [ "$(pressure_of "$X/half.run.err")" != "$(pressure_of "$X/half.seq.err")" ] || [ -z "$(pressure_of "$X/half.seq.err")" ]; then
+        fail "exact/half omp --threads $t --pressure" "$(pressure_of "$X/half.run.err") against seq's $(pressure_of "$X/half.seq.err")"
+    elif ! cmp -s "$X/half.run.ck" "$X/half.seq.ck"; then
+        fail "exact/half omp --threads $t --checkpoint" "the file differs from seq's"
+    else
+        pass "exact/half omp --threads $t: seq's bytes, pressure, checkpoint and $total events ($in_strips in strips, $in_bands in bands, $in_seq sequential)"
+    fi
+done
 
 # Energy over 300 steps of a dense gas (thousands of collisions per step): relative drift < 1e-12.
 tools/gen 400 --fraction 0.3 --speed 1 --steps 300 > "$X/energy.in"
@@ -128,18 +186,21 @@ else
 fi
 
 # omp --exact --check: after every window, all pairs must show no event the grid missed (the quick
-# suite: two of the scenes).
+# suite: two of the scenes at 2 threads; the whole suite at 7 too, more strips).
 check_scenes=("2000 --fraction 0.4 --speed 1 --steps 3" "1500 --r 1e-6 --L 1 --speed 1e5 --steps 2")
-all_suite && check_scenes+=("1500 --assignment --L 1500 --steps 2" "1500 --fraction 0.7 --overlap --speed 2 --steps 2")
+all_suite && check_scenes+=("1500 --assignment --L 1500 --steps 2" "1500 --fraction 0.7 --overlap --speed 2 --steps 2"
+                            "1500 --fraction 0.5 --speed 1 --steps 3")
 for args in "${check_scenes[@]}"; do
     # shellcheck disable=SC2086
     tools/gen $args > "$X/check.in"
     for prog in omp omp_f32; do
-        if ./$prog "$X/check.in" --exact --check --quiet --threads 2 > /dev/null 2> "$X/err"; then
-            pass "exact/$prog --check: $args"
-        else
-            fail "exact/$prog --check: $args" "$(head -c 300 "$X/err")"
-        fi
+        for t in 2 $(all_suite && echo 7); do
+            if ./$prog "$X/check.in" --exact --check --quiet --threads $t > /dev/null 2> "$X/err"; then
+                pass "exact/$prog --check --threads $t: $args"
+            else
+                fail "exact/$prog --check --threads $t: $args" "$(head -c 300 "$X/err")"
+            fi
+        done
     done
 done
 

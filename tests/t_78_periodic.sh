@@ -109,6 +109,39 @@ same_run "tiny --exact --pressure" "$Q/tiny.in" --exact --pressure
 same_run "three_cells --exact" "$Q/three_cells.in" --exact
 all_suite && same_run "mixed --exact --pressure" "$Q/mixed.in" --exact --pressure
 all_suite && same_run "dense --substeps 4 --pressure" "$Q/dense.in" --substeps 4 --pressure
+
+# --exact on all threads (omp_exact.c): the strips wrap (the first and last are neighbours across the
+# edge) and the band over the edge holds the columns on both sides of it. A gas at area fraction 0.5
+# and fast disks crossing strips, at 1, 2, 3, 7 and 16 threads: seq's bytes, pressure line and event
+# count, some events in the bands; --check (every window against all pairs by the nearest image).
+tools/gen 1000 --fraction 0.5 --speed 1 --steps 5 --periodic --seed 11 > "$Q/half.in"
+tools/gen 1000 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 4 --periodic --seed 12 > "$Q/crossing.in"
+for name in half crossing; do
+    ./seq "$Q/$name.in" --periodic --exact --pressure --stats --quiet > "$Q/x.ref" 2> "$Q/x.ref.err"
+    total=$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$Q/x.ref.err")
+    pressure=$(grep 'pressure' "$Q/x.ref.err" | sed 's/^seq: //')
+    bad=""
+    for t in 1 2 3 7 16; do
+        ./omp "$Q/$name.in" --periodic --exact --pressure --stats --quiet --threads $t > "$Q/x.out" 2> "$Q/x.err"
+        split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$Q/x.err")
+        read -r in_strips in_bands in_seq <<< "${split:-x x x}"
+        if ! cmp -s "$Q/x.out" "$Q/x.ref"; then bad="$bad $t:stdout"
+        elif [ "$(grep 'pressure' "$Q/x.err" | sed 's/^omp: //')" != "$pressure" ]; then bad="$bad $t:pressure"
+        elif [ "$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$Q/x.err")" != "$total" ] ||
+            [ "$((in_strips + in_bands + in_seq))" != "$total" ] || { [ $t -gt 1 ] && [ "$in_bands" = 0 ]; }; then
+            bad="$bad $t:events($split of $total)"
+        fi
+    done
+    if [ -z "$bad" ] && [ -n "$total" ] && [ -n "$pressure" ]; then
+        pass "periodic/$name --exact: omp at 1, 2, 3, 7 and 16 threads, seq's bytes, pressure line and $total events, some in the bands"
+    else
+        fail "periodic/$name --exact on all threads" "$bad $(head -c 200 "$Q/x.err")"
+    fi
+    for t in 2 $(all_suite && echo 7); do
+        same_bytes "periodic/$name --exact --check --threads $t" "$Q/x.ref" \
+            ./omp "$Q/$name.in" --periodic --exact --pressure --check --quiet --threads $t
+    done
+done
 pattern='^seq: pressure \(periodic box, collision virial\): N kT = [0-9.e+-]+, virial [0-9.e+-]+ over 15 time units: P = [0-9.e+-]+, Z = P L\^2 / \(N kT\) = [0-9.e+-]+ \+- [0-9.e+-]+ \(standard error of 10 block means\)$'
 ./seq "$Q/gas_print.in" --periodic --quiet --pressure > /dev/null 2> "$Q/p.err"
 if [ "$(wc -l < "$Q/p.err")" = 1 ] && grep -Eq "$pattern" "$Q/p.err"; then

@@ -134,3 +134,18 @@ if BASE_DIR="$TMP/base_dir" INPUTS="$TMP/phases.in" THREADS="1 2" REPEATS=3 WORK
 else
     fail "bench.sh phases" "exit status non-zero: $(tail -n 2 "$TMP/phases.log")"
 fi
+
+# exact threads: omp --exact at each thread count in turn with the base's (here a copy of this tree),
+# two rounds: a row per run, a summary row per build and thread count, the same bytes
+if BASE_DIR="$TMP/base_dir" N=3000 FRACTION=0.4 STEPS=2 THREADS="1 2" REPEATS=2 WORK="$TMP/exact_threads" \
+    ./bench.sh exact threads > "$TMP/exact_threads.log" 2>&1; then
+    rows=$(grep -Ec '^omp(_base)?,[12],3000,2,[12],[0-9.]+$' "$TMP/exact_threads.log")
+    sums=$(grep -Ec '^# omp(_base)?,[12],[0-9.]+,[0-9.]+,[0-9.]+,[0-9.]+$' "$TMP/exact_threads.log")
+    if [ "$rows" -eq 8 ] && [ "$sums" -eq 4 ]; then
+        pass "bench.sh exact threads: 8 runs in turn with the base's, 4 summary rows, the same bytes"
+    else
+        fail "bench.sh exact threads" "$rows rows, $sums summary rows: $(tail -n 3 "$TMP/exact_threads.log")"
+    fi
+else
+    fail "bench.sh exact threads" "exit status non-zero: $(tail -n 2 "$TMP/exact_threads.log")"
+fi
