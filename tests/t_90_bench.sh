@@ -149,3 +149,18 @@ if BASE_DIR="$TMP/base_dir" N=3000 FRACTION=0.4 STEPS=2 THREADS="1 2" REPEATS=2 
 else
     fail "bench.sh exact threads" "exit status non-zero: $(tail -n 2 "$TMP/exact_threads.log")"
 fi
+
+# dense --quick: the fluid, loop and rungs parts at a few hundred disks, two points at once: a row per
+# point in order (2 fluid, 8 rungs, 1 loop), each beside its reference's Z
+if OUTPUT_QUICK="$TMP/dense.csv" TMP_DIR="$TMP/dense" JOBS=2 THREADS=1 ./bench.sh dense --quick > "$TMP/dense.log" 2>&1; then
+    order=$(grep -v '^#' "$TMP/dense.csv" | awk -F, 'NR > 1 { printf "%s:%s:%s ", $1, $2, $3 }')
+    want="fluid:exact:0.3 fluid:exact:0.65 rungs:k1:0.3 rungs:k2:0.3 rungs:k4:0.3 rungs:k8:0.3 rungs:k1:0.65 rungs:k2:0.65 rungs:k4:0.65 rungs:k8:0.65 loop:exact:0.71 "
+    refs=$(grep -v '^#' "$TMP/dense.csv" | awk -F, 'NR > 1 && $10 + 0 > 0 && $8 + 0 > 0 { k++ } END { print k + 0 }')
+    if [ "$order" = "$want" ] && [ "$refs" = 11 ]; then
+        pass "bench.sh dense --quick: 11 points in order, each with its Z and its reference's"
+    else
+        fail "bench.sh dense --quick" "rows: $order; with references: $refs"
+    fi
+else
+    fail "bench.sh dense --quick" "exit status non-zero: $(tail -n 2 "$TMP/dense.log")"
+fi

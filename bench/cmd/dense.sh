@@ -10,6 +10,8 @@
 # Each point: a scene (random placement up to eta 0.5, else a triangular crystal, tools/gen --lattice),
 # EQ_COLL collisions a disk of --exact to equilibrate (not measured), then MEAS_COLL a disk measured.
 # One CSV row a point (provenance in its # lines), a table on stdout, the figure beside the CSV.
+# JOBS points run at once, each on THREADS threads (a few threads a run use cores best).
+# --plot: no runs; the table and figure of OUTPUT as it stands (CSVs of several machines joined).
 set -euo pipefail
 export LC_ALL=C
 cd "$(dirname "$0")/../.."
@@ -26,11 +28,14 @@ SPEED=${SPEED:-1}           # tools/gen --speed: speeds uniform in [0, SPEED r] 
 EQ_COLL=${EQ_COLL:-200}     # collisions a disk of --exact before measuring
 MEAS_COLL=${MEAS_COLL:-400} # collisions a disk measured
 RUNG_STEPS=${RUNG_STEPS:-200} # steps of each rung's measured run; its print run for overlaps: a tenth
-THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)}
+THREADS=${THREADS:-$(nproc 2>/dev/null || echo 1)} # threads of each run
+JOBS=${JOBS:-1}             # points run at once (each on THREADS threads): JOBS x THREADS <= the cores
 SEED=${SEED:-1}
 OUTPUT=${OUTPUT:-bench/dense.csv}
 TMP_DIR=${TMP_DIR:-bench/tmp/dense}
 if [ "${1:-}" = --help ] || [ "${1:-}" = -h ]; then sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0; fi
+PLOT_ONLY=0
+[ "${1:-}" = --plot ] && PLOT_ONLY=1
 if [ "${1:-}" = --quick ]; then # a check of the script: seconds on 2 cores
     N_FLUID=500 N_LOOP=800 FLUID_FRACTIONS="0.3 0.65" LOOP_FRACTIONS="0.71" EQ_COLL=5 MEAS_COLL=10 RUNG_STEPS=10
     PARTS="fluid loop rungs" OUTPUT=${OUTPUT_QUICK:-bench/tmp/dense-quick.csv}
@@ -161,36 +166,60 @@ value_of() { echo "$2" | tr ' ' '\n' | sed -n "s/^$1=//p" | head -n 1; }
 # fields VALUE...: one point's raw line, its values apart by "|" (the reference's name holds spaces)
 fields() { local IFS='|'; echo "$*" >> "$OUTPUT.raw"; }
 
-: > "$OUTPUT.raw"
-START=$EPOCHREALTIME
-LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo unknown)
-nf=$(lattice_n "$N_FLUID") nl=$(lattice_n "$N_LOOP")
-if [[ " $PARTS " == *" fluid "* ]] || [[ " $PARTS " == *" rungs "* ]]; then
-    for eta in $FLUID_FRACTIONS; do point fluid "$eta" "$nf"; done
-fi
-if [[ " $PARTS " == *" loop "* ]]; then
-    for eta in $LOOP_FRACTIONS; do point loop "$eta" "$nl"; done
-fi
+if [ "$PLOT_ONLY" = 0 ]; then
+    : > "$OUTPUT.raw"
+    START=$EPOCHREALTIME
+    LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo unknown)
+    nf=$(lattice_n "$N_FLUID") nl=$(lattice_n "$N_LOOP")
+    # at most JOBS points at once; a point that fails stops the script once the others end
+    todo=()
+    if [[ " $PARTS " == *" fluid "* ]] || [[ " $PARTS " == *" rungs "* ]]; then
+        for eta in $FLUID_FRACTIONS; do todo+=("fluid $eta $nf"); done
+    fi
+    if [[ " $PARTS " == *" loop "* ]]; then
+        for eta in $LOOP_FRACTIONS; do todo+=("loop $eta $nl"); done
+    fi
+    running=0 failed=0
+    for job in "${todo[@]}"; do
+        if [ "$running" -ge "$JOBS" ]; then
+            wait -n || failed=1
+            running=$((running - 1))
+        fi
+        # shellcheck disable=SC2086
+        point $job &
+        running=$((running + 1))
+    done
+    while [ "$running" -gt 0 ]; do
+        wait -n || failed=1
+        running=$((running - 1))
+    done
+    [ "$failed" = 0 ] || die "a point failed (its message above)"
+    # the rows in the order of the points (they end in any order): fluid, rungs, loop, each by eta
+    sort -t'|' -s -k1,1 -k3,3g "$OUTPUT.raw" | awk -F'|' '$1 == "fluid" { print; next } { rest[++k] = $0 }
+        END { for (i = 1; i <= k; i++) if (rest[i] ~ /^rungs/) print rest[i]; for (i = 1; i <= k; i++) if (rest[i] ~ /^loop/) print rest[i] }' \
+        > "$OUTPUT.sorted"
+    mv "$OUTPUT.sorted" "$OUTPUT.raw"
 
-# ---- the CSV, the table, the figure -----------------------------------------------------------------
-{
-    echo "# ./bench.sh dense results (REPORT.md 5; references: bench/eos_reference.md)"
-    echo "# PARTS=\"$PARTS\" N_FLUID=$N_FLUID ($nf disks) N_LOOP=$N_LOOP ($nl) SPEED=$SPEED EQ_COLL=$EQ_COLL" \
-        "MEAS_COLL=$MEAS_COLL RUNG_STEPS=$RUNG_STEPS THREADS=$THREADS SEED=$SEED"
-    machine_provenance "$LOAD_START" "$(nproc 2>/dev/null)"
-    echo "# Z: the collision virial of --periodic --pressure over the measured run, its error the standard" \
-        "error of 10 block means; rungs start from the fluid point's equilibrated --exact state"
-    echo "$COLUMNS"
-    awk -F'|' '{ zr = $10 + 0; known = zr > 0
-        d = known ? sprintf("%.4f", 100 * ($8 - zr) / zr) : "nan"
-        de = known ? sprintf("%.4f", 100 * $9 / zr) : "nan"
-        printf "%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%.6g,%s,%s,%s,%s,%s\n", $1, $2, $3, $4, $5, $6, $7, $8, $9,
-            (known ? zr : "nan"), d, de, 4 * $3 * $8 / 3.141592653589793, (known ? $11 : "none"),
-            ($12 == "" ? "nan" : $12), ($13 == "" ? "nan" : $13), ($14 == "" ? "nan" : $14), $15 }' "$OUTPUT.raw"
-} > "$OUTPUT.part"
-mv "$OUTPUT.part" "$OUTPUT"
-rm -f "$OUTPUT.raw" "$OUTPUT.rows"
-echo "dense.sh: $OUTPUT written in $(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s" >&2
+    # ---- the CSV, the table, the figure -----------------------------------------------------------------
+    {
+        echo "# ./bench.sh dense results (REPORT.md 5; references: bench/eos_reference.md)"
+        echo "# PARTS=\"$PARTS\" N_FLUID=$N_FLUID ($nf disks) N_LOOP=$N_LOOP ($nl) SPEED=$SPEED EQ_COLL=$EQ_COLL" \
+            "MEAS_COLL=$MEAS_COLL RUNG_STEPS=$RUNG_STEPS THREADS=$THREADS SEED=$SEED"
+        machine_provenance "$LOAD_START" "$(nproc 2>/dev/null)"
+        echo "# Z: the collision virial of --periodic --pressure over the measured run, its error the standard" \
+            "error of 10 block means; rungs start from the fluid point's equilibrated --exact state"
+        echo "$COLUMNS"
+        awk -F'|' '{ zr = $10 + 0; known = zr > 0
+            d = known ? sprintf("%.4f", 100 * ($8 - zr) / zr) : "nan"
+            de = known ? sprintf("%.4f", 100 * $9 / zr) : "nan"
+            printf "%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%.6g,%s,%s,%s,%s,%s\n", $1, $2, $3, $4, $5, $6, $7, $8, $9,
+                (known ? zr : "nan"), d, de, 4 * $3 * $8 / 3.141592653589793, (known ? $11 : "none"),
+                ($12 == "" ? "nan" : $12), ($13 == "" ? "nan" : $13), ($14 == "" ? "nan" : $14), $15 }' "$OUTPUT.raw"
+    } > "$OUTPUT.part"
+    mv "$OUTPUT.part" "$OUTPUT"
+    rm -f "$OUTPUT.raw" "$OUTPUT.rows"
+    echo "dense.sh: $OUTPUT written in $(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s" >&2
+fi
 grep -v '^#' "$OUTPUT" | awk -F, 'NR == 1 { print "| part | rung | eta | N | collisions a disk | Z | reference | deviation % | overlaps (fraction of states) | ns per particle-step |"
     print "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"; next }
     { printf "| %s | %s | %s | %s | %s | %s +- %s | %s | %s +- %s | %s | %s |\n", $1, $2, $3, $4, $7, $8, $9, $10, $11, $12, $15, $18 }'

@@ -6,8 +6,8 @@
 #   events per particle-step. omp --exact must print the same bytes as seq --exact, or the script stops.
 # - threads: omp --exact's event loop on all cores: one gas (N = 1e5 disks at area fraction 0.5, speeds
 #   uniform in [0, r] per step, 10 steps, placed with SEED 2: random placement jams near 0.547 and the
-#   first seed fails at 0.5), omp --exact at each of THREADS in turn, REPEATS rounds after a discarded
-#   warm-up round; with BASE_REV (or --base REV) that revision's omp too, at the same thread counts, in
+#   first seed fails at 0.5) in the periodic box (BOX=walled: between walls), omp --exact at each of
+#   THREADS in turn, REPEATS rounds after a discarded warm-up round; with BASE_REV (or --base REV) that revision's omp too, at the same thread counts, in
 #   the same rounds. One CSV row per run, then per program and thread count the best and median
 #   step-loop seconds and the speedup over the first of THREADS (best over best, median over median),
 #   and each program's last --stats lines (windows, events in strips, bands and sequential windows).
@@ -36,12 +36,19 @@ if [ "$PART" = threads ]; then
     STEPS=${STEPS:-10}
     SEED=${SEED:-2}
     REPEATS=${REPEATS:-5}
-    in=$WORK/exact_threads_${N}_${FRACTION}_${SPEED}_${STEPS}_${SEED}.in
-    [ -s "$in" ] || tools/gen "$N" --fraction "$FRACTION" --speed "$SPEED" --steps "$STEPS" --seed "$SEED" > "$in" ||
+    BOX=${BOX:-periodic}
+    case $BOX in
+        periodic) box=--periodic ;;
+        walled) box="" ;;
+        *) die "BOX must be periodic or walled (found '$BOX')" ;;
+    esac
+    in=$WORK/exact_threads_${N}_${FRACTION}_${SPEED}_${STEPS}_${SEED}_$BOX.in
+    # shellcheck disable=SC2086
+    [ -s "$in" ] || tools/gen "$N" --fraction "$FRACTION" --speed "$SPEED" --steps "$STEPS" --seed "$SEED" $box > "$in" ||
         die "tools/gen could not place the disks (another SEED?)"
     base_omp "$WORK"
     programs="omp${BASE_OMP:+ omp_base}"
-    echo "# scene: tools/gen $N --fraction $FRACTION --speed $SPEED --steps $STEPS --seed $SEED; omp --exact" \
+    echo "# scene: tools/gen $N --fraction $FRACTION --speed $SPEED --steps $STEPS --seed $SEED $box; omp --exact $box" \
         "at THREADS=\"$THREADS\", $REPEATS rounds in turn after a warm-up round"
     echo "program,threads,n,steps,round,loop_s"
     rm -f "$WORK/threads.ref" "$WORK/threads.rows"
@@ -50,7 +57,8 @@ if [ "$PART" = threads ]; then
             exe=./omp
             [ "$prog" = omp_base ] && exe=$BASE_OMP
             for t in $THREADS; do
-                "$exe" "$in" --exact --stats --threads "$t" > "$WORK/threads.out" 2> "$WORK/threads_${prog}.err"
+                # shellcheck disable=SC2086
+                "$exe" "$in" --exact $box --stats --threads "$t" > "$WORK/threads.out" 2> "$WORK/threads_${prog}.err"
                 if [ ! -e "$WORK/threads.ref" ]; then
                     mv "$WORK/threads.out" "$WORK/threads.ref"
                 elif ! cmp -s "$WORK/threads.out" "$WORK/threads.ref"; then
