@@ -1,9 +1,10 @@
 # ThreadSanitizer on omp (make omp_tsan: clang -fsanitize=thread with LLVM's OpenMP runtime, whose
 # Archer tool tells the sanitizer about OpenMP's barriers and locks): at 3 threads, on fast, mixed,
 # dense, print, --substeps and --exact scenes (--exact: strips, merged bands, windows stopped and run
-# again), with each broad phase forced as well as chosen, the random placement and checkpoints every
-# step; any report of a race fails, and so does a changed output (it must stay seq's). SKIP only where
-# clang, libomp or Archer is missing (.ci/run installs them).
+# again, the periodic box's strips that wrap), with each broad phase forced as well as chosen, the
+# random placement and checkpoints every step (make test leaves out seven of the scenes); any
+# report of a race fails, and so does a changed output (it must stay seq's). SKIP only where clang,
+# libomp or Archer is missing (.ci/run installs them).
 T=$TMP/tsan
 mkdir -p "$T"
 tsan_skip=""
@@ -51,16 +52,20 @@ else
     tools/gen 1200 --fraction 2 --overlap --speed 0.5 --steps 2 > "$T/rounds.in"
     tools/gen 3000 --assignment --L 6000 --steps 3 > "$T/aside.in" # chooses beside the moves (choose_move)
     tsan_run fast "$T/fast.in" auto
-    tsan_run "fast --broad grid" "$T/fast.in" grid
-    tsan_run mixed "$T/mixed.in" auto
+    all_suite && tsan_run "fast --broad grid" "$T/fast.in" grid
+    all_suite && tsan_run mixed "$T/mixed.in" auto
     tsan_run "mixed --broad paths" "$T/mixed.in" paths
     tsan_run "dense --broad mixed" "$T/dense.in" mixed
     tsan_run "the choice beside the moves" "$T/aside.in" auto
     OMP_ONLY="--keep 1" tsan_run "mixed --keep 1 (steps found again)" "$T/mixed.in" auto
-    tsan_run dense "$T/dense.in" auto
-    tsan_run print "$T/print.in" auto
+    all_suite && tsan_run dense "$T/dense.in" auto
+    all_suite && tsan_run print "$T/print.in" auto
     tsan_run "print --substeps 4" "$T/print.in" auto --substeps 4
-    tsan_run "print --exact" "$T/print.in" auto --exact
+    all_suite && tsan_run "print --exact" "$T/print.in" auto --exact
+    tools/gen 1000 --fraction 0.5 --speed 1 --steps 3 --periodic > "$T/periodic.in"
+    tsan_run "periodic --exact --pressure (strips that wrap, the band over the edge)" "$T/periodic.in" auto \
+        --periodic --exact --pressure
+    all_suite && tsan_run "periodic --broad paths" "$T/periodic.in" paths --periodic
     tsan_run "rounds --exact --pressure (bands merged)" "$T/rounds.in" auto --exact --pressure
     diag_lattice 24 3 > "$T/lattice.in"
     tsan_run "lattice --exact (windows stopped and run again)" "$T/lattice.in" auto --exact
@@ -70,5 +75,5 @@ else
     tsan_run "random placement in windows" "$T/placed.in" auto
     # a checkpoint inside the parallel region, every step, in print and perf mode
     tsan_run "print --checkpoint every step" "$T/print.in" auto --checkpoint "$T/ck" --checkpoint-every 1
-    tsan_run "dense --checkpoint every step" "$T/dense.in" auto --checkpoint "$T/ck" --checkpoint-every 1
+    all_suite && tsan_run "dense --checkpoint every step" "$T/dense.in" auto --checkpoint "$T/ck" --checkpoint-every 1
 fi

@@ -112,16 +112,17 @@ all_suite && same_run "dense --substeps 4 --pressure" "$Q/dense.in" --substeps 4
 
 # --exact on all threads (omp_exact.c): the strips wrap (the first and last are neighbours across the
 # edge) and the band over the edge holds the columns on both sides of it. A gas at area fraction 0.5
-# and fast disks crossing strips, at 1, 2, 3, 7 and 16 threads: seq's bytes, pressure line and event
-# count, some events in the bands; --check (every window against all pairs by the nearest image).
+# and fast disks crossing strips, at 1, 2, 3, 7 and 16 threads (the quick suite: 1, 2, 7): seq's bytes,
+# pressure line and event count, some events in the bands; --check (every window against all pairs by
+# the nearest image).
 tools/gen 1000 --fraction 0.5 --speed 1 --steps 5 --periodic --seed 11 > "$Q/half.in"
 tools/gen 1000 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 4 --periodic --seed 12 > "$Q/crossing.in"
 for name in half crossing; do
     ./seq "$Q/$name.in" --periodic --exact --pressure --stats --quiet > "$Q/x.ref" 2> "$Q/x.ref.err"
     total=$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$Q/x.ref.err")
     pressure=$(grep 'pressure' "$Q/x.ref.err" | sed 's/^seq: //')
-    bad=""
-    for t in 1 2 3 7 16; do
+    bad="" threads=$(all_suite && echo "1 2 3 7 16" || echo "1 2 7")
+    for t in $threads; do
         ./omp "$Q/$name.in" --periodic --exact --pressure --stats --quiet --threads $t > "$Q/x.out" 2> "$Q/x.err"
         split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$Q/x.err")
         read -r in_strips in_bands in_seq <<< "${split:-x x x}"
@@ -133,7 +134,7 @@ for name in half crossing; do
         fi
     done
     if [ -z "$bad" ] && [ -n "$total" ] && [ -n "$pressure" ]; then
-        pass "periodic/$name --exact: omp at 1, 2, 3, 7 and 16 threads, seq's bytes, pressure line and $total events, some in the bands"
+        pass "periodic/$name --exact: omp at $threads threads, seq's bytes, pressure line and $total events, some in the bands"
     else
         fail "periodic/$name --exact on all threads" "$bad $(head -c 200 "$Q/x.err")"
     fi
@@ -209,15 +210,23 @@ fi
 # ---- hard cases: triangular crystals under --exact ----
 # N = 418 (19 disks a row, 22 rows, stretched 0.28% to fill the box), speeds up to r/2 a step. The
 # quick suite: about 350 collisions a disk; make test-all: 1e4 at 0.85 and at 0.90 (some 1400 and 150
-# steps), whose energy drift, a rounding bias of the response (about half a unit of the last place a
-# collision for 2r = 2, README.md of tests/periodic), is checked per 5000 collisions a disk.
-for phi in 0.85 0.90; do
-    if [ "$phi" = 0.85 ]; then steps=$(all_suite && echo 1450 || echo 50); else steps=$(all_suite && echo 156 || echo 6); fi
-    ./tools/gen 418 --lattice --fraction "$phi" --speed 0.5 --steps "$steps" --seed 3 > "$Q/crystal.in" 2> /dev/null
+# steps). At r = 1 the energy drift, a rounding bias of the response where 2r is a power of two (about
+# half a unit of the last place a collision: a contact distance rounding to either side of a binade
+# edge, README.md of tests/periodic), is checked per 5000 collisions a disk; at r = 1.3 (make
+# test-all) the drift over 1e4 collisions a disk stays below 1e-12.
+# crystal PHI STEPS R: omp --exact at 2 threads on the crystal into $Q/crystal.ref; sets pen (the
+# deepest overlap over r), drift (relative, of the kinetic energy) and per (collisions a disk)
+crystal() {
+    ./tools/gen 418 --lattice --fraction "$1" --speed 0.5 --steps "$2" --seed 3 --r "$3" > "$Q/crystal.in" 2> /dev/null
     ./omp "$Q/crystal.in" --periodic --exact --quiet --dump17 --threads 2 > "$Q/crystal.ref"
+    local report pairs
     report=$(tools/measure --periodic "$Q/crystal.in" "$Q/crystal.ref")
     read -r pen drift pairs < <(tr ' ' '\n' <<< "$report" | sed -n 's/^\(max_penetration_over_r\|energy_drift\|pair_collisions\)=//p' | tr '\n' ' ')
     per=$(awk -v p="$pairs" 'BEGIN { printf "%.0f", 2 * p / 418 }')
+}
+for phi in 0.85 0.90; do
+    if [ "$phi" = 0.85 ]; then steps=$(all_suite && echo 1450 || echo 50); else steps=$(all_suite && echo 156 || echo 6); fi
+    crystal "$phi" "$steps" 1
     if awk -v p="$pen" -v d="$drift" -v c="$per" 'BEGIN { exit !(p <= 2e-12 && d < 1e-12 * (c > 5000 ? c / 5000 : 1)) }'; then
         pass "periodic crystal $phi --exact: $per collisions a disk, deepest overlap $pen r, energy drift $drift"
     else
@@ -231,6 +240,14 @@ for phi in 0.85 0.90; do
     if [ -z "$bad" ]; then pass "periodic crystal $phi --exact: omp at 1, 2, 3 and 7 threads alike"
     else fail "periodic crystal $phi --exact omp" "$bad"; fi
 done
+if all_suite; then
+    crystal 0.85 1450 1.3
+    if awk -v p="$pen" -v d="$drift" -v c="$per" 'BEGIN { exit !(p <= 2e-12 && d < 1e-12 && c >= 9000) }'; then
+        pass "periodic crystal 0.85 at r = 1.3 --exact: $per collisions a disk, deepest overlap $pen r, energy drift $drift < 1e-12"
+    else
+        fail "periodic crystal 0.85 at r = 1.3 --exact" "$per collisions a disk, deepest overlap $pen r, drift $drift"
+    fi
+fi
 
 # ---- bad input: one line, nothing on stdout ----
 printf '2\n10\n1\n3\nperf\n0 10 5 0 0\n1 2 5 0 0\n' > "$Q/at_L.in"
