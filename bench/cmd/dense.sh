@@ -105,7 +105,6 @@ run() {
 
 COLUMNS="part,rung,eta,n,L,steps,collisions_per_disk,z,z_stderr,z_reference,deviation_pct,deviation_stderr_pct"
 COLUMNS+=",beta_p_d2,reference,overlap_state_fraction,max_penetration_over_r,energy_drift,ns_per_particle_step"
-: > "$OUTPUT.rows"
 
 # point PART ETA N: one point's equilibration and --exact measurement, and with PART rungs its rungs
 point() {
@@ -217,7 +216,7 @@ if [ "$PLOT_ONLY" = 0 ]; then
                 ($12 == "" ? "nan" : $12), ($13 == "" ? "nan" : $13), ($14 == "" ? "nan" : $14), $15 }' "$OUTPUT.raw"
     } > "$OUTPUT.part"
     mv "$OUTPUT.part" "$OUTPUT"
-    rm -f "$OUTPUT.raw" "$OUTPUT.rows"
+    rm -f "$OUTPUT.raw"
     echo "dense.sh: $OUTPUT written in $(awk -v a="$START" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.0f", b - a }') s" >&2
 fi
 grep -v '^#' "$OUTPUT" | awk -F, 'NR == 1 { print "| part | rung | eta | N | collisions a disk | Z | reference | deviation % | overlaps (fraction of states) | ns per particle-step |"
