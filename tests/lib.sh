@@ -140,6 +140,7 @@ expect_mpi_error() {
 ck_start() {
     local seg=$1 max=$2 pid delay others
     shift 2
+    rm -f "$C/seg.$seg.err" # not an earlier trial's "resuming" line while the shell starts this one
     setsid "${@//@OUT@/$C/seg.$seg}" > "$C/seg.$seg" 2> "$C/seg.$seg.err" &
     pid=$!
     if [ "$seg" = 0 ]; then
