@@ -303,7 +303,7 @@ int io_main(int argc, char **argv, const Backend *b)
     memset(&vir, 0, sizeof vir);
     io_use_backend(b);
     io_parse_args(argc, argv, &opt);
-    if (opt.checkpoint) checkpoint_probe(opt.checkpoint);
+    if (opt.checkpoint) io_checkpoint_probe(opt.checkpoint);
     IoTimes io;
     memset(&io, 0, sizeof io);
     io.start = sim_clock();

@@ -158,6 +158,31 @@ int io_checkpoint_due(const Output *out, int64_t step);
 /* The first whole step from `step` on that is to be saved, or 0 if none is (backends that plan ahead) */
 int64_t io_checkpoint_next(const Output *out, int64_t step);
 void io_checkpoint(Output *out, const Sim *sim, int64_t step);
+/* The same rule as io_checkpoint_due on any process of a backend that drives itself (mpi). */
+int io_checkpoint_at(const Params *par, const Options *opt, int64_t step);
+/* --checkpoint FILE tried before the run (fails the run where FILE cannot be written). */
+void io_checkpoint_probe(const char *path);
+/* A checkpoint written in parts (mpi: each rank its block of indices), the same bytes as
+ * io_checkpoint's, in three phases, each complete on every process before the next begins:
+ * io_checkpoint_begin (one process, with the Output: stdout flushed through the step, FILE.tmp
+ * created with the header; pressure: the state holds impulses); io_checkpoint_part (every process:
+ * disks [lo, lo + m) of the state, blk holding disk lo + k at k, velocities as the backend holds
+ * them, written at their offsets in FILE.tmp and synced); io_checkpoint_end (the first process: the
+ * checksum over FILE.tmp read back in order, appended, synced, FILE.tmp renamed over FILE). */
+void io_checkpoint_begin(Output *out, int64_t step, int pressure);
+void io_checkpoint_part(const Options *opt, const Params *par, const Sim *blk, int64_t lo, int64_t m);
+void io_checkpoint_end(Output *out, int64_t step);
+/* --resume in parts: io_resume_check (one process) refuses what io_main's --resume refuses but for the
+ * disks' own values (header, size, checksum: one pass over the file) and sets par and opt from the
+ * checkpoint; io_resume_part (every process, par and opt as set) reads disks [lo, lo + m) into blk
+ * (allocated here; disk lo + k at k, velocities per step as in the file) and returns the first of
+ * them that io_main would refuse, or -1; io_resume_refuse fails the run with io_main's message for
+ * that disk; io_resume_begin (the process with the Output) takes the checkpoint's virial sums and
+ * says "resuming" as io_main does. */
+void io_resume_check(Options *opt, Params *par);
+int64_t io_resume_part(const Options *opt, const Params *par, Sim *blk, int64_t lo, int64_t m);
+void io_resume_refuse(const Options *opt, int64_t i);
+void io_resume_begin(Output *out);
 /* --pressure in the periodic box (SPEC.md 7a): the run's steps cut into blocks, and after the last
  * step of each block the index-order sums of the disks' virial impulses (wi) and of their squared
  * speeds. io_virial_due: whether the state after whole step `step` ends a block (the run's last step

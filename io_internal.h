@@ -51,6 +51,7 @@ struct Output {
     int64_t ck_step;
     double ck_s;
     uint64_t ck_bytes;
+    double ck_t0;      /* sim_clock() when the checkpoint being written in parts began */
     double next_show;  /* sim_clock() of the next progress update */
     int shown;         /* a progress line is on the terminal */
     IoTimes io;        /* io_main's reading and writing, for --stats */
@@ -88,8 +89,6 @@ void input_read(const Options *opt, Params *par, Sim *sim, IoTimes *io, int prep
 
 /* ---- checkpoint.c ------------------------------------------------------------------------------------ */
 
-/* --checkpoint FILE tried before the run (fails the run where FILE cannot be written). */
-void checkpoint_probe(const char *path);
 /* --resume: the run and state of opt->resume into par and sim, its virial sums so far into vir; the
  * options that shape the run (K, exact, pressure, periodic, dump17) into opt. Anything wrong with the
  * file fails the run. */

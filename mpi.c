@@ -915,7 +915,7 @@ static void record_virial(Run *r, int64_t step)
 
 static double run_steps(Run *r, RunStats *st)
 {
-    int64_t k = r->par.substeps, last = r->par.steps * k;
+    int64_t k = r->par.substeps, last = r->par.steps * k, first = r->par.first_step * k;
     double t0 = MPI_Wtime();
     uint64_t bytes0 = bytes_sent;
     double waited0 = waited;
@@ -928,17 +928,17 @@ static double run_steps(Run *r, RunStats *st)
     MPI_Allreduce(MPI_IN_PLACE, &known, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
     r->speed_req[0] = r->speed_req[1] = MPI_REQUEST_NULL;
     StepClock *c = r->clock;
-    for (int64_t sub = 1; sub <= last; sub++) {
+    for (int64_t sub = first + 1; sub <= last; sub++) {
         double ts = MPI_Wtime(), w0 = waited;
         if (c) clock_start(c);
-        if (sub >= 3) { /* the speed at the last step's start, sent off as the step before it ended */
+        if (sub >= first + 3) { /* the speed at the last step's start, sent off as the step before it ended */
             int o = (int)(sub & 1);
             double tw = MPI_Wtime();
             MPI_Wait(&r->speed_req[o], MPI_STATUS_IGNORE);
             waited += MPI_Wtime() - tw;
             known = r->speed_all[o];
         }
-        r->speed = sub == 1 ? known : known * 1.41422;
+        r->speed = sub == first + 1 ? known : known * 1.41422;
         halo_exchange(r);
         if (c) clock_end(c, PART_HALO);
         find_events(r, sub);
@@ -960,6 +960,10 @@ static double run_steps(Run *r, RunStats *st)
         if (r->par.print && sub < last) {
             Local l = view(r);
             mpi_write_state(r->out, &r->par, &l, sub / k, 0);
+        }
+        if (io_checkpoint_at(&r->par, r->opt, sub / k)) {
+            Local l = view(r);
+            mpi_checkpoint(r->out, &r->par, r->opt, &l, sub / k);
         }
         if (mpi_me == 0) io_progress(r->out, sub / k);
     }
@@ -999,7 +1003,7 @@ static const Backend mpi_backend = {
     "               work as measured (default 0: cuts placed by count at the start only)\n"
     "run as: mpirun -np P mpi INPUT [options]\n",
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_PRESSURE | SIM_FEATURE_OUTPUT | SIM_FEATURE_THREADS |
-        SIM_FEATURE_BALANCE | SIM_FEATURE_PERIODIC,
+        SIM_FEATURE_BALANCE | SIM_FEATURE_PERIODIC | SIM_FEATURE_CHECKPOINT,
     mpi_run, NULL, mpi_parallel,
 };
 
@@ -1025,21 +1029,27 @@ int main(int argc, char **argv)
     r.opt = &opt;
     r.nt = opt.threads > 0 ? opt.threads : 1;
     team_start(r.nt); /* a rank's threads on cores of their own where its mask has several */
+    if (opt.checkpoint && mpi_me == 0) io_checkpoint_probe(opt.checkpoint);
     Local l;
     memset(&l, 0, sizeof l);
     l.with_wi = opt.pressure;
     double t_read = MPI_Wtime();
-    mpi_read_input(&opt, &r.par, &l);
+    if (opt.resume) { /* the run, its options and its state from the checkpoint */
+        mpi_read_checkpoint(&opt, &r.par, &l);
+    } else {
+        mpi_read_input(&opt, &r.par, &l);
+        r.par.first_step = 0;
+    }
     t_read = MPI_Wtime() - t_read;
-    r.par.first_step = 0;
     r.par.substeps = opt.substeps;
     if (opt.output) mpi_output_file(opt.output);
     if (r.par.steps * (int64_t)opt.substeps > INT32_MAX)
         sim_fail("--substeps %d with S = %lld steps could count more than %d collisions of one disk "
                  "(S x K must be <= %d)", opt.substeps, (long long)r.par.steps, INT32_MAX, INT32_MAX);
     if (mpi_me == 0) r.out = io_output_open(&r.par, &opt);
+    if (mpi_me == 0 && opt.resume) io_resume_begin(r.out); /* its virial sums so far; "resuming" */
     double t_step0 = MPI_Wtime();
-    mpi_write_state(r.out, &r.par, &l, 0, 0);
+    if (!opt.resume) mpi_write_state(r.out, &r.par, &l, 0, 0); /* a resumed run's step 0 is out already */
     t_step0 = MPI_Wtime() - t_step0;
 
     /* the disks into the broad phase's slots, which hold them from here on */
@@ -1064,7 +1074,7 @@ int main(int argc, char **argv)
     real k = (real)opt.substeps;
     scale_own(&r, 1 / k);
     io_set_velocity_scale(k);
-    if (r.par.periodic && opt.pressure) record_virial(&r, 0);
+    if (r.par.periodic && opt.pressure && !opt.resume) record_virial(&r, 0);
     RunStats st;
     memset(&st, 0, sizeof st);
     if (opt.stats) {

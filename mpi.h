@@ -66,5 +66,14 @@ void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t ste
 /* --pressure: the sums of the disks' wall (or virial) impulses (s.wi) and of their squared speeds
  * vx^2 + vy^2 in index order, as io_main and io_virial add them, on rank 0 (0 elsewhere). */
 void mpi_index_sums(const Params *par, const Local *l, double *w, double *k);
+/* --checkpoint: the state of every rank's own disks after step `step` (velocities v / K, as the steps
+ * hold them) saved in opt->checkpoint, the bytes io_checkpoint writes: each rank writes its index
+ * block at its offsets, then rank 0 (out) adds the checksum and renames the file into place. */
+void mpi_checkpoint(Output *out, const Params *par, const Options *opt, const Local *l, int64_t step);
+/* --resume: the checkpoint opt->resume checked on rank 0 (seq's one line and a non-zero status where
+ * it is refused), the run and its options from it into par and opt on every rank, and l (each rank
+ * its own disks, velocities per step as in the file): each rank reads its index block, which then
+ * goes to the strips' ranks as an input's disks do. */
+void mpi_read_checkpoint(Options *opt, Params *par, Local *l);
 
 #endif

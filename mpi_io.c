@@ -26,11 +26,12 @@
 #define TAG_TEXT 71
 #define TAG_SUM 72
 
-/* A disk between ranks. */
+/* A disk between ranks (wi: --pressure's impulse, for checkpoints; 0 elsewhere). */
 typedef struct {
     real x, y, vx, vy;
     int64_t id;
     int32_t pc, wc;
+    double wi;
 } Disk;
 
 /* ---- sharing out ------------------------------------------------------------------------------------ */
@@ -67,7 +68,7 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
     return in;
 }
 
-/* Adds m disks (their counts zero, wi zero) to l's own. */
+/* Adds m disks to l's own. */
 static void local_append(Local *l, const Disk *d, int64_t m)
 {
     local_reserve(l, l->own + m);
@@ -76,13 +77,14 @@ static void local_append(Local *l, const Disk *d, int64_t m)
         int64_t at = l->own + k;
         s->x[at] = d[k].x, s->y[at] = d[k].y, s->vx[at] = d[k].vx, s->vy[at] = d[k].vy;
         s->id[at] = (int32_t)d[k].id;
-        s->pc[at] = 0, s->wc[at] = 0;
-        if (l->with_wi) s->wi[at] = 0;
+        s->pc[at] = d[k].pc, s->wc[at] = d[k].wc;
+        if (l->with_wi) s->wi[at] = d[k].wi;
     }
     l->own += m;
 }
 
-/* Each rank's disks of its index block, from wherever they are: position k holds disk lo + k. */
+/* Each rank's disks of its index block, from wherever they are: position k holds disk lo + k (wi
+ * too where l has it). */
 static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *lo, int64_t *m)
 {
     int64_t n = par->n, own = l->own;
@@ -90,7 +92,7 @@ static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *l
     Disk *d = sim_realloc(NULL, (size_t)own, sizeof *d);
     int *dest = sim_realloc(NULL, (size_t)own, sizeof *dest);
     for (int64_t k = 0; k < own; k++) {
-        Disk e = {s->x[k], s->y[k], s->vx[k], s->vy[k], s->id[k], s->pc[k], s->wc[k]};
+        Disk e = {s->x[k], s->y[k], s->vx[k], s->vy[k], s->id[k], s->pc[k], s->wc[k], l->with_wi ? s->wi[k] : 0};
         d[k] = e;
         dest[k] = block_of(n, s->id[k]);
     }
@@ -101,11 +103,13 @@ static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *l
     *m = block_lo(n, mpi_me + 1) - *lo;
     if (got != *m)
         sim_fail("internal error: %lld disks of block %d, not %lld", (long long)got, mpi_me, (long long)*m);
-    if (sim_alloc(blk, *m)) sim_fail("out of memory for %lld disks", (long long)*m);
+    if (sim_alloc(blk, *m ? *m : 1)) sim_fail("out of memory for %lld disks", (long long)*m);
+    if (l->with_wi) blk->wi = sim_calloc((size_t)(*m ? *m : 1), sizeof *blk->wi);
     for (int64_t k = 0; k < got; k++) {
         int64_t at = in[k].id - *lo;
         blk->x[at] = in[k].x, blk->y[at] = in[k].y, blk->vx[at] = in[k].vx, blk->vy[at] = in[k].vy;
         blk->pc[at] = in[k].pc, blk->wc[at] = in[k].wc;
+        if (blk->wi) blk->wi[at] = in[k].wi;
     }
     free(in);
 }
@@ -231,6 +235,23 @@ fail:
     return NULL;
 }
 
+/* Every rank's m disks d (of the whole state, in any order) to the ranks of their strips, the cuts
+ * placed at equal counts of disks first. */
+static void to_strips(const Params *par, const Disk *d, int64_t m, Local *l)
+{
+    double *hist = sim_calloc((size_t)mpi_cut_bins(), sizeof *hist);
+    for (int64_t k = 0; k < m; k++) mpi_cut_add(hist, d[k].x, par->L, 1);
+    mpi_place_cuts(hist, (double)m, par->L, 0);
+    free(hist);
+    int *dest = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *dest);
+    for (int64_t k = 0; k < m; k++) dest[k] = mpi_owner(d[k].x);
+    int64_t got;
+    Disk *mine = exchange(d, sizeof *d, dest, m, &got);
+    free(dest);
+    local_append(l, mine, got);
+    free(mine);
+}
+
 /* A regular file, every rank its share: parsed, checked together (record count, then duplicates at
  * the index blocks' ranks), and sent to the strips' ranks. Returns 0, or 1 where the input lists no
  * disks (random placement). */
@@ -271,7 +292,7 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     for (int64_t k = 0, m = 0; k < pc.lines; k++) {
         if (pc.idx[k] < 0) continue;
         const Sim *p = &pc.disks;
-        Disk e = {p->x[k], p->y[k], p->vx[k], p->vy[k], pc.idx[k], 0, 0};
+        Disk e = {p->x[k], p->y[k], p->vx[k], p->vy[k], pc.idx[k], 0, 0, 0};
         d[m] = e;
         ids[m] = pc.idx[k];
         dest[m++] = block_of(n, pc.idx[k]);
@@ -291,16 +312,9 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     MPI_Allreduce(&dup, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     if (any) input_failed(opt);
 
-    /* the cuts at equal counts of disks, then every disk to its strip */
-    double *hist = sim_calloc((size_t)mpi_cut_bins(), sizeof *hist);
-    for (int64_t k = 0; k < records; k++) mpi_cut_add(hist, d[k].x, par->L, 1);
-    mpi_place_cuts(hist, (double)records, par->L, 0);
-    free(hist);
-    for (int64_t k = 0; k < records; k++) dest[k] = mpi_owner(d[k].x);
-    Disk *mine_now = exchange(d, sizeof *d, dest, records, &got);
-    free(d), free(dest);
-    local_append(l, mine_now, got);
-    free(mine_now);
+    free(dest);
+    to_strips(par, d, records, l);
+    free(d);
     return 0;
 }
 
@@ -332,7 +346,7 @@ static void scatter(const Params *par, const Sim *all, Local *l)
             for (int q = 1; q < np; q++) displ[q] = displ[q - 1] + count[q - 1];
             for (int64_t k = 0; k < m; k++) {
                 int64_t i = first + k;
-                Disk e = {all->x[i], all->y[i], all->vx[i], all->vy[i], i, 0, 0};
+                Disk e = {all->x[i], all->y[i], all->vx[i], all->vy[i], i, 0, 0, 0};
                 d[displ[dest[k]]++] = e;
             }
             for (int q = 0; q < np; q++) displ[q] -= count[q];
@@ -528,4 +542,54 @@ void mpi_index_sums(const Params *par, const Local *l, double *w, double *k)
     }
     *w = mpi_me == 0 ? sum[0] : 0;
     *k = mpi_me == 0 ? sum[1] : 0;
+}
+
+/* ---- checkpoints ------------------------------------------------------------------------------------ */
+
+void mpi_checkpoint(Output *out, const Params *par, const Options *opt, const Local *l, int64_t step)
+{
+    Sim blk;
+    int64_t lo, m;
+    gather_block(par, l, &blk, &lo, &m);
+    /* rank 0's stdout is flushed through this step (with --output every rank's lines are in the file
+     * already: write_at_offset writes them before it returns) and FILE.tmp holds the header */
+    if (mpi_me == 0) io_checkpoint_begin(out, step, l->with_wi);
+    MPI_Barrier(MPI_COMM_WORLD);
+    io_checkpoint_part(opt, par, &blk, lo, m);
+    sim_free(&blk);
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (mpi_me == 0) io_checkpoint_end(out, step);
+}
+
+void mpi_read_checkpoint(Options *opt, Params *par, Local *l)
+{
+    int32_t o[5] = {0, 0, 0, 0, 0};
+    if (mpi_me == 0) {
+        io_resume_check(opt, par);
+        o[0] = opt->substeps, o[1] = opt->exact, o[2] = opt->pressure, o[3] = opt->periodic, o[4] = opt->dump17;
+    }
+    MPI_Bcast(par, (int)sizeof *par, MPI_BYTE, 0, MPI_COMM_WORLD);
+    MPI_Bcast(o, 5, MPI_INT32_T, 0, MPI_COMM_WORLD);
+    opt->substeps = o[0], opt->exact = o[1], opt->pressure = o[2], opt->periodic = o[3], opt->dump17 = o[4];
+    l->own = l->halo = 0;
+    l->with_wi = opt->pressure;
+    /* each rank its index block, then the disks to their strips as after reading an input */
+    int64_t n = par->n, lo = block_lo(n, mpi_me), m = block_lo(n, mpi_me + 1) - lo;
+    Sim blk;
+    int64_t bad = io_resume_part(opt, par, &blk, lo, m), first;
+    if (bad < 0) bad = INT64_MAX;
+    MPI_Allreduce(&bad, &first, 1, MPI_INT64_T, MPI_MIN, MPI_COMM_WORLD);
+    if (first != INT64_MAX) { /* io.c's message, as for bad input: rank 0 says it, the job ends */
+        if (mpi_me == 0) io_resume_refuse(opt, first);
+        MPI_Barrier(MPI_COMM_WORLD);
+        exit(1);
+    }
+    Disk *d = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *d);
+    for (int64_t k = 0; k < m; k++) {
+        Disk e = {blk.x[k], blk.y[k], blk.vx[k], blk.vy[k], lo + k, blk.pc[k], blk.wc[k], blk.wi ? blk.wi[k] : 0};
+        d[k] = e;
+    }
+    sim_free(&blk);
+    to_strips(par, d, m, l);
+    free(d);
 }

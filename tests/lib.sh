@@ -129,3 +129,91 @@ expect_mpi_error() {
     grep -Eq -e "$pattern" "$TMP/eerr" || problems="$problems message '$(head -c 200 "$TMP/eerr")';"
     if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
 }
+
+# ---- --checkpoint kill trials (t_58, t_88): C is the file's folder, CK_KILLS counts the kills ----
+# ck_start SEGMENT MAXDELAY COMMAND...: runs COMMAND (stdout $C/seg.SEGMENT, stderr .err; an argument
+# @OUT@ becomes $C/seg.SEGMENT, for mpi --output) in the background in a session of its own, waits for
+# its first checkpoint (a resumed run: for its "resuming" line), sleeps a random time up to MAXDELAY
+# seconds and kills it with SIGKILL, with every process of its session (mpirun's ranks live in process
+# groups of their own). KILLED=1 if the kill found it running; CK_STATUS: its exit status (137 where
+# the kill found it; 128 + N: another signal N ended it).
+ck_start() {
+    local seg=$1 max=$2 pid delay others
+    shift 2
+    rm -f "$C/seg.$seg.err" # not an earlier trial's "resuming" line while the shell starts this one
+    setsid "${@//@OUT@/$C/seg.$seg}" > "$C/seg.$seg" 2> "$C/seg.$seg.err" &
+    pid=$!
+    if [ "$seg" = 0 ]; then
+        while kill -0 "$pid" 2> /dev/null && [ ! -e "$C/run.ck" ]; do sleep 0.01; done
+    else
+        while kill -0 "$pid" 2> /dev/null && ! grep -q resuming "$C/seg.$seg.err"; do sleep 0.01; done
+    fi
+    delay=$(awk -v s="$RANDOM" -v m="$max" 'BEGIN { srand(s); printf "%.3f", rand() * m }')
+    sleep "$delay"
+    others=$(ps -o pid= -s "$pid" 2> /dev/null | grep -v "^ *$pid\$")
+    if kill -9 "$pid" 2> /dev/null; then KILLED=1; else KILLED=0; fi
+    # shellcheck disable=SC2086
+    [ -z "$others" ] || kill -9 $others 2> /dev/null
+    wait "$pid" 2> /dev/null
+    CK_STATUS=$?
+    # none of them may still write when the next run starts
+    # shellcheck disable=SC2086
+    while [ -n "$others" ] && ps -o stat= -p "$(echo $others | tr ' ' ,)" 2> /dev/null | grep -qv Z; do sleep 0.01; done
+}
+
+# ck_trial NAME REFERENCE N MODE EVERY MAXDELAY "RUN" "RESUME1" ["RESUME2" ...]: RUN (with --quiet,
+# --checkpoint and --checkpoint-every EVERY added) is killed; each RESUME but the last is run with
+# --resume and --checkpoint on the same file and killed too; the last runs to the end. The pieces of
+# stdout (print mode: each up to its successor's checkpoint step; perf: step 0, then the last) must
+# make up REFERENCE (an argument @OUT@ of a command: that piece's file). A run that ends before its
+# kill is tried again with half the delay.
+ck_trial() {
+    local name=$1 ref=$2 n=$3 mode=$4 every=$5 max=$6 run=$7 seg try k prev=0 cmd problems=""
+    shift 7
+    local resumes=("$@")
+    for try in 1 2 3 4 5; do
+        rm -f "$C/run.ck" "$C/run.ck.tmp"
+        # shellcheck disable=SC2086
+        ck_start 0 "$max" $run --quiet --checkpoint "$C/run.ck" --checkpoint-every "$every"
+        [ "$KILLED" = 1 ] && break
+        max=$(awk -v m="$max" 'BEGIN { print m / 2 }')
+    done
+    if [ "$KILLED" != 1 ]; then
+        fail "$name" "the run ended before each of 5 kills: $(head -c 200 "$C/seg.0.err")"
+        return
+    fi
+    CK_KILLS=$((CK_KILLS + 1))
+    : > "$C/joined"
+    for seg in $(seq 1 ${#resumes[@]}); do
+        cmd=${resumes[$((seg - 1))]}
+        if [ "$seg" -lt ${#resumes[@]} ]; then
+            # shellcheck disable=SC2086
+            ck_start "$seg" "$max" $cmd --resume "$C/run.ck" --checkpoint "$C/run.ck" --checkpoint-every "$every"
+            [ "$KILLED" = 1 ] && CK_KILLS=$((CK_KILLS + 1))
+        else
+            cmd=${cmd//@OUT@/$C/seg.$seg}
+            # shellcheck disable=SC2086
+            $cmd --resume "$C/run.ck" > "$C/seg.$seg" 2> "$C/seg.$seg.err"
+            CK_STATUS=$?
+        fi
+        k=$(sed -n 's/.*resuming .* at step \([0-9]*\) of .*/\1/p' "$C/seg.$seg.err")
+        if [ -z "$k" ]; then
+            problems="resume $seg ($cmd, exit status $CK_STATUS): $(head -c 200 "$C/seg.$seg.err")"
+            break
+        fi
+        # the previous piece: its lines up to step k
+        if [ "$mode" = print ]; then
+            head -n $(((k - prev + (seg == 1)) * n)) "$C/seg.$((seg - 1))" >> "$C/joined"
+        elif [ "$seg" = 1 ]; then
+            head -n "$n" "$C/seg.0" >> "$C/joined"
+        fi
+        problems="$problems k$seg=$k"
+        prev=$k
+    done
+    cat "$C/seg.${#resumes[@]}" >> "$C/joined"
+    if cmp -s "$C/joined" "$ref"; then
+        pass "$name:$problems"
+    else
+        fail "$name" "$problems: the joined output differs ($(cmp "$C/joined" "$ref" 2>&1 | head -1))"
+    fi
+}

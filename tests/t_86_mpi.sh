@@ -238,7 +238,7 @@ else
     printf '3\n10\n1\nfive\nperf\n' > "$M/bad_header.in"
     all_suite && bad_case "a bad header" "$M/bad_header.in"
     expect_mpi_error "mpi: --exact refused" "--exact is not supported by mpi" "$M/sub.in" --exact
-    expect_mpi_error "mpi: --checkpoint refused" "not supported by mpi" "$M/sub.in" --checkpoint "$M/ck"
+    expect_mpi_error "mpi: --checkpoint in a missing folder refused" "cannot write" "$M/sub.in" --checkpoint "$M/none/ck"
     expect_mpi_error "mpi: --output into a missing folder refused" "cannot create the output" \
         "$M/sub.in" --output "$M/no/such/file"
     expect_error "seq: --output refused" "--output is not supported by seq" ./seq "$M/sub.in" --output "$M/x"
