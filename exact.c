@@ -160,6 +160,45 @@ int exact_stops(const ExactDisks *d, const ExactEvent *e)
            s->pc[i] == INT32_MAX || s->pc[j] == INT32_MAX;
 }
 
+/* a * b as hi + lo exactly (Dekker: no fused multiply-add, as the build forbids contraction) */
+static void exact_two_prod(real a, real b, real *hi, real *lo)
+{
+#ifdef SIM_FLOAT
+    const real split = 4097.0f; /* 2^12 + 1 */
+#else
+    const real split = 134217729.0; /* 2^27 + 1 */
+#endif
+    real p = a * b, ca = split * a, cb = split * b;
+    real ah = ca - (ca - a), al = a - ah, bh = cb - (cb - b), bl = b - bh;
+    *hi = p;
+    *lo = ((ah * bh - p) + ah * bl + al * bh) + al * bl;
+}
+
+/* The response: the normal components of the velocities swapped as the impulse q n along the contact
+ * vector n, q = (vj - vi).n / n.n. With n.n held exactly (hi + lo) no rounding has a sign of its own:
+ * a normal of length 2r that rounds to a power of two (pair_bounce_rel's u = n / len, where len rounds
+ * to 2r over a span twice as wide above as below it) adds energy a collision on average, this does
+ * not. Returns |vni - vnj| as pair_bounce_rel computes it (the virial's impulse, SPEC.md 7a). */
+static real exact_bounce(real nx, real ny, real *vxi, real *vyi, real *vxj, real *vyj)
+{
+    real len = SIM_SQRT(nx * nx + ny * ny);
+    if (len == 0) return 0;
+    real ux = nx / len, uy = ny / len;
+    real vni = ux * *vxi + uy * *vyi, vnj = ux * *vxj + uy * *vyj;
+    real xh, xl, yh, yl;
+    exact_two_prod(nx, nx, &xh, &xl);
+    exact_two_prod(ny, ny, &yh, &yl);
+    real s = xh + yh, z = s - xh, e = (xh - (s - z)) + (yh - z); /* xh + yh = s + e exactly */
+    real lo = e + xl + yl;
+    real num = (*vxj - *vxi) * nx + (*vyj - *vyi) * ny;
+    real q0 = num / s, q = q0 - q0 * (lo / s); /* num / (s + lo) to first order in lo / s */
+    *vxi = *vxi + q * nx;
+    *vyi = *vyi + q * ny;
+    *vxj = *vxj - q * nx;
+    *vyj = *vyj - q * ny;
+    return SIM_FABS(vni - vnj);
+}
+
 /* Processes event e (valid: predicted from the disks' current versions). */
 void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
 {
@@ -185,7 +224,7 @@ void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
     s->y[j] = m.yj + s->vy[j] * m.dt;
     real nx = s->x[j] - s->x[i], ny = s->y[j] - s->y[i];
     if (p->periodic) nx = wrap_delta(nx, p->L, p->half), ny = wrap_delta(ny, p->L, p->half);
-    real dp = pair_bounce_rel(nx, ny, &s->vx[i], &s->vy[i], &s->vx[j], &s->vy[j]);
+    real dp = exact_bounce(nx, ny, &s->vx[i], &s->vy[i], &s->vx[j], &s->vy[j]);
     if (s->wi && p->periodic) s->wi[i] += dp, s->wi[j] += dp; /* the virial's impulses (SPEC.md 7a) */
     exact_into_box(s, p, i);
     exact_into_box(s, p, j);

@@ -13,7 +13,9 @@
  *               and their velocity reflected (wall_bounce), the other axis flies; a corner is one event.
  *   pair i < j: both states are brought to the common clock tc = max(ti, tj) by flight, pair_time_within
  *               solves 3.2 from there for the rest of the step (1 - tc), te = tc + dt; both fly dt to
- *               contact and swap normal components (pair_bounce).
+ *               contact and swap normal components: vi += q n, vj -= q n along the contact vector n,
+ *               q = (vj - vi).n / n.n with n.n held exactly (exact.c exact_bounce; SPEC.md 3.4's
+ *               pair_bounce, through n / |n|, gains energy on average where 2r is a power of two).
  *   An event exists if te <= 1 (events at exactly t = 1 belong to the step, as in SPEC.md). After
  *   each event the moved coordinates are clamped into [lo, hi].
  * - Order: the smallest event by the key (t, kind, i, j) of SPEC.md 3.3 is processed, then the events
