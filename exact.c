@@ -178,13 +178,19 @@ static void exact_two_prod(real a, real b, real *hi, real *lo)
  * vector n, q = (vj - vi).n / n.n. With n.n held exactly (hi + lo) no rounding has a sign of its own:
  * a normal of length 2r that rounds to a power of two (pair_bounce_rel's u = n / len, where len rounds
  * to 2r over a span twice as wide above as below it) adds energy a collision on average, this does
- * not. Returns |vni - vnj| as pair_bounce_rel computes it (the virial's impulse, SPEC.md 7a). */
-static real exact_bounce(real nx, real ny, real *vxi, real *vyi, real *vxj, real *vyj)
+ * not. dp (where not NULL): |vni - vnj| as pair_bounce_rel computes it (the virial's impulse, SPEC.md
+ * 7a), from the velocities before the response. */
+static void exact_bounce(real nx, real ny, real *vxi, real *vyi, real *vxj, real *vyj, real *dp)
 {
-    real len = SIM_SQRT(nx * nx + ny * ny);
-    if (len == 0) return 0;
-    real ux = nx / len, uy = ny / len;
-    real vni = ux * *vxi + uy * *vyi, vnj = ux * *vxj + uy * *vyj;
+    real nn = nx * nx + ny * ny;
+    if (nn == 0) { /* centres that coincide: no normal, no response */
+        if (dp) *dp = 0;
+        return;
+    }
+    if (dp) {
+        real len = SIM_SQRT(nn), ux = nx / len, uy = ny / len;
+        *dp = SIM_FABS((ux * *vxi + uy * *vyi) - (ux * *vxj + uy * *vyj));
+    }
     real xh, xl, yh, yl;
     exact_two_prod(nx, nx, &xh, &xl);
     exact_two_prod(ny, ny, &yh, &yl);
@@ -196,7 +202,6 @@ static real exact_bounce(real nx, real ny, real *vxi, real *vyi, real *vxj, real
     *vyi = *vyi + q * ny;
     *vxj = *vxj - q * nx;
     *vyj = *vyj - q * ny;
-    return SIM_FABS(vni - vnj);
 }
 
 /* Processes event e (valid: predicted from the disks' current versions). */
@@ -224,8 +229,10 @@ void exact_apply(ExactDisks *d, const Params *p, const ExactEvent *e)
     s->y[j] = m.yj + s->vy[j] * m.dt;
     real nx = s->x[j] - s->x[i], ny = s->y[j] - s->y[i];
     if (p->periodic) nx = wrap_delta(nx, p->L, p->half), ny = wrap_delta(ny, p->L, p->half);
-    real dp = exact_bounce(nx, ny, &s->vx[i], &s->vy[i], &s->vx[j], &s->vy[j]);
-    if (s->wi && p->periodic) s->wi[i] += dp, s->wi[j] += dp; /* the virial's impulses (SPEC.md 7a) */
+    real dp;
+    int virial = s->wi && p->periodic; /* the virial's impulses (SPEC.md 7a) */
+    exact_bounce(nx, ny, &s->vx[i], &s->vy[i], &s->vx[j], &s->vy[j], virial ? &dp : NULL);
+    if (virial) s->wi[i] += dp, s->wi[j] += dp;
     exact_into_box(s, p, i);
     exact_into_box(s, p, j);
     d->t[i] = d->t[j] = e->t;
