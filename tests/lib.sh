@@ -80,18 +80,34 @@ backend_list() {
 # non-zero with nothing on stdout and exactly one stderr line matching PATTERN (grep -E): the rule for
 # every refused input or option.
 expect_error() {
-    local name=$1 pattern=$2 rc problems=""
+    local name=$1 pattern=$2
     shift 2
     "$@" > "$TMP/out" 2> "$TMP/err" < "${STDIN_FILE:-/dev/null}"
-    rc=$?
+    refusal_verdict "$name" "$pattern" $? "$TMP/out" "$TMP/err"
+}
+
+# refusal_verdict NAME PATTERN STATUS OUT ERR: a refused run's verdict (non-zero STATUS, OUT empty, ERR
+# one line matching PATTERN), for expect_error and expect_mpi_error.
+refusal_verdict() {
+    local name=$1 pattern=$2 rc=$3 out=$4 err=$5 problems=""
     [ "$rc" -ne 0 ] || problems="exit status 0;"
-    [ ! -s "$TMP/out" ] || problems="$problems $(wc -c < "$TMP/out") bytes on stdout;"
-    [ "$(wc -l < "$TMP/err")" -eq 1 ] || problems="$problems $(wc -l < "$TMP/err") stderr lines;"
-    grep -Eq -e "$pattern" "$TMP/err" || problems="$problems message '$(head -c 200 "$TMP/err")';"
+    [ ! -s "$out" ] || problems="$problems $(wc -c < "$out") bytes on stdout;"
+    [ "$(wc -l < "$err")" -eq 1 ] || problems="$problems $(wc -l < "$err") stderr lines;"
+    grep -Eq -e "$pattern" "$err" || problems="$problems message '$(head -c 200 "$err")';"
     if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
 }
 
-# ---- mpi (t_86, t_78) ----
+# exact_events ERR: the event count of a --stats run's last line ("..., N events")
+exact_events() { sed -n 's/.* \([0-9]*\) events$/\1/p' "$1"; }
+# exact_split ERR: omp --exact --stats' events "IN_STRIPS IN_BANDS IN_SEQUENTIAL_WINDOWS" ("x x x" if none)
+exact_split() {
+    local split
+    split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$1")
+    echo "${split:-x x x}"
+}
+
+# ---- mpi (t_86, t_78, t_88) ----
+have_mpi() { command -v mpirun > /dev/null 2>&1 && [ -x ./mpi ]; }
 # mpi_env: mpirun's settings here (as root, more ranks than cores), and MPIRUN, its command.
 mpi_env() {
     export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
@@ -118,16 +134,12 @@ run_mpi() {
 # of the failed job, which an mpirun without -q (Open MPI 5) adds: there only the program's lines
 # ("mpi: ...") are counted.
 expect_mpi_error() {
-    local name=$1 pattern=$2 rc problems=""
+    local name=$1 pattern=$2 rc
     shift 2
     "${MPIRUN[@]}" -np 3 --oversubscribe ./mpi "$@" > "$TMP/eout" 2> "$TMP/eerr" < /dev/null
     rc=$?
     [ "${#MPIRUN[@]}" -eq 2 ] || { grep '^mpi: ' "$TMP/eerr" > "$TMP/eerr1"; mv "$TMP/eerr1" "$TMP/eerr"; }
-    [ "$rc" -ne 0 ] || problems="exit status 0;"
-    [ ! -s "$TMP/eout" ] || problems="$problems $(wc -c < "$TMP/eout") bytes on stdout;"
-    [ "$(wc -l < "$TMP/eerr")" -eq 1 ] || problems="$problems $(wc -l < "$TMP/eerr") stderr lines;"
-    grep -Eq -e "$pattern" "$TMP/eerr" || problems="$problems message '$(head -c 200 "$TMP/eerr")';"
-    if [ -z "$problems" ]; then pass "$name"; else fail "$name" "$problems"; fi
+    refusal_verdict "$name" "$pattern" "$rc" "$TMP/eout" "$TMP/eerr"
 }
 
 # ---- --checkpoint kill trials (t_58, t_88): C is the file's folder, CK_KILLS counts the kills ----

@@ -131,18 +131,17 @@ half_run() { # PROGRAM [OPTIONS]: stdout, stderr and checkpoint into $X/half.run
     "$@" "$X/half.in" --exact --stats --pressure --quiet --checkpoint "$X/half.run.ck" --checkpoint-every 2 \
         > "$X/half.run.out" 2> "$X/half.run.err"
 }
-events_of() { sed -n 's/.* \([0-9]*\) events$/\1/p' "$1"; }
 pressure_of() { sed -n 's/^[a-z_0-9]*: \(pressure: .*\)/\1/p' "$1"; }
 half_run ./seq
 for f in out err ck; do mv "$X/half.run.$f" "$X/half.seq.$f"; done
 for t in 1 2 7 16 4:OMP_DYNAMIC=true; do
     if [ "${t#*:}" != "$t" ]; then half_run env "${t#*:}" ./omp --threads "${t%%:*}"; else half_run ./omp --threads "$t"; fi
-    split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$X/half.run.err")
-    read -r in_strips in_bands in_seq <<< "${split:-x x x}"
-    total=$(events_of "$X/half.seq.err")
+    split=$(exact_split "$X/half.run.err")
+    read -r in_strips in_bands in_seq <<< "$split"
+    total=$(exact_events "$X/half.seq.err")
     if ! cmp -s "$X/half.run.out" "$X/half.seq.out"; then
         fail "exact/half omp --threads $t: output differs from seq's"
-    elif [ "$(events_of "$X/half.run.err")" != "$total" ] || [ "$((in_strips + in_bands + in_seq))" != "$total" ] ||
+    elif [ "$(exact_events "$X/half.run.err")" != "$total" ] || [ "$((in_strips + in_bands + in_seq))" != "$total" ] ||
         { [ "${t%%:*}" -gt 1 ] && [ "$in_bands" = 0 ]; }; then
         fail "exact/half omp --threads $t --stats" "seq: $total events; omp: $(grep -h 'events' "$X/half.run.err" | head -c 300)"
     elif [ "$(pressure_of "$X/half.run.err")" != "$(pressure_of "$X/half.seq.err")" ] || [ -z "$(pressure_of "$X/half.seq.err")" ]; then

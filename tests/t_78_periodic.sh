@@ -119,16 +119,16 @@ tools/gen 1000 --fraction 0.5 --speed 1 --steps 5 --periodic --seed 11 > "$Q/hal
 tools/gen 1000 --fraction 0.3 --speed 0.5 --fast 0.01 --fast-speed 0.1 --steps 4 --periodic --seed 12 > "$Q/crossing.in"
 for name in half crossing; do
     ./seq "$Q/$name.in" --periodic --exact --pressure --stats --quiet > "$Q/x.ref" 2> "$Q/x.ref.err"
-    total=$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$Q/x.ref.err")
+    total=$(exact_events "$Q/x.ref.err")
     pressure=$(grep 'pressure' "$Q/x.ref.err" | sed 's/^seq: //')
     bad="" threads=$(all_suite && echo "1 2 3 7 16" || echo "1 2 7")
     for t in $threads; do
         ./omp "$Q/$name.in" --periodic --exact --pressure --stats --quiet --threads $t > "$Q/x.out" 2> "$Q/x.err"
-        split=$(sed -n 's/.*events: \([0-9]*\) in the strips .*, \([0-9]*\) among the [0-9]* disks tainted.*, \([0-9]*\) in sequential windows.*/\1 \2 \3/p' "$Q/x.err")
-        read -r in_strips in_bands in_seq <<< "${split:-x x x}"
+        split=$(exact_split "$Q/x.err")
+        read -r in_strips in_bands in_seq <<< "$split"
         if ! cmp -s "$Q/x.out" "$Q/x.ref"; then bad="$bad $t:stdout"
         elif [ "$(grep 'pressure' "$Q/x.err" | sed 's/^omp: //')" != "$pressure" ]; then bad="$bad $t:pressure"
-        elif [ "$(sed -n 's/.* \([0-9]*\) events$/\1/p' "$Q/x.err")" != "$total" ] ||
+        elif [ "$(exact_events "$Q/x.err")" != "$total" ] ||
             [ "$((in_strips + in_bands + in_seq))" != "$total" ] || { [ $t -gt 1 ] && [ "$in_bands" = 0 ]; }; then
             bad="$bad $t:events($split of $total)"
         fi
@@ -174,7 +174,7 @@ for name in fast mixed; do
 done
 
 # ---- mpi: the strips wrap ----
-if command -v mpirun > /dev/null 2>&1 && [ -x ./mpi ]; then
+if have_mpi; then
     mpi_env
     for name in fast gas_print tiny $(all_suite && echo mixed three_cells dense fast_big half_box); do
         bad=""

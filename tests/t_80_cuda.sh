@@ -25,6 +25,16 @@ cuda_scenes() {
     echo "dense_fast tools/gen 3000 --assignment --L 2000 --overlap --steps 6"
     echo "spread     tools/gen 3000 --fraction 0.05 --speed 200 --steps 15 --seed 12"
 }
+# scene_input NAME CMD: the scene's input into $TMP/cuda_NAME.in, from CMD (a tools/gen command, or
+# "printf FORMAT" for a literal input); non-zero if CMD fails
+scene_input() {
+    if [ "${2%% *}" = printf ]; then
+        # shellcheck disable=SC2059
+        printf "${2#printf }" > "$TMP/cuda_$1.in"
+    else
+        $2 > "$TMP/cuda_$1.in"
+    fi
+}
 # (the quick suite: every scene in print mode, and in perf and single precision every other one)
 k=0
 while read -r name cmd; do
@@ -38,9 +48,7 @@ while read -r name cmd; do
         done
         continue
     fi
-    if [ "${cmd%% *}" = printf ]; then
-        printf "${cmd#printf }" > "$TMP/cuda_$name.in"
-    elif ! $cmd > "$TMP/cuda_$name.in"; then
+    if ! scene_input "$name" "$cmd"; then
         fail "cuda/$name" "cannot generate the scene"
         continue
     fi
@@ -221,9 +229,7 @@ while read -r name cmd; do
         for run in $runs; do skip "cuda/$name --periodic $run" "no GPU"; done
         continue
     fi
-    if [ "${cmd%% *}" = printf ]; then
-        printf "${cmd#printf }" > "$TMP/cuda_$name.in"
-    elif ! $cmd > "$TMP/cuda_$name.in"; then
+    if ! scene_input "$name" "$cmd"; then
         fail "cuda/$name --periodic" "cannot generate the scene"
         continue
     fi

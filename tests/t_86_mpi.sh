@@ -18,7 +18,7 @@
 # SKIP where mpirun or ./mpi is missing (.ci/run installs OpenMPI).
 M=$TMP/mpi
 mkdir -p "$M"
-if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi ]; then
+if ! have_mpi; then
     skip "mpi" "no mpirun or no ./mpi (apt-get install openmpi-bin libopenmpi-dev, then make)"
 else
     mpi_env

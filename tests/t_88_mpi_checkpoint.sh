@@ -12,7 +12,7 @@
 # CK_SEED=N repeats the random moments of an earlier run (its seed is in the first line).
 C=$TMP/mck
 mkdir -p "$C"
-if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi ]; then
+if ! have_mpi; then
     skip "mpi checkpoints" "no mpirun or no ./mpi"
 else
     mpi_env
