@@ -76,25 +76,57 @@ static const char digit_pairs[201] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-/* Writes the decimal digits of u; returns the end. */
-static char *put_uint(char *p, uint64_t u)
+/* The digits of u, of which there are `digits` (1 to 20), written backwards from their end, two at a
+ * time; returns the end. */
+static char *put_digits(char *p, uint64_t u, int digits)
 {
-    char tmp[24];
-    int k = 24;
+    char *end = p + digits, *q = end;
     while (u >= 100) {
         unsigned d = (unsigned)(u % 100);
         u /= 100;
-        tmp[--k] = digit_pairs[2 * d + 1];
-        tmp[--k] = digit_pairs[2 * d];
+        q -= 2;
+        memcpy(q, digit_pairs + 2 * d, 2);
     }
     if (u >= 10) {
-        tmp[--k] = digit_pairs[2 * u + 1];
-        tmp[--k] = digit_pairs[2 * u];
+        q -= 2;
+        memcpy(q, digit_pairs + 2 * u, 2);
     } else {
-        tmp[--k] = (char)('0' + u);
+        q[-1] = (char)('0' + u);
     }
-    memcpy(p, tmp + k, (size_t)(24 - k));
-    return p + (24 - k);
+    return end;
+}
+
+/* How many decimal digits u has (1 for 0): from its bit length, log10(2) ~ 1233 / 4096, one short at
+ * most, which one comparison mends. */
+static int digit_count(uint64_t u)
+{
+    static const uint64_t pow10[20] = {UINT64_C(1), UINT64_C(10), UINT64_C(100), UINT64_C(1000), UINT64_C(10000),
+                                       UINT64_C(100000), UINT64_C(1000000), UINT64_C(10000000),
+                                       UINT64_C(100000000), UINT64_C(1000000000), UINT64_C(10000000000),
+                                       UINT64_C(100000000000), UINT64_C(1000000000000),
+                                       UINT64_C(10000000000000), UINT64_C(100000000000000),
+                                       UINT64_C(1000000000000000), UINT64_C(10000000000000000),
+                                       UINT64_C(100000000000000000), UINT64_C(1000000000000000000),
+                                       UINT64_C(10000000000000000000)};
+#ifdef __GNUC__
+    int t = ((64 - __builtin_clzll(u | 1)) * 1233) >> 12;
+    return t + (u >= pow10[t]) + (u == 0);
+#else
+    int k = 1;
+    while (k < 20 && u >= pow10[k]) k++;
+    return k;
+#endif
+}
+
+/* Writes the decimal digits of u; returns the end. (One digit: the step and counts of most lines, and
+ * the whole part of a velocity below 10.) */
+static char *put_uint(char *p, uint64_t u)
+{
+    if (u < 10) {
+        *p = (char)('0' + u);
+        return p + 1;
+    }
+    return put_digits(p, u, digit_count(u));
 }
 
 static char *put_int(char *p, int64_t v)
@@ -106,15 +138,15 @@ static char *put_int(char *p, int64_t v)
     return put_uint(p, (uint64_t)v);
 }
 
-/* The 8 digits of f < 10^8, zeros in front. */
+/* The 8 digits of f < 10^8, zeros in front: its two halves of 4 digits, each two pairs (no division
+ * waits on another but the first). */
 static char *put_frac8(char *p, uint32_t f)
 {
-    for (int k = 6; k >= 0; k -= 2) {
-        uint32_t d = f % 100;
-        f /= 100;
-        p[k] = digit_pairs[2 * d];
-        p[k + 1] = digit_pairs[2 * d + 1];
-    }
+    uint32_t hi = f / 10000, lo = f % 10000;
+    memcpy(p, digit_pairs + 2 * (hi / 100), 2);
+    memcpy(p + 2, digit_pairs + 2 * (hi % 100), 2);
+    memcpy(p + 4, digit_pairs + 2 * (lo / 100), 2);
+    memcpy(p + 6, digit_pairs + 2 * (lo % 100), 2);
     return p + 8;
 }
 
@@ -132,6 +164,20 @@ static char *put_fixed8(char *p, double v)
     uint64_t m = bits & ((UINT64_C(1) << 52) - 1);
     int e = biased ? biased - 1075 : -1074;
     if (biased) m |= UINT64_C(1) << 52;
+    if (e >= -64 && e <= -16) {
+        /* |v| < 2^37, nearly every value a run prints: q = m 10^8 / 2^s rounded, s = -e, fits in 64
+         * bits, and the shift and the rounding take no branch */
+        int s = -e;
+        unsigned __int128 prod = (unsigned __int128)m * 100000000u;
+        uint64_t lo = (uint64_t)prod, hi = (uint64_t)(prod >> 64);
+        uint64_t q = s == 64 ? hi : (lo >> s) | (hi << (64 - s));
+        uint64_t rem = s == 64 ? lo : lo & ((UINT64_C(1) << s) - 1), half = UINT64_C(1) << (s - 1);
+        q += (uint64_t)(rem > half) | ((uint64_t)(rem == half) & q);
+        if (bits >> 63) *p++ = '-';
+        p = put_uint(p, q / 100000000u);
+        *p++ = '.';
+        return put_frac8(p, (uint32_t)(q % 100000000u));
+    }
     if (biased != 0x7ff && e <= 11) {
         unsigned __int128 q = (unsigned __int128)m * 100000000u;
         if (e >= 0) {
