@@ -936,7 +936,9 @@ typedef struct {
     unsigned long long base;
 } BlockEvents;
 
-/* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one. */
+/* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
+ * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. */
+template <bool PERIODIC>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
                                                  int64_t cap, unsigned long long *found, uint64_t *best_hi)
@@ -946,7 +948,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
-    real t = gr.periodic ? pair_time_wrap(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y,
+    real t = PERIODIC ? pair_time_wrap(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y,
                                           sigma2, gr.Lw, gr.halfw, 1)
                          : pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
@@ -1129,10 +1131,12 @@ static __device__ __forceinline__ uint4 edge_runs(const uint32_t *__restrict__ s
 }
 
 /* Candidate i of probe po at entry p: its own row's rest, the row below, then the edges' runs. */
+template <bool PERIODIC>
 static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p, uint32_t i)
 {
     if (i < po.na) return p + 1 + i;
     i -= po.na;
+    if (!PERIODIC) return po.b0 + i; /* no edge runs */
     if (i < po.nb) return po.b0 + i;
     i -= po.nb;
     return i < po.edge.y ? po.edge.x + i : po.edge.z + (i - po.edge.y);
@@ -1140,8 +1144,11 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p
 
 /* Window w's entries, a tile of THREADS per block; TILES: the blocks take turns over the tiles (a later
  * window's launch is sized for all of its disks, of which few are left), else one tile each (the loop's
- * state spilled registers: 6% slower at N = 32000). */
-template <bool TILES, bool MID>
+ * state spilled registers: 6% slower at N = 32000). PERIODIC: the box is periodic (Grid.periodic), a
+ * constant of each build: with the box's wrapping in the walled box's search too, that search took
+ * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
+ * gas of 1e7's spilled). */
+template <bool TILES, bool MID, bool PERIODIC>
 __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
@@ -1187,7 +1194,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             pr.c = c;
             pr.na = __ldg(&start[row + x1 + 1]) - (p + 1);
             uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */
-            if (gr.periodic && g >= 3) {
+            if (PERIODIC && g >= 3) {
                 edge = edge_runs(start, row, kl * gr.ncell + (cy + 1 < g ? (cy + 1) * g : 0), cx, g, &pr.b0, &pr.nb);
             } else if (cy + 1 < g) {
                 pr.b0 = __ldg(&start[row + g + x0]);
@@ -1224,7 +1231,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             const float4 m = mine.mid;
             const int2 span = level_span(PROBE_LEVEL(mine.k), PROBE_SLICE(mine.k), gr.K);
             const float h = (float)(span.y - span.x) / (float)(2 * gr.K), pad2 = gr.pad * gr.pad;
-            const bool wrap = gr.periodic;
+            const bool wrap = PERIODIC;
             const float wl = (float)gr.Lw, wh = wl / 2;
             Cursor cu = cursor_start(p, mine.na, first[threadIdx.x], end, p0);
             uint32_t *wq = queue[warp];
@@ -1245,14 +1252,14 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (; held >= 32; held -= 32) {
                     __syncwarp();
                     uint32_t o = warp * 32 + wo[lane];
-                    test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
                     queue_shift(wq, wo, held - 32, lane);
                 }
             }
             __syncwarp();
             if (lane < held) {
                 uint32_t o = warp * 32 + wo[lane];
-                test_pair(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                test_pair<PERIODIC>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
             }
             unsigned long long sum = seen; /* 64 bits: a warp's counts can pass 2^32 */
             for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
@@ -1261,7 +1268,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             /* counts above the dealing limit are cut to one more than it: the sum then fits in 32 bits,
              * and is exact wherever it is within the limit */
             const uint32_t deal = DEAL_MAX * THREADS;
-            uint32_t count = pr.na + pr.nb + pr.edge.y + pr.edge.w, offset, total;
+            uint32_t count = pr.na + pr.nb + (PERIODIC ? pr.edge.y + pr.edge.w : 0), offset, total;
             Scan(scan_tmp).ExclusiveSum(count <= deal ? count : deal + 1, offset, total);
             if (total > deal) { /* block-uniform */
                 __syncthreads();
@@ -1270,7 +1277,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair(en, gr, po, p, candidate(po, p, i), sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC>(en, gr, po, p, candidate<PERIODIC>(po, p, i), sigma2, &be, ev, cap, found, best_hi);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -1279,7 +1286,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    test_pair(en, gr, po, p0 + o, candidate(po, p0 + o, i), sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC>(en, gr, po, p0 + o, candidate<PERIODIC>(po, p0 + o, i), sigma2, &be, ev, cap, found, best_hi);
                 }
             }
         }
@@ -1711,9 +1718,13 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     (void)cudaDeviceSetLimit(cudaLimitStackSize, 64);
     cudaGetLastError();
     /* the pair search's runs in shared memory beyond its static arrays (past 48 KB in all) */
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
                                     (int)RUN_BYTES));
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                    (int)RUN_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                    (int)RUN_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
                                     (int)RUN_BYTES));
     c->timed = timed;
     /* SIM_CUDA_GRAPH=0 (or a build with -DGRAPHS=0): every batch kernel by kernel (the tests run both
@@ -2180,20 +2191,30 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
                     c->rank, c->start, c->keys_sorted, c->order);
 }
 
-/* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1). */
-static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
+/* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the
+ * build for the run's box. */
+template <bool PERIODIC>
+static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
 {
     int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
     const uint32_t *keys = c->keys_sorted, *start = c->start;
     if (pl->K == 1)
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false>, en, keys, start, c->grid, w, c->par.sigma2,
-                    c->ev[0], c->ev_cap, c->info, c->best_hi);
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC>, en, keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true>, en, keys, start, c->grid, w,
+        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true>, en, keys, start, c->grid, w,
+        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+}
+
+static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
+{
+    if (c->par.periodic)
+        detect_box<true>(c, pl, w, en);
+    else
+        detect_box<false>(c, pl, w, en);
 }
 
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.

@@ -312,16 +312,18 @@ goal() {
     echo "# goal: $1: $2 (target $([ "$4" = ge ] && echo ">=" || echo "<=") $3): $verdict" | tee -a "$CSV"
 }
 
-# best_rate LABEL N PROGRAM ARGS...: the best step-loop rate of two runs after a warm-up
+# best_rate LABEL N PROGRAM ARGS...: the best step-loop rate of three runs after a warm-up; then a run with
+# --stats into $DATA/err (its phases)
 best_rate() {
     local label=$1 n=$2 prog=$3 best=0 r
     shift 3
     "$prog" "$@" > /dev/null 2>&1 || true
-    for _ in 1 2; do
-        time_one "$label" "$n" "$prog" "$@" --stats > /dev/null
+    for _ in 1 2 3; do # without --stats, which times each phase and so launches no graphs
+        time_one "$label" "$n" "$prog" "$@" > /dev/null
         r=$(tail -1 "$CSV" | cut -d, -f5)
         best=$(awk -v a="$best" -v b="${r:-0}" 'BEGIN { print (b + 0 > a + 0) ? b : a }')
     done
+    "$prog" "$@" --stats > /dev/null 2> "$DATA/err" || true # the phases, for the log
     echo "$best"
 }
 
