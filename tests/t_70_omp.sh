@@ -30,14 +30,14 @@ omp_compare() { # name input [extra options]
 }
 
 # The quick suite leaves out the scenes whose seq run takes seconds (12000 disks) but rounds_print, and
-# the float build above 2500 disks.
+# the float build above 1000 disks.
 while read -r name args; do
     n=${args%% *}
     if ! all_suite && [ "$n" -gt 5000 ] && [ "$name" != rounds_print ]; then continue; fi
     # shellcheck disable=SC2086
     $GEN $args > "$D/$name.in"
     omp_compare "$name" "$D/$name.in"
-    if all_suite || [ "$n" -le 2500 ]; then SUF=_f32 omp_compare "$name" "$D/$name.in"; fi
+    if all_suite || [ "$n" -le 1000 ]; then SUF=_f32 omp_compare "$name" "$D/$name.in"; fi
 done < <(omp_scenes)
 # shellcheck disable=SC2046
 [ -f "$D/fast_aside.in" ] || $GEN $(omp_scenes | awk '$1 == "fast_aside" { $1 = ""; print }') > "$D/fast_aside.in"

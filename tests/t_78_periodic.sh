@@ -178,7 +178,7 @@ if have_mpi; then
     mpi_env
     for name in fast gas_print tiny $(all_suite && echo mixed three_cells dense fast_big half_box); do
         bad=""
-        for c in $(all_suite && echo 1 2 3x2 4 8 || echo 1 3); do
+        for c in $(all_suite && echo 1 2 3x2 4 8 || echo 3); do
             p=${c%x*} t=1
             [ "$c" != "$p" ] && t=${c#*x}
             if ! run_mpi "$p" "$t" "$Q/$name.in" --periodic --quiet --check > "$Q/m.out" 2> "$Q/m.err"; then
