@@ -187,37 +187,44 @@ static int ieq(const char *a, const char *b)
 static const double exact_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
                                        1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
+/* A real from p (below end): [-]digits[.digits] where the digits make an integer M <= 2^53 (19 digits at
+ * most) and there are k <= 22 decimals (every %.8f output of a box up to 9e7 wide), followed by a field
+ * separator or end: its value is M / 10^k, a single correctly rounded division of two exact doubles,
+ * which is strtod's correctly rounded value. Returns where it ends, or NULL where the text is anything
+ * else (io_parse_real then reads it with strtod). */
+static const char *line_real(const char *p, const char *end, double *out)
+{
+    int neg = p < end && *p == '-';
+    p += neg;
+    uint64_t mant = 0;
+    int digits = 0, decimals = 0;
+    for (; p < end && (unsigned)(*p - '0') < 10; p++, digits++) mant = mant * 10 + (uint64_t)(*p - '0');
+    if (p < end && *p == '.')
+        for (p++; p < end && (unsigned)(*p - '0') < 10; p++, digits++, decimals++)
+            mant = mant * 10 + (uint64_t)(*p - '0');
+    if (digits == 0 || digits > 19 || mant > (UINT64_C(1) << 53) || decimals > 22) return NULL;
+    if (p < end && !is_space(*p)) return NULL;
+    double v = (double)mant / exact_pow10[decimals];
+    *out = neg ? -v : v;
+    return p;
+}
+
 /* Accepts decimal reals: [+-] digits [. digits] [e [+-] digits] (at least one digit in the mantissa).
- * Returns 0, -1 (not a number), -2 (overflow) or -3 (nan or inf). Values as strtod reads them: where the
- * digits make an integer M < 2^53 and there are k <= 22 decimals and no exponent (every %.8f output of
- * a box up to 9e7 wide), M / 10^k is a single correctly rounded division of two exact doubles, which is
- * strtod's correctly rounded value; anything else goes to strtod. */
+ * Returns 0, -1 (not a number), -2 (overflow) or -3 (nan or inf). Values as strtod reads them: line_real's
+ * where it reads the text, else strtod's. */
 int io_parse_real(const char *s, double *out)
 {
+    const char *end = s + strlen(s);
+    if (line_real(s, end, out) == end) return 0;
     const char *p = s;
-    int neg = *p == '-';
     if (*p == '+' || *p == '-') p++;
     if ((*p | 32) == 'n' || (*p | 32) == 'i')
         if (ieq(p, "nan") || ieq(p, "inf") || ieq(p, "infinity")) return -3;
-    int digits = 0, decimals = 0;
-    uint64_t mant = 0;
-    while (*p >= '0' && *p <= '9') {
-        if (digits < 19) mant = mant * 10 + (uint64_t)(*p - '0');
-        p++, digits++;
-    }
-    if (*p == '.') {
-        p++;
-        while (*p >= '0' && *p <= '9') {
-            if (digits < 19) mant = mant * 10 + (uint64_t)(*p - '0');
-            p++, digits++, decimals++;
-        }
-    }
+    int digits = 0;
+    for (; *p >= '0' && *p <= '9'; p++) digits++;
+    if (*p == '.')
+        for (p++; *p >= '0' && *p <= '9'; p++) digits++;
     if (!digits) return -1;
-    if (!*p && digits <= 19 && mant <= (UINT64_C(1) << 53) && decimals <= 22) {
-        double v = (double)mant / exact_pow10[decimals];
-        *out = neg ? -v : v;
-        return 0;
-    }
     if (*p == 'e' || *p == 'E') {
         p++;
         if (*p == '+' || *p == '-') p++;
@@ -366,6 +373,30 @@ static void chunk_error(Chunk *c, long line, const char *fmt, ...)
     c->err_line = line;
 }
 
+/* The first of a record's values x, y, vx, vy (k = 0 to 3) outside its bounds, or -1: x and y within
+ * [r, L - r], or [0, L) in the periodic box as stored (a float may round up to L); |vx|, |vy| at most
+ * SIM_MAX_V. */
+static int out_of_bounds(const Params *par, const double v[4])
+{
+    for (int k = 0; k < 2; k++)
+        if (par->periodic ? !(v[k] >= 0 && (real)v[k] < par->L) : !(v[k] >= par->lo && v[k] <= par->hi)) return k;
+    for (int k = 2; k < 4; k++)
+        if (!(fabs(v[k]) <= SIM_MAX_V)) return k;
+    return -1;
+}
+
+/* A record's disk, at its index (or its line's position, by_line). A duplicate index writes twice, and
+ * is then reported: the values are never used. Rounding keeps x in [lo, hi] (both are reals), or in
+ * [0, L). */
+static void store_disk(const Parse *ps, int64_t pos, int64_t idx, const double v[4])
+{
+    int64_t at = ps->by_line ? pos : idx;
+    ps->sim->x[at] = (real)v[0];
+    ps->sim->y[at] = (real)v[1];
+    ps->sim->vx[at] = (real)v[2];
+    ps->sim->vy[at] = (real)v[3];
+}
+
 /* Checks one record and stores its disk; returns its index, or LINE_NO_INDEX after an error that left
  * no valid index (an error after the index returns the index: the duplicate check comes first). */
 static int32_t read_line(const Parse *ps, Chunk *c, long line, int64_t pos, char **tok, int ntok)
@@ -394,65 +425,36 @@ static int32_t read_line(const Parse *ps, Chunk *c, long line, int64_t pos, char
             return (int32_t)idx;
         }
     }
-    for (int k = 0; k < 2; k++) {
-        if (par->periodic && !(v[k] >= 0 && (real)v[k] < par->L)) { /* as stored: a float may round up to L */
-            chunk_error(c, line, "%s must be within [0, L) = [0, %.17g) with --periodic (found '%s')",
-                        field_name[k + 1], (double)par->L, tok[k + 1]);
-            return (int32_t)idx;
-        }
-        if (!par->periodic && !(v[k] >= par->lo && v[k] <= par->hi)) {
-            chunk_error(c, line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')",
-                        field_name[k + 1], (double)par->lo, (double)par->hi, tok[k + 1]);
-            return (int32_t)idx;
-        }
+    int k = out_of_bounds(par, v);
+    if (k >= 2) {
+        chunk_error(c, line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V, tok[k + 1]);
+        return (int32_t)idx;
     }
-    for (int k = 2; k < 4; k++)
-        if (!(fabs(v[k]) <= SIM_MAX_V)) {
-            chunk_error(c, line, "|%s| must be <= %g (found '%s')", field_name[k + 1], SIM_MAX_V,
-                        tok[k + 1]);
-            return (int32_t)idx;
-        }
-    /* a duplicate index writes twice here, and is then reported: the values are never used */
-    int64_t at = ps->by_line ? pos : idx;
-    ps->sim->x[at] = (real)v[0]; /* rounding keeps x in [lo, hi] (both are reals), or in [0, L) */
-    ps->sim->y[at] = (real)v[1];
-    ps->sim->vx[at] = (real)v[2];
-    ps->sim->vy[at] = (real)v[3];
+    if (k >= 0 && par->periodic) {
+        chunk_error(c, line, "%s must be within [0, L) = [0, %.17g) with --periodic (found '%s')",
+                    field_name[k + 1], (double)par->L, tok[k + 1]);
+        return (int32_t)idx;
+    }
+    if (k >= 0) {
+        chunk_error(c, line, "%s must be within [r, L-r] = [%.17g, %.17g] (found '%s')", field_name[k + 1],
+                    (double)par->lo, (double)par->hi, tok[k + 1]);
+        return (int32_t)idx;
+    }
+    store_disk(ps, pos, idx, v);
     return (int32_t)idx;
-}
-
-/* A real of a well-formed particle line, from p (below end): [-]digits[.digits] within io_parse_real's
- * shortcut (at most 19 digits, a mantissa of at most 2^53, at most 22 decimals), followed by a blank, a
- * tab, a carriage return or the line's end. Its value is io_parse_real's, by the same division; returns
- * where it ends, or NULL where the text is anything else. */
-static const char *line_real(const char *p, const char *end, double *out)
-{
-    int neg = *p == '-';
-    p += neg;
-    uint64_t mant = 0;
-    int digits = 0, decimals = 0;
-    for (; p < end && (unsigned)(*p - '0') < 10; p++, digits++) mant = mant * 10 + (uint64_t)(*p - '0');
-    if (p < end && *p == '.')
-        for (p++; p < end && (unsigned)(*p - '0') < 10; p++, digits++, decimals++)
-            mant = mant * 10 + (uint64_t)(*p - '0');
-    if (digits == 0 || digits > 19 || mant > (UINT64_C(1) << 53) || decimals > 22) return NULL;
-    if (p < end && *p != ' ' && *p != '\t' && *p != '\r') return NULL;
-    double v = (double)mant / exact_pow10[decimals];
-    *out = neg ? -v : v;
-    return p;
 }
 
 static const char *skip_blanks(const char *p, const char *end)
 {
-    while (p < end && (*p == ' ' || *p == '\t' || *p == '\r')) p++;
+    while (p < end && is_space(*p)) p++;
     return p;
 }
 
 /* The particle line [p, end) read in one pass, without splitting it, where it is well formed: an index
- * of plain digits and four reals as line_real reads them, separated by blanks or tabs, each within
- * read_line's bounds. Then its disk is stored as read_line stores it and its index returned; else -1,
- * and the line goes read_line's way (any other form it accepts, and every error with its message). Nearly
- * every line of a file is read here: split_line and the general reader took twice as long. */
+ * of plain digits and four reals as line_real reads them, between split_line's separators, none out of
+ * bounds. Then its disk is stored and its index returned; else -1, and the line goes read_line's way
+ * (any other form it accepts, and every error with its message). Nearly every line of a file is read
+ * here: split_line and the general reader took twice as long. */
 static int32_t read_line_fast(const Parse *ps, int64_t pos, const char *p, const char *end)
 {
     const Params *par = ps->par;
@@ -460,24 +462,14 @@ static int32_t read_line_fast(const Parse *ps, int64_t pos, const char *p, const
     int64_t idx = 0;
     int digits = 0;
     for (; p < end && (unsigned)(*p - '0') < 10; p++, digits++) idx = idx * 10 + (*p - '0');
-    if (digits == 0 || digits > 18 || idx >= par->n || p == end || (*p != ' ' && *p != '\t')) return -1;
+    if (digits == 0 || digits > 18 || idx >= par->n || p == end || !is_space(*p)) return -1;
     double v[4];
     for (int k = 0; k < 4; k++) {
         p = skip_blanks(p, end);
         if (p == end || !(p = line_real(p, end, &v[k]))) return -1;
     }
-    if (skip_blanks(p, end) != end) return -1;
-    for (int k = 0; k < 2; k++) {
-        if (par->periodic && !(v[k] >= 0 && (real)v[k] < par->L)) return -1;
-        if (!par->periodic && !(v[k] >= par->lo && v[k] <= par->hi)) return -1;
-    }
-    for (int k = 2; k < 4; k++)
-        if (!(fabs(v[k]) <= SIM_MAX_V)) return -1;
-    int64_t at = ps->by_line ? pos : idx;
-    ps->sim->x[at] = (real)v[0];
-    ps->sim->y[at] = (real)v[1];
-    ps->sim->vx[at] = (real)v[2];
-    ps->sim->vy[at] = (real)v[3];
+    if (skip_blanks(p, end) != end || out_of_bounds(par, v) >= 0) return -1;
+    store_disk(ps, pos, idx, v);
     return (int32_t)idx;
 }
 
