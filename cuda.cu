@@ -1277,7 +1277,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair<PERIODIC>(en, gr, po, p, candidate<PERIODIC>(po, p, i), sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC>(en, gr, po, p, candidate<PERIODIC>(po, p, i), sigma2, &be, ev, cap, found,
+                                        best_hi);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -1286,7 +1287,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    test_pair<PERIODIC>(en, gr, po, p0 + o, candidate<PERIODIC>(po, p0 + o, i), sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC>(en, gr, po, p0 + o, candidate<PERIODIC>(po, p0 + o, i), sigma2, &be, ev, cap,
+                                        found, best_hi);
                 }
             }
         }
