@@ -19,7 +19,8 @@ SANFLAGS = -std=c99 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-s
 HAVE_NVCC := $(shell command -v $(NVCC) >/dev/null 2>&1 && echo yes)
 MPICC ?= mpicc
 HAVE_MPICC := $(shell command -v $(MPICC) >/dev/null 2>&1 && echo yes)
-PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda) $(if $(HAVE_MPICC),mpi)
+PROGRAMS = seq omp $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda) $(if $(HAVE_MPICC),mpi) \
+	$(if $(and $(HAVE_NVCC),$(HAVE_MPICC)),mpi_cuda)
 PROGRAMS_F32 = seq_f32 omp_f32 $(if $(and $(HAVE_NVCC),$(wildcard cuda.cu)),cuda_f32)
 TOOLS = $(patsubst %.c,%,$(wildcard tools/*.c))
 
@@ -34,6 +35,9 @@ ifneq ($(HAVE_NVCC),yes)
 endif
 ifneq ($(HAVE_MPICC),yes)
 	@echo "mpi skipped: $(MPICC) not found (Debian: apt-get install openmpi-bin libopenmpi-dev)"
+endif
+ifneq ($(and $(HAVE_NVCC),$(HAVE_MPICC)),yes)
+	@echo "mpi_cuda skipped: it needs both $(NVCC) and $(MPICC)"
 endif
 
 # the layers below the backends (io.h names them): state and physics, the --exact model, the I/O layer
@@ -73,6 +77,14 @@ omp: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
 MPI_SRC = mpi_comm.c mpi_io.c mpi.c omp_broad.c omp_paths.c omp_team.c $(CORE_SRC)
 mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h Makefile
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) $(MPI_SRC) -o $@ $(LDLIBS)
+
+# mpi with a GPU for each rank: mpi.c's steps built with MPI_CUDA, cuda.cu's kernels through
+# mpi_cuda.cu (nvcc), linked by mpicc with the CUDA runtime
+CUDA_LIBDIR ?= $(abspath $(dir $(shell command -v $(NVCC) 2>/dev/null))../lib64)
+mpi_cuda: $(MPI_SRC) mpi_cuda.cu cuda.cu mpi_cuda.h $(HEADERS) $(OMP_H) mpi.h Makefile
+	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off -c mpi_cuda.cu -o mpi_cuda_gpu.o
+	$(MPICC) $(CFLAGS) $(OMPFLAGS) -DMPI_CUDA $(MPI_SRC) mpi_cuda_gpu.o -o $@ $(LDLIBS) \
+		-L$(CUDA_LIBDIR) -Wl,-rpath,$(CUDA_LIBDIR) -lcudart -lstdc++
 
 cuda: cuda.cu $(BASE) $(HEADERS) Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu $(BASE) -o $@ $(LDLIBS)
@@ -140,4 +152,4 @@ demo: omp
 	@echo "  python3 -m http.server 8000   # in this folder; then http://localhost:8000/viewer/index.html?in=demo.in&src=demo.out"
 
 clean:
-	rm -f seq omp cuda mpi seq_san omp_tsan omp_portable $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out
+	rm -f seq omp cuda mpi mpi_cuda seq_san omp_tsan omp_portable $(BASE) $(BASE_F32) $(PROGRAMS_F32) $(TOOLS) viewer/demo.out

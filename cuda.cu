@@ -33,6 +33,7 @@
  * Event keys compare by value only (t, kind, i, j), so nothing depends on thread order.
  */
 #include "io.h"
+#include "mpi_cuda.h" /* a GPU rank's records (the move, RankMove) */
 
 #include <cub/cub.cuh>
 #include <cuda/functional>
@@ -623,7 +624,7 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
  * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.) */
 __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
-                                    const Control *ctl)
+                                    const Control *ctl, uint32_t *where)
 {
     after_previous();
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
@@ -641,6 +642,7 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     out.vel[p] = vel;
     out.id[p] = id;
     slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
+    if (where) where[s] = (uint32_t)p; /* a GPU rank's: where each slot went (mpi_cuda.cu) */
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
@@ -1427,24 +1429,66 @@ __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned lon
 
 /* ==== move =============================================================================================== */
 
+/* A GPU rank's step (mpi_cuda.cu): its slots hold its own disks and copies of other ranks' disks (the
+ * halo), which the move leaves where they are; the collision counts travel with the own disks. */
+typedef struct {
+    const uint32_t *order;        /* cell place -> slot before the gather: copies are the slots own and up */
+    int64_t own;
+    const int32_t *pc_in, *wc_in; /* by slot before the gather */
+    /* the own disks whose x stays in [c0, c1) (no bound below where first, above where last) go to the
+     * front of the new state, with their counts in pc_out, wc_out (count[0] of them); the others
+     * (count[1]) as records of mpi_cuda.h into rec, up to cap */
+    double c0, c1;
+    int first, last;
+    int32_t *pc_out, *wc_out;
+    double *rec;
+    int64_t cap;
+    unsigned long long *count;
+} RankMove;
+
+/* A GPU rank's own disk after its move: kept at the front of out, or packed for another rank. */
+static __device__ __forceinline__ void rank_keep(const RankMove &rm, real2 pos, real2 vel, int32_t id, int32_t pc,
+                                                 int32_t wc, DevState out)
+{
+    double x = (double)pos.x;
+    if ((rm.first || x >= rm.c0) && (rm.last || x < rm.c1)) {
+        unsigned long long k = list_append(&rm.count[0]);
+        out.pos[k] = pos;
+        out.vel[k] = vel;
+        out.id[k] = id;
+        rm.pc_out[k] = pc;
+        rm.wc_out[k] = wc;
+        return;
+    }
+    unsigned long long k = list_append(&rm.count[1]);
+    if ((int64_t)k >= rm.cap) return; /* the host makes room and moves the step again */
+    double *d = rm.rec + k * D_LEN;
+    d[D_ID] = id, d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y, d[D_PC] = pc, d[D_WC] = wc;
+    d[D_WI] = 0;
+}
+
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
- * overflowed the list decided on part of them only: it is refused here, before anything is written. */
+ * overflowed the list decided on part of them only: it is refused here, before anything is written.
+ * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. */
+template <bool RANK>
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
-                            StepInfo *info, int64_t cap, Control *ctl)
+                            StepInfo *info, int64_t cap, Control *ctl, RankMove rm)
 {
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
+    uint32_t from = 0;
     if (s < n) { /* loaded before the checks below, so that their loads overlap */
         pos = in.pos[s];
         vel = in.vel[s];
         id = in.id[s];
         o = partner[s];
         wall = wall_hi[s];
+        if (RANK) from = rm.order[s];
     }
     if (refused(ctl)) return;
     unsigned long long most = 0;
@@ -1458,7 +1502,8 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     }
     real vabs = 0;
     unsigned long long accepted = 0;
-    if (s < n) {
+    int dp = 0, dw = 0; /* collisions with a disk, with a wall */
+    if (s < n && (!RANK || from < rm.own)) { /* a rank's copies stay as they are */
         real lo = par.lo, hi = par.hi;
         real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
         if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
@@ -1469,7 +1514,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             real t1 = key_time(wall);
             wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
             finish_step(&x, &y, vx, vy, t1, lo, hi);
-            wc[id]++;
+            dw = 1;
             accepted = 1;
         } else {
             /* both partners compute the contact with the lower original index as i, then each
@@ -1492,17 +1537,22 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 fly_rest(&x, &y, vx, vy, t1);
             else
                 finish_step(&x, &y, vx, vy, t1, lo, hi);
-            pc[id]++;
+            dp = 1;
             accepted = mine_first;
+        }
+        if (!RANK) {
+            if (dp) pc[id]++;
+            if (dw) wc[id]++;
         }
         real2 pos1, vel1;
         pos1.x = par.periodic ? wrap_coord(x, par.L) : clamp_coord(x, lo, hi);
         pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
         vel1.x = vx;
         vel1.y = vy;
-        out.pos[s] = pos1;
-        out.vel[s] = vel1;
-        out.id[s] = id;
+        if (RANK)
+            rank_keep(rm, pos1, vel1, id, rm.pc_in[from] + dp, rm.wc_in[from] + dw, out);
+        else
+            out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
         real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
         vabs = ax < ay ? ay : ax;
     }
@@ -2233,7 +2283,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
         phase_mark(c, ring, 0, 0);
         bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring);
         step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl);
+                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL);
         in = 1 - in;
         DevState *d = &c->st[in];
         Entries en;
@@ -2267,8 +2317,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
             choose_launch(c, pl, w, c->wall_win, ring);
         }
     }
-    step_kernel(c, blocks_for(n), THREADS, 0, move_kernel, c->st[in], c->st[1 - in], n, c->par, c->partner,
-                c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl);
+    RankMove none = {};
+    step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false>, c->st[in], c->st[1 - in], n, c->par, c->partner,
+                c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none);
     phase_mark(c, ring, pl->W - 1, 7);
     step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
     c->cur = 1 - in;
@@ -2734,6 +2785,7 @@ static void cuda_prepare(const Params *par)
 /* The output is flushed and every device buffer freed when io_main returns: _exit leaves the context's
  * teardown to the driver, which reclaims it with the process (the runtime's own exit handlers take a
  * large part of a second on some machines). */
+#ifndef CUDA_LIBRARY /* mpi_cuda.cu takes the kernels and the buffers, and has a main of its own */
 /* --pressure is for the CPU backends: its per-disk impulse sums would need one more array per slot here */
 static const Backend cuda_backend = {
     "cuda" SIM_SUFFIX, "",
@@ -2747,3 +2799,4 @@ int main(int argc, char **argv)
     fflush(NULL);
     _exit(rc);
 }
+#endif

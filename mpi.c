@@ -27,6 +27,7 @@
  */
 #define _XOPEN_SOURCE 700 /* getrusage */
 #include "mpi.h"
+#include "mpi_cuda.h"
 #include "omp_team.h"
 
 #include <limits.h>
@@ -41,9 +42,7 @@ static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
 enum { TAG_HALO = 1, TAG_MIGRATE }; /* the steps' messages between neighbours */
 static double waited;       /* seconds in the steps' MPI calls: what the balance leaves out */
 
-/* ---- disks on the wire: D_LEN doubles each (indices, counts and reals are exact in a double) ---- */
-
-enum { D_ID, D_X, D_Y, D_VX, D_VY, D_PC, D_WC, D_WI, D_LEN };
+/* ---- disks on the wire: D_LEN doubles each (mpi_cuda.h) ------------------------------------------ */
 
 static void pack(const Slots *s, int64_t q, double *d)
 {
@@ -240,6 +239,7 @@ typedef struct {
     double waited_steps; /* seconds of the steps inside MPI calls (--stats) */
     int64_t moves;    /* times the balance moved the cuts */
     StepClock *clock; /* --stats: the steps' phases */
+    GpuRank *gpu;     /* mpi_cuda: the rank's GPU, which holds its disks during the steps */
 } Run;
 
 /* --stats: a step's phases timed on every rank, outside MPI calls and inside them. A rank waits for
@@ -399,22 +399,30 @@ static int halo_targets(const Run *r, double x, const char *whole, int any_whole
     return n;
 }
 
-/* 1 and 2: the reach, and copies of the own disks within reach of other strips sent there (all of them
- * neighbours; halo_targets). */
-static void halo_exchange(Run *r)
+/* 1: the reach and this step's neighbours (whole: by rank, whether its strip holds the whole torus);
+ * returns whether any does. */
+static int halo_reach(Run *r, char *whole)
 {
-    Slots *s = &r->b.s;
-    int np = mpi_np, any_whole = 0, *q = sim_calloc((size_t)np, sizeof *q);
-    char *whole = sim_calloc((size_t)np, 1);
+    int any_whole = 0;
     /* two disks close in by at most twice the fastest speed */
     r->reach = (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
     if (r->par.periodic) {
         neighbours_periodic(r, whole);
-        for (int k = 0; k < np; k++) any_whole |= whole[k];
+        for (int k = 0; k < mpi_np; k++) any_whole |= whole[k];
     } else {
         neighbours(r->reach, &r->nlo, &r->nhi);
         if (r->nhi - r->nlo > r->most_near) r->most_near = r->nhi - r->nlo;
     }
+    return any_whole;
+}
+
+/* 2: r->send and r->scount, the own slots whose copies go to other strips' ranks (all of them
+ * neighbours; halo_targets), in rank order: of the n own slots cand[k] at x xs[k] (a GPU's), or of
+ * every own slot where cand is NULL. */
+static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const int32_t *cand, const double *xs)
+{
+    const Slots *s = &r->b.s;
+    int np = mpi_np, *q = sim_calloc((size_t)np, sizeof *q);
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
     for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
@@ -424,16 +432,26 @@ static void halo_exchange(Run *r)
             for (int k = 1; k < np; k++) at[k] = at[k - 1] + r->scount[k - 1];
             r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         }
-        for (int64_t k = 0; k < r->own; k++) {
-            int n = halo_targets(r, s->x[k], whole, any_whole, q);
-            for (int u = 0; u < n; u++) {
-                if (pass) r->send[at[q[u]]++] = (int32_t)k;
+        for (int64_t k = 0; k < n; k++) {
+            int32_t slot = cand ? cand[k] : (int32_t)k;
+            int m = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
+            for (int u = 0; u < m; u++) {
+                if (pass) r->send[at[q[u]]++] = slot;
                 else r->scount[q[u]]++, r->nsend++;
             }
         }
         free(at);
     }
-    free(q), free(whole);
+    free(q);
+}
+
+/* 1 and 2 on the CPU: copies of the own disks within reach of other strips sent there. */
+static void halo_exchange(Run *r)
+{
+    char *whole = sim_calloc((size_t)mpi_np, 1);
+    int any_whole = halo_reach(r, whole);
+    halo_list(r, whole, any_whole, r->own, NULL, NULL);
+    free(whole);
     halo_send(r);
 }
 
@@ -979,6 +997,182 @@ static double run_steps(Run *r, RunStats *st)
     return secs;
 }
 
+#ifdef MPI_CUDA
+/* ---- GPU ranks (mpi_cuda): the same step, the rank's disks on its GPU (mpi_cuda.cu) -------------- */
+
+/* The own disks from the GPU into the slots (output, checkpoints, the end). */
+static void gpu_download(Run *r)
+{
+    int64_t own = gpu_rank_own(r->gpu);
+    run_reserve(r, own);
+    double *rec = sim_calloc((size_t)(own ? own : 1) * D_LEN, sizeof *rec);
+    gpu_rank_get(r->gpu, rec);
+    for (int64_t q = 0; q < own; q++) unpack(&r->b.s, q, rec + q * D_LEN);
+    r->own = own;
+    free(rec);
+}
+
+/* 1 and 2: the reach and the copies, as halo_exchange, of the own disks near the strip's edges (the
+ * GPU picks them by halo_targets' first test), sent there; theirs into the GPU's halo. */
+static void gpu_halo(Run *r)
+{
+    char *whole = sim_calloc((size_t)mpi_np, 1);
+    int any_whole = halo_reach(r, whole);
+    const int32_t *cand;
+    const double *xs;
+    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
+    int64_t n = gpu_rank_edge(r->gpu, in0, in1, any_whole, &cand, &xs), got;
+    halo_list(r, whole, any_whole, n, cand, xs);
+    free(whole);
+    double *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1) * D_LEN, sizeof *out);
+    gpu_rank_pack(r->gpu, r->send, r->nsend, out);
+    double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
+                               &got, r->rcount);
+    gpu_rank_set_halo(r->gpu, in, got);
+    r->halo = got;
+    free(in), free(out);
+}
+
+/* A round's keys of the disks sent as copies (out, in r->send's order) to the ranks that hold them,
+ * and the keys of this rank's copies from their owners into in (the halo's order). */
+static void gpu_keys(Run *r, const GpuKey *out, GpuKey *in)
+{
+    int n = r->nhi - r->nlo + 1;
+    MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
+    int64_t soff = 0, roff = 0;
+    for (int q = 0; q < r->nlo; q++) soff += r->scount[q], roff += r->rcount[q];
+    for (int q = r->nlo; q <= r->nhi; q++) {
+        int k = q - r->nlo;
+        req[k] = req[n + k] = MPI_REQUEST_NULL;
+        /* both ranks of a pair post, or neither: q's scount to this rank is this rank's rcount */
+        if (q != mpi_me && (r->scount[q] || r->rcount[q])) {
+            MPI_Irecv(in + roff, 3 * r->rcount[q], MPI_UINT64_T, q, KEYS_MORE, r->keys_comm, &req[n + k]);
+            MPI_Isend(out + soff, 3 * r->scount[q], MPI_UINT64_T, q, KEYS_MORE, r->keys_comm, &req[k]);
+            bytes_sent += (uint64_t)r->scount[q] * sizeof *out;
+        }
+        soff += r->scount[q], roff += r->rcount[q];
+    }
+    double t0 = MPI_Wtime();
+    MPI_Waitall(2 * n, req, MPI_STATUSES_IGNORE);
+    waited += MPI_Wtime() - t0;
+    free(req);
+}
+
+/* 4: the rounds, until no rank has a live pair event; each exchanges keys with the neighbours
+ * between its min passes and its accept pass (mpi_cuda.cu). */
+static void gpu_choose(Run *r)
+{
+    GpuKey *in = sim_calloc((size_t)(r->halo ? r->halo : 1), sizeof *in);
+    for (int64_t round = 0;; round++) {
+        const GpuKey *out;
+        int64_t live = gpu_rank_round(r->gpu, round == 0, &out), all;
+        double t0 = MPI_Wtime();
+        MPI_Allreduce(&live, &all, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+        waited += MPI_Wtime() - t0;
+        if (all == 0) break;
+        /* each round accepts the smallest live event, at the latest the round after its disks' last
+         * decisions arrive: a step has fewer rounds than twice its events */
+        if (round > 2 * all + 64) sim_fail("internal error: the choice's rounds do not end (%lld live)", (long long)all);
+        r->rounds++;
+        gpu_keys(r, out, in);
+        gpu_rank_accept(r->gpu, in);
+    }
+    free(in);
+}
+
+/* 5: the leavers (records from the GPU's move) to the ranks of their new strips (neighbours). */
+static void gpu_migrate(Run *r, int64_t moving, const double *rec)
+{
+    int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count), *rcount = sim_calloc((size_t)np, sizeof *rcount);
+    int *dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
+    for (int64_t k = 0; k < moving; k++) {
+        dest[k] = mpi_owner(rec[k * D_LEN + D_X]);
+        if (dest[k] == mpi_me || dest[k] < r->nlo || dest[k] > r->nhi || (r->par.periodic && !r->near[dest[k]]))
+            sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
+                     r->nhi);
+        count[dest[k]]++;
+    }
+    double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
+    int64_t *at = sim_calloc((size_t)np, sizeof *at), got;
+    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
+    for (int64_t k = 0; k < moving; k++) memcpy(out + (at[dest[k]]++) * D_LEN, rec + k * D_LEN, D_LEN * sizeof *out);
+    double *in = exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_MIGRATE, &got,
+                               rcount);
+    gpu_rank_add_own(r->gpu, in, got);
+    free(in), free(out), free(at), free(dest), free(count), free(rcount);
+}
+
+/* run_steps on the GPU: the own disks go to it first and come back for each output and at the end. The
+ * fastest velocity component over all ranks is known exactly at each step's start (one reduction a
+ * step), and bounds the speeds by sqrt(2) times it. */
+static double run_steps_gpu(Run *r, RunStats *st)
+{
+    int64_t k = r->par.substeps, last = r->par.steps * k, first = r->par.first_step * k;
+    uint64_t tests = 0;
+    double *rec = sim_calloc((size_t)(r->own ? r->own : 1) * D_LEN, sizeof *rec);
+    for (int64_t q = 0; q < r->own; q++) pack(&r->b.s, q, rec + q * D_LEN);
+    gpu_rank_add_own(r->gpu, rec, r->own);
+    free(rec);
+    (void)own_speeds(r);
+    double vm = (double)r->own_vmax;
+    MPI_Allreduce(MPI_IN_PLACE, &vm, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    gpu_rank_ready(r->gpu, vm);
+    /* the step loop as cuda times it: from the state on the device to the last step's end */
+    MPI_Barrier(MPI_COMM_WORLD);
+    double t0 = MPI_Wtime(), waited0 = waited;
+    uint64_t bytes0 = bytes_sent;
+    StepClock *c = r->clock;
+    for (int64_t sub = first + 1; sub <= last; sub++) {
+        double ts = MPI_Wtime(), w0 = waited;
+        if (c) clock_start(c);
+        r->speed = vm * 1.41422; /* |v| <= sqrt(2) max(|vx|, |vy|) */
+        gpu_halo(r);
+        if (c) clock_end(c, PART_HALO);
+        (void)gpu_rank_detect(r->gpu, vm);
+        if (c) clock_end(c, PART_FIND);
+        gpu_choose(r);
+        if (c) clock_end(c, PART_CHOOSE);
+        GpuMoved m;
+        const double *leavers;
+        gpu_rank_move(r->gpu, mpi_cut[mpi_me], mpi_cut[mpi_me + 1], mpi_me == 0, mpi_me == mpi_np - 1, &m, &leavers);
+        r->events += m.events;
+        tests += m.tests;
+        if (c) clock_end(c, PART_MOVE);
+        r->busy += MPI_Wtime() - ts - (waited - w0);
+        gpu_migrate(r, m.leavers, leavers);
+        vm = m.vmax;
+        double tw = MPI_Wtime();
+        MPI_Allreduce(MPI_IN_PLACE, &vm, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        waited += MPI_Wtime() - tw;
+        if (c) {
+            clock_end(c, PART_MIGRATE);
+            if (++c->fill == CLOCK_CHUNK) clock_flush(c);
+        }
+        if (sub % k) continue;
+        if (r->par.print && sub < last) {
+            gpu_download(r);
+            Local l = view(r);
+            mpi_write_state(r->out, &r->par, &l, sub / k, 0);
+        }
+        if (io_checkpoint_at(&r->par, r->opt, sub / k)) {
+            gpu_download(r);
+            Local l = view(r);
+            mpi_checkpoint(r->out, &r->par, r->opt, &l, sub / k);
+        }
+        if (mpi_me == 0) io_progress(r->out, sub / k);
+    }
+    double secs = MPI_Wtime() - t0;
+    gpu_download(r);
+    r->bytes_steps = bytes_sent - bytes0;
+    r->waited_steps = waited - waited0;
+    uint64_t mine[2] = {r->events, tests}, sum[2];
+    MPI_Reduce(mine, sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    st->events = sum[0];
+    st->pair_tests = sum[1];
+    return secs;
+}
+#endif
+
 /* Scales the own disks' velocities by f (a power of two: exact), for --substeps. */
 static void scale_own(Run *r, real f)
 {
@@ -991,6 +1185,17 @@ static int mpi_run(Sim *sim, const Params *par, const Options *opt, Output *out,
     sim_fail("internal error: mpi runs through its own main");
 }
 
+#ifdef MPI_CUDA
+static const Backend mpi_backend = {
+    "mpi_cuda" SIM_SUFFIX,
+    "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
+    "               ranks' standard output through itself, at some 100 MB/s)\n"
+    "run as: mpirun -np P mpi_cuda INPUT [options]: each rank on a GPU of its node (its rank among\n"
+    "the node's ranks, modulo the GPUs)\n",
+    SIM_FEATURE_SUBSTEPS | SIM_FEATURE_OUTPUT | SIM_FEATURE_PERIODIC | SIM_FEATURE_CHECKPOINT,
+    mpi_run, NULL, mpi_parallel,
+};
+#else
 static const Backend mpi_backend = {
     "mpi" SIM_SUFFIX,
     "  --threads N  OpenMP threads per rank (default 1: one rank a core)\n"
@@ -1006,6 +1211,7 @@ static const Backend mpi_backend = {
         SIM_FEATURE_BALANCE | SIM_FEATURE_PERIODIC | SIM_FEATURE_CHECKPOINT,
     mpi_run, NULL, mpi_parallel,
 };
+#endif
 
 int main(int argc, char **argv)
 {
@@ -1041,6 +1247,16 @@ int main(int argc, char **argv)
         r.par.first_step = 0;
     }
     t_read = MPI_Wtime() - t_read;
+#ifdef MPI_CUDA
+    { /* the rank's GPU: its node-local rank's, before anything is written */
+        MPI_Comm node;
+        int local = 0;
+        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+        MPI_Comm_rank(node, &local);
+        MPI_Comm_free(&node);
+        r.gpu = gpu_rank_open(&r.par, local);
+    }
+#endif
     r.par.substeps = opt.substeps;
     if (opt.output) mpi_output_file(opt.output);
     if (r.par.steps * (int64_t)opt.substeps > INT32_MAX)
@@ -1082,7 +1298,13 @@ int main(int argc, char **argv)
         r.clock->slowest = sim_calloc((size_t)mpi_np, sizeof *r.clock->slowest);
     }
     double t0 = MPI_Wtime();
+#ifdef MPI_CUDA
+    (void)run_steps;
+    st.seconds = run_steps_gpu(&r, &st);
+    gpu_rank_close(r.gpu);
+#else
     st.seconds = run_steps(&r, &st);
+#endif
     double run_s = MPI_Wtime() - t0;
     if (r.par.periodic && opt.pressure) record_virial(&r, r.par.steps);
     scale_own(&r, k);

@@ -25,6 +25,9 @@
 #           omp on one thread alone, the slowest of P copies at once (one a core), mpi on one rank and on
 #           P ranks (PER_RANK disks a rank; P the largest of RANKS) (not in the default; rows give the
 #           seconds of each, the base's with program omp_base and mpi_base);
+#   gpu     GPU ranks (mpi_cuda, a GPU a rank) against cuda on one GPU: a gas of GPU_N disks (default
+#           1e8) on each count of GPU_RANKS (default 1 to the machine's GPUs), then GPU_PER_RANK disks
+#           (default 1e8) a GPU at each count (not in the default; needs nvcc, mpicc and GPUs);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
@@ -61,6 +64,11 @@ MEM_N=$(integer "${MEM_N:-2e6}")
 command -v mpirun > /dev/null || die "no mpirun (apt-get install openmpi-bin libopenmpi-dev)"
 make -s omp mpi tools/gen tools/contend > /dev/null
 [ -x ./mpi ] || die "./mpi was not built (no mpicc?)"
+case " $PARTS " in
+    *" gpu "*)
+        make -s cuda mpi_cuda > /dev/null
+        GPU_RANKS=${GPU_RANKS:-$(seq -s ' ' 1 "$(nvidia-smi -L 2> /dev/null | wc -l)")} ;;
+esac
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$CORES"
 echo "# mpirun: $(mpirun --version 2>/dev/null | head -n 1); REPEATS=$REPEATS STEPS=$STEPS MPI_ARGS=${MPI_ARGS:-}"
@@ -85,6 +93,12 @@ run() {
     local part=$1 prog=$2 ranks=$3 threads=$4 n=$5 input=$6 k s e walls=() loops=() cmd sink=$WORK/mpi_bench.out
     if [ "$prog" = omp ]; then
         cmd=(./omp "$input" --stats --threads "$threads")
+    elif [ "$prog" = cuda ]; then
+        cmd=(./cuda "$input" --stats)
+    elif [ "$prog" = mpi_cuda ]; then
+        # shellcheck disable=SC2206
+        cmd=(mpirun -np "$ranks" --bind-to none ./mpi_cuda "$input" --stats --output "$sink" ${MPI_ARGS:-})
+        sink=/dev/null
     else
         local flags=${MPIRUN_FLAGS:-}
         if [ -z "${MPIRUN_FLAGS+x}" ]; then
@@ -120,7 +134,7 @@ run() {
         "$(stat_of "$err" 'outside MPI calls [0-9.]* to \([0-9.]*\) s')" \
         "$(stat_of "$err" 'inside them [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')"
     # mpi: where the last run's steps went, phase by phase (the steps' slowest rank against the mean)
-    [ "$prog" = omp ] || sed -n 's/^mpi: the steps. phases/# the last run'"'"'s phases/p' "$err"
+    case $prog in omp | cuda) ;; *) sed -n 's/^mpi[_a-z]*: the steps. phases/# the last run'"'"'s phases/p' "$err" ;; esac
 }
 
 summary=()
@@ -145,6 +159,23 @@ for part in $PARTS; do
                 run weak mpi "$p" 1 "$n" "$(gas "$n")"
                 [ -z "$base" ] && base=$LOOP_RATE
                 summary+=("weak $PER_RANK a rank: $p ranks $LOOP_RATE particle-steps/s, efficiency $(awk -v a="$LOOP_RATE" -v b="$base" -v p="$p" 'BEGIN { printf "%.0f%%", 100 * a / (p * b) }')")
+            done
+            ;;
+        gpu)
+            [ -x ./mpi_cuda ] || die "./mpi_cuda was not built (it needs nvcc and mpicc)"
+            n=$(integer "${GPU_N:-1e8}") per=$(integer "${GPU_PER_RANK:-1e8}")
+            input=$(gas "$n")
+            run gpu-strong cuda 1 1 "$n" "$input"
+            one=$LOOP_RATE
+            for p in $GPU_RANKS; do
+                run gpu-strong mpi_cuda "$p" 1 "$n" "$input"
+                summary+=("gpu strong N=$n: mpi_cuda on $p GPUs $LOOP_RATE particle-steps/s against cuda on one GPU $one: $(awk -v a="$LOOP_RATE" -v b="$one" 'BEGIN { printf "%.2fx", a / b }')")
+            done
+            base=""
+            for p in $GPU_RANKS; do
+                run gpu-weak mpi_cuda "$p" 1 $((per * p)) "$(gas $((per * p)))"
+                [ -z "$base" ] && base=$LOOP_RATE
+                summary+=("gpu weak $per disks a GPU: $p GPUs $LOOP_RATE particle-steps/s, efficiency $(awk -v a="$LOOP_RATE" -v b="$base" -v p="$p" 'BEGIN { printf "%.0f%%", 100 * a / (p * b) }') of one GPU's")
             done
             ;;
         memory)

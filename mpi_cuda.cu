@@ -1,0 +1,503 @@
+/* mpi_cuda.cu: the GPU of one rank of mpi_cuda (mpi.c built with MPI_CUDA; mpi_cuda.h lists the calls).
+ * A rank holds its own disks on its GPU and, during a step, copies of the other ranks' disks within
+ * reach of its strip (the halo), after them. The step is cuda's step of one time slice, by cuda.cu's
+ * own kernels (that file is included here whole, its main left out):
+ *   detect   bin, scan, place, gather and the pair search over the own disks and the copies, on the
+ *            grid cuda would fit to the whole box of N disks (a copy is a disk like any other here);
+ *   rounds   cuda's rounds of the choice, each with one exchange between its min and accept passes:
+ *            the smallest live keys of the own disks that other ranks hold copies of go out, and the
+ *            copies' keys from their owners replace those found here, which lack the copies' events
+ *            with disks this rank does not see. An event with a copy is thus accepted, or not, alike by
+ *            both ranks; a copy's owner decides it, and a decision reaches the copies a round late,
+ *            which only delays (mpi.c, choose). The rounds end when no rank has a live event;
+ *   move     cuda's move for the own disks (a pair with a copy from the copy's state at the step's
+ *            start, as cuda moves both partners from the old buffer); the own disks still in the strip
+ *            are packed to the front, the others (leavers) into records for their new ranks.
+ * Event keys compare by value (t, kind, i, j), so the order of the slots and of the copies does not
+ * matter: the bytes are seq's. Collision counts travel with the own disks (cuda keeps them by index).
+ */
+#define CUDA_LIBRARY
+#include "cuda.cu"
+#include "mpi_cuda.h"
+
+struct GpuRank {
+    Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
+    int64_t own, halo, cap; /* slots: own disks at [0, own), copies after them; buffers for cap */
+    int32_t *pc[2], *wc[2]; /* the own disks' collision counts by slot, pc[pcur] with the state */
+    int pcur;
+    uint32_t *where;        /* slot before the gather -> its cell place */
+    int32_t *cand;          /* gpu_rank_edge's slots and x (cap), and their host copies */
+    double *cand_x;
+    int32_t *cand_host;
+    double *cand_x_host;
+    int32_t *send;          /* gpu_rank_pack's slots, in the order their keys go out */
+    int64_t nsend, send_cap;
+    GpuKey *keys, *hkeys;   /* a round's keys out (nsend) and the copies' keys in (halo) */
+    GpuKey *keys_host;
+    int64_t keys_cap, hkeys_cap;
+    double *rec, *rec_host; /* records in and out of the device (D_LEN doubles each) */
+    int64_t rec_cap, rec_host_cap;
+    unsigned long long *counter, *counter_host; /* appends: [0], [1]; the rounds' lists: [2], [3] */
+    StepInfo *info_host;
+    Plan pl;
+    int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
+    const unsigned long long *len;
+};
+
+/* ---- kernels of the ranks alone: records, edges, keys, what stays --------------------------------- */
+
+__global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32_t *pc, int32_t *wc, int64_t at)
+{
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    const double *d = rec + i * D_LEN;
+    real2 pos, vel;
+    pos.x = (real)d[D_X], pos.y = (real)d[D_Y], vel.x = (real)d[D_VX], vel.y = (real)d[D_VY];
+    st.pos[at + i] = pos;
+    st.vel[at + i] = vel;
+    st.id[at + i] = (int32_t)d[D_ID];
+    if (pc) pc[at + i] = (int32_t)d[D_PC], wc[at + i] = (int32_t)d[D_WC];
+}
+
+/* Slots slot[i] (all of [0, n) where slot is NULL) as records. */
+__global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *wc, const int32_t *slot, int64_t n,
+                                 double *rec)
+{
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    int64_t s = slot ? slot[i] : i;
+    real2 pos = st.pos[s], vel = st.vel[s];
+    double *d = rec + i * D_LEN;
+    d[D_ID] = st.id[s], d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y;
+    d[D_PC] = pc[s], d[D_WC] = wc[s], d[D_WI] = 0;
+}
+
+/* The own disks outside (in0, in1), or all of them: halo_targets' first test, in the same doubles. */
+__global__ void rank_edge_kernel(DevState st, int64_t own, double in0, double in1, int all, int32_t *cand,
+                                 double *cx, unsigned long long *count)
+{
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (s >= own) return;
+    double x = (double)st.pos[s].x;
+    if (!all && x > in0 && x < in1) return;
+    unsigned long long k = list_append(count);
+    cand[k] = (int32_t)s;
+    cx[k] = x;
+}
+
+__global__ void rank_keys_out_kernel(const int32_t *send, int64_t nsend, const uint32_t *where, const uint64_t *best_hi,
+                                     const uint64_t *best_lo, const int32_t *partner, GpuKey *keys)
+{
+    int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= nsend) return;
+    uint32_t p = where[send[k]];
+    GpuKey key = {best_hi[p], best_lo[p], partner[p] >= 0};
+    keys[k] = key;
+}
+
+/* The copies' keys from their owners, over what this rank found for them; a decided copy takes itself as
+ * partner (any partner drops its events from the lists; the move leaves copies alone). */
+__global__ void rank_keys_in_kernel(const GpuKey *keys, int64_t halo, int64_t own, const uint32_t *where,
+                                    uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
+{
+    int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= halo) return;
+    uint32_t p = where[own + k];
+    GpuKey key = keys[k];
+    best_hi[p] = key.hi;
+    best_lo[p] = key.lo;
+    if (key.decided && partner[p] < 0) partner[p] = (int32_t)p;
+}
+
+/* ---- buffers ------------------------------------------------------------------------------------------- */
+
+/* A device buffer of `bytes`, the first `keep` of *p's copied in; *p freed. */
+static void regrow(void **p, size_t keep, size_t bytes, const char *what, cudaStream_t s)
+{
+    void *q = dev_alloc(bytes, what);
+    if (*p && keep) CUDA_CHECK(cudaMemcpyAsync(q, *p, keep, cudaMemcpyDeviceToDevice, s));
+    CUDA_CHECK(cudaStreamSynchronize(s));
+    cudaFree(*p);
+    *p = q;
+}
+#define REGROW(p, keep, bytes, what) regrow((void **)&(p), (size_t)(keep), (size_t)(bytes), what, g->c.stream)
+
+/* Room for n slots: the state and counts kept, the rest scratch. */
+static void rank_reserve(GpuRank *g, int64_t n)
+{
+    if (n <= g->cap) return;
+    Cuda *c = &g->c;
+    int64_t cap = n + n / 4 + 1024, used = g->own + g->halo;
+    for (int b = 0; b < 2; b++) {
+        size_t keep = b == c->cur ? (size_t)used : 0;
+        REGROW(c->st[b].pos, keep * sizeof(real2), cap * sizeof(real2), "the state");
+        REGROW(c->st[b].vel, keep * sizeof(real2), cap * sizeof(real2), "the state");
+        REGROW(c->st[b].id, keep * 4, cap * 4, "the state");
+        keep = b == g->pcur ? (size_t)g->own : 0;
+        REGROW(g->pc[b], keep * 4, cap * 4, "the state");
+        REGROW(g->wc[b], keep * 4, cap * 4, "the state");
+    }
+    REGROW(c->wall_hi, 0, cap * 8, "the event keys");
+    REGROW(c->best_hi, 0, cap * 8, "the event keys");
+    REGROW(c->best_lo, 0, cap * 8, "the event keys");
+    REGROW(c->partner, 0, cap * 4, "the event keys");
+    REGROW(g->where, 0, cap * 4, "the event keys");
+    REGROW(g->cand, 0, cap * 4, "the halo");
+    REGROW(g->cand_x, 0, cap * 8, "the halo");
+    cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host);
+    CUDA_CHECK(cudaMallocHost((void **)&g->cand_host, (size_t)cap * 4));
+    CUDA_CHECK(cudaMallocHost((void **)&g->cand_x_host, (size_t)cap * 8));
+    g->cap = cap;
+}
+
+/* Device records for n (gpu_rank's rec), contents not kept. */
+static void rec_reserve(GpuRank *g, int64_t n)
+{
+    if (n <= g->rec_cap) return;
+    int64_t cap = n + n / 4 + 1024;
+    REGROW(g->rec, 0, (size_t)cap * D_LEN * sizeof(double), "the records between ranks");
+    g->rec_cap = cap;
+}
+
+static void rec_host_reserve(GpuRank *g, int64_t n)
+{
+    if (n <= g->rec_host_cap) return;
+    int64_t cap = n + n / 4 + 1024;
+    cudaFreeHost(g->rec_host);
+    CUDA_CHECK(cudaMallocHost((void **)&g->rec_host, (size_t)cap * D_LEN * sizeof(double)));
+    g->rec_host_cap = cap;
+}
+
+/* The halo's lists: the slots sent and their keys (nsend), the copies' keys (halo). */
+static void send_reserve(GpuRank *g, int64_t nsend)
+{
+    if (nsend <= g->send_cap) return;
+    int64_t cap = nsend + nsend / 4 + 1024;
+    REGROW(g->send, 0, cap * 4, "the halo");
+    REGROW(g->keys, 0, cap * sizeof(GpuKey), "the halo");
+    cudaFreeHost(g->keys_host);
+    CUDA_CHECK(cudaMallocHost((void **)&g->keys_host, (size_t)cap * sizeof(GpuKey)));
+    g->send_cap = cap;
+}
+
+static void hkeys_reserve(GpuRank *g, int64_t halo)
+{
+    if (halo <= g->hkeys_cap) return;
+    int64_t cap = halo + halo / 4 + 1024;
+    REGROW(g->hkeys, 0, cap * sizeof(GpuKey), "the halo");
+    g->hkeys_cap = cap;
+}
+
+static void rank_sync(GpuRank *g)
+{
+    CUDA_CHECK(cudaStreamSynchronize(g->c.stream));
+}
+
+/* ---- the calls ------------------------------------------------------------------------------------------ */
+
+GpuRank *gpu_rank_open(const Params *par, int local)
+{
+    int devices = 0;
+    cudaError_t err = cudaGetDeviceCount(&devices);
+    if (err != cudaSuccess || devices == 0)
+        sim_fail("no CUDA GPU available (%s)", err != cudaSuccess ? cudaGetErrorString(err) : "no device");
+    CUDA_CHECK(cudaSetDevice(local % devices));
+    GpuRank *g = (GpuRank *)sim_calloc(1, sizeof *g);
+    Cuda *c = &g->c;
+    c->par = *par;
+    int dev = 0;
+    CUDA_CHECK(cudaGetDevice(&dev));
+    CUDA_CHECK(cudaDeviceGetAttribute(&c->sms, cudaDevAttrMultiProcessorCount, dev));
+    CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
+    (void)cudaDeviceSetLimit(cudaLimitStackSize, 64); /* cuda_open's reason */
+    cudaGetLastError();
+    c->scan_tiles = SCAN_TILES; /* the host waits for every step: no graphs, no programmatic launches */
+    /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
+     * of the box's disks, wherever its strip lies */
+    GridLimits *lim = &c->lim;
+    lim->n = par->n > 0 ? par->n : 1;
+    lim->L = par->L;
+    lim->r = par->r;
+    lim->periodic = par->periodic;
+    lim->max_slices = 1;
+    lim->cell_cap = 3 * lim->n > (1LL << 22) ? 3 * lim->n : (1LL << 22);
+    if (lim->cell_cap > INT32_MAX - 1) lim->cell_cap = INT32_MAX - 1;
+    c->tile_sums = (uint32_t *)dev_alloc(SCAN_TILES * sizeof(uint32_t), "the cell table");
+    c->counts = (unsigned long long *)dev_alloc(WMAX * (MAX_ROUNDS + 1) * sizeof(unsigned long long), "counters");
+    c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
+    c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
+    c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
+    CUDA_CHECK(cudaMemsetAsync(c->ctl, 0, sizeof(Control), c->stream));
+    g->counter = (unsigned long long *)dev_alloc(4 * sizeof(unsigned long long), "counters");
+    CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 4 * sizeof(unsigned long long)));
+    CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
+    events_alloc(c, 4096);
+    rank_reserve(g, 1024);
+    rank_sync(g);
+    return g;
+}
+
+void gpu_rank_close(GpuRank *g)
+{
+    Cuda *c = &g->c;
+    rank_sync(g);
+    for (int b = 0; b < 2; b++) {
+        state_free(&c->st[b]);
+        cudaFree(g->pc[b]), cudaFree(g->wc[b]), cudaFree(c->ev[b]);
+    }
+    cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
+    cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
+    cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
+    cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid);
+    cudaFree(g->where), cudaFree(g->cand), cudaFree(g->cand_x), cudaFree(g->send);
+    cudaFree(g->keys), cudaFree(g->hkeys), cudaFree(g->rec), cudaFree(g->counter);
+    cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host), cudaFreeHost(g->keys_host);
+    cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
+    cudaStreamDestroy(c->stream);
+    free(g);
+}
+
+/* n records from the host into slots at..at + n (with counts where own). */
+static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, int own)
+{
+    if (n == 0) return;
+    Cuda *c = &g->c;
+    rec_reserve(g, n);
+    CUDA_CHECK(cudaMemcpyAsync(g->rec, rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyHostToDevice, c->stream));
+    rank_put_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(g->rec, n, c->st[c->cur], own ? g->pc[g->pcur] : NULL,
+                                                              own ? g->wc[g->pcur] : NULL, at);
+    CUDA_LAUNCHED();
+    rank_sync(g); /* rec is the caller's until then */
+}
+
+void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n)
+{
+    rank_reserve(g, g->own + n);
+    put_records(g, rec, n, g->own, 1);
+    g->own += n;
+}
+
+void gpu_rank_ready(GpuRank *g, double vmax)
+{
+    Cuda *c = &g->c;
+    int64_t own = g->own, some = own / 16 + 4096; /* the halo and the leavers: a strip's edges */
+    rank_reserve(g, own + some);
+    send_reserve(g, some);
+    hkeys_reserve(g, some);
+    rec_reserve(g, some);
+    rec_host_reserve(g, some);
+    if (c->ev_cap < own / EVENTS_PER_DISK + 4096) {
+        cudaFree(c->ev[0]), cudaFree(c->ev[1]);
+        events_alloc(c, own / EVENTS_PER_DISK + 4096);
+    }
+    Plan pl;
+    memset(&pl, 0, sizeof pl);
+    pl.K = 1, pl.W = 1, pl.levels = 1;
+    pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, 1, INT64_MAX).g; /* as cuda plans: room for slower disks */
+    pl.wcells[0] = pl.gcap * pl.gcap;
+    pl.went[0] = g->cap;
+    c->n = g->cap;
+    if (!buffers_fit(c, &pl)) buffers_grow(c, &pl);
+    rank_sync(g);
+}
+
+int64_t gpu_rank_own(const GpuRank *g)
+{
+    return g->own;
+}
+
+void gpu_rank_get(GpuRank *g, double *rec)
+{
+    Cuda *c = &g->c;
+    if (g->own == 0) return;
+    rec_reserve(g, g->own);
+    rank_pack_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
+                                                                     NULL, g->own, g->rec);
+    CUDA_LAUNCHED();
+    CUDA_CHECK(cudaMemcpyAsync(rec, g->rec, (size_t)g->own * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+                               c->stream));
+    rank_sync(g);
+}
+
+int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x)
+{
+    Cuda *c = &g->c;
+    int64_t n = 0;
+    if (g->own > 0) {
+        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, sizeof(unsigned long long), c->stream));
+        rank_edge_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->own, in0, in1, all, g->cand,
+                                                                         g->cand_x, g->counter);
+        CUDA_LAUNCHED();
+        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
+                                   c->stream));
+        rank_sync(g);
+        n = (int64_t)g->counter_host[0];
+        CUDA_CHECK(cudaMemcpyAsync(g->cand_host, g->cand, (size_t)n * 4, cudaMemcpyDeviceToHost, c->stream));
+        CUDA_CHECK(cudaMemcpyAsync(g->cand_x_host, g->cand_x, (size_t)n * 8, cudaMemcpyDeviceToHost, c->stream));
+        rank_sync(g);
+    }
+    *slot = g->cand_host;
+    *x = g->cand_x_host;
+    return n;
+}
+
+void gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend, double *out)
+{
+    Cuda *c = &g->c;
+    send_reserve(g, nsend);
+    g->nsend = nsend;
+    if (nsend == 0) return;
+    rec_reserve(g, nsend);
+    CUDA_CHECK(cudaMemcpyAsync(g->send, send, (size_t)nsend * 4, cudaMemcpyHostToDevice, c->stream));
+    rank_pack_kernel<<<blocks_for(nsend), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
+                                                                    g->send, nsend, g->rec);
+    CUDA_LAUNCHED();
+    CUDA_CHECK(cudaMemcpyAsync(out, g->rec, (size_t)nsend * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+                               c->stream));
+    rank_sync(g);
+}
+
+void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
+{
+    rank_reserve(g, g->own + got);
+    hkeys_reserve(g, got);
+    put_records(g, in, got, g->own, 0);
+    g->halo = got;
+}
+
+int64_t gpu_rank_detect(GpuRank *g, double vmax)
+{
+    Cuda *c = &g->c;
+    int64_t n = g->own + g->halo;
+    Plan *pl = &g->pl;
+    memset(pl, 0, sizeof *pl);
+    pl->vmax = speed_bits(vmax);
+    pl->K = 1;
+    pl->gcap = grid_fit(&c->lim, vmax, 1, INT64_MAX).g; /* what the gate fits, from the same speed */
+    pl->W = 1;
+    pl->levels = 1;
+    pl->wcells[0] = pl->gcap * pl->gcap;
+    pl->went[0] = g->cap; /* the entries' buffers follow the slots' */
+    c->n = g->cap;
+    if (!buffers_fit(c, pl)) buffers_grow(c, pl);
+    c->n = n;
+    pl->went[0] = n;
+    CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
+    int in = c->cur;
+    for (;;) {
+        step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
+                    c->grid);
+        if (n > 0) {
+            bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0);
+            step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
+                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where);
+            DevState *d = &c->st[1 - in];
+            Entries en;
+            en.pos = d->pos, en.vel = d->vel, en.id = d->id;
+            en.slot = NULL;
+            en.wall = c->wall_hi;
+            en.mid = NULL;
+            detect_launch(c, pl, 0, en);
+        }
+        CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
+        rank_sync(g);
+        int64_t found = (int64_t)g->info_host->found[0];
+        if (found <= c->ev_cap) break;
+        /* a list too short: longer, and the step's search again (the state it started from is intact) */
+        cudaFree(c->ev[0]), cudaFree(c->ev[1]);
+        events_alloc(c, found + found / 4 + 4096);
+    }
+    g->list = 0;
+    g->round = 0;
+    g->len = &c->info->found[0];
+    int64_t found = (int64_t)g->info_host->found[0];
+    double b = (2.0 * (double)found + 4096) / THREADS, most = 8.0 * c->sms;
+    pl->choose_blocks[0] = b < most ? (int64_t)b : (int64_t)most;
+    return found;
+}
+
+int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out)
+{
+    Cuda *c = &g->c;
+    int64_t blocks = g->pl.choose_blocks[0];
+    if (!first) {
+        unsigned long long *next = &g->counter[2 + (g->round & 1)];
+        CUDA_CHECK(cudaMemsetAsync(next, 0, sizeof *next, c->stream));
+        step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[g->list], g->len, c->ev_cap, c->ev[1 - g->list], next,
+                    c->partner, c->wall_hi, c->best_hi, c->best_lo);
+        g->list = 1 - g->list;
+        g->len = next;
+        step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi);
+    }
+    g->round++;
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
+    if (g->nsend > 0) {
+        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, g->where, c->best_hi,
+                    c->best_lo, c->partner, g->keys);
+        CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey), cudaMemcpyDeviceToHost,
+                                   c->stream));
+    }
+    CUDA_CHECK(cudaMemcpyAsync(g->counter_host + 2, g->len, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
+                               c->stream));
+    rank_sync(g);
+    *out = g->keys_host;
+    int64_t live = (int64_t)g->counter_host[2];
+    return live < c->ev_cap ? live : c->ev_cap;
+}
+
+void gpu_rank_accept(GpuRank *g, const GpuKey *in)
+{
+    Cuda *c = &g->c;
+    if (g->halo > 0) {
+        CUDA_CHECK(cudaMemcpyAsync(g->hkeys, in, (size_t)g->halo * sizeof(GpuKey), cudaMemcpyHostToDevice, c->stream));
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, g->where,
+                    c->best_hi, c->best_lo, c->partner);
+    }
+    step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
+                c->best_lo, c->partner);
+    rank_sync(g); /* in is the caller's until then */
+}
+
+void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers)
+{
+    Cuda *c = &g->c;
+    int64_t n = g->own + g->halo;
+    int in = 1 - c->cur, out = c->cur, p = g->pcur; /* in: the gathered state; out: the one it came from */
+    memset(m, 0, sizeof *m);
+    *leavers = g->rec_host;
+    if (n == 0) {
+        g->halo = 0;
+        return;
+    }
+    for (;;) { /* the own disks kept into st[out] and pc[1 - p]; its inputs stay as they are */
+        RankMove rm = {c->order, g->own, g->pc[p], g->wc[p], c0, c1, first, last, g->pc[1 - p], g->wc[1 - p],
+                       g->rec, g->rec_cap, g->counter};
+        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 2 * sizeof(unsigned long long), c->stream));
+        CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
+        CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
+        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<true>, c->st[in], c->st[out], n, c->par, c->partner,
+                    c->wall_hi, c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl, rm);
+        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 2 * sizeof(unsigned long long),
+                                   cudaMemcpyDeviceToHost, c->stream));
+        CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
+        rank_sync(g);
+        if ((int64_t)g->counter_host[1] <= g->rec_cap) break;
+        rec_reserve(g, (int64_t)g->counter_host[1]); /* more leavers than room: the move again */
+    }
+    int64_t kept = (int64_t)g->counter_host[0], left = (int64_t)g->counter_host[1];
+    rec_host_reserve(g, left);
+    if (left > 0) {
+        CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)left * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+                                   c->stream));
+        rank_sync(g);
+    }
+    *leavers = g->rec_host;
+    c->cur = out;
+    g->pcur = 1 - p;
+    g->own = kept;
+    g->halo = 0;
+    m->leavers = left;
+    m->vmax = bits_speed(g->info_host->vmax);
+    m->events = g->info_host->events;
+    m->tests = g->info_host->tests;
+}

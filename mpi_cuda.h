@@ -1,0 +1,72 @@
+/* mpi_cuda.h: a disk on the wire between mpi's ranks, and the GPU side of a rank of mpi_cuda (mpi.c
+ * built with MPI_CUDA, its device work in mpi_cuda.cu). mpi.c does all the talking between ranks; each
+ * call below is the device's share of one of its phases, in the order a step calls them:
+ *   gpu_rank_edge, gpu_rank_pack, gpu_rank_set_halo   the halo (the copies of other ranks' disks)
+ *   gpu_rank_detect                                   the pair events of the own disks and copies
+ *   gpu_rank_round, gpu_rank_accept                   the choice's rounds, keys exchanged between
+ *   gpu_rank_move                                     the own disks moved, the leavers packed
+ * Plain C on both sides: mpi.c is built by mpicc, mpi_cuda.cu by nvcc. */
+#ifndef MPI_CUDA_H_SIM
+#define MPI_CUDA_H_SIM
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A disk between ranks: D_LEN doubles (indices, counts and reals are exact in a double). */
+enum { D_ID, D_X, D_Y, D_VX, D_VY, D_PC, D_WC, D_WI, D_LEN };
+
+/* A disk's smallest live event key in a round of the choice, from its owner to the ranks that hold a
+ * copy: cuda's (hi, lo) (cuda.cu, PairEvent), and whether the disk is decided. */
+typedef struct {
+    uint64_t hi, lo, decided;
+} GpuKey;
+
+typedef struct GpuRank GpuRank;
+
+/* What a step's move reports: the disks that left the strip (records), the largest velocity component
+ * of the own disks after it, its accepted events and pair tests. */
+typedef struct {
+    int64_t leavers;
+    double vmax;
+    uint64_t events, tests;
+} GpuMoved;
+
+/* The GPU of node-local rank `local` (of a node's ranks: device local mod the devices), for a run of
+ * par (par->n disks in all ranks). */
+GpuRank *gpu_rank_open(const Params *par, int local);
+void gpu_rank_close(GpuRank *g);
+/* n records become own disks (between steps) */
+void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
+/* The buffers a step of the own disks takes, made before the steps (their largest velocity component
+ * vmax sets the grid) */
+void gpu_rank_ready(GpuRank *g, double vmax);
+int64_t gpu_rank_own(const GpuRank *g);
+/* the own disks as records into rec (own x D_LEN doubles), in slot order */
+void gpu_rank_get(GpuRank *g, double *rec);
+/* The own disks that other strips may need: all where `all`, else those not within (in0, in1) (mpi.c's
+ * halo_targets decides). Returns how many, their slots and x into *slot and *x (the rank's buffers). */
+int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x);
+/* The own slots send[0 .. nsend) packed as records into out; the rounds send their keys in this order. */
+void gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend, double *out);
+/* The copies received (got records) put after the own disks: the halo, in this order (gpu_rank_accept). */
+void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
+/* One step's pair events over the own disks and the halo, on the box's grid for largest velocity
+ * component vmax (of every rank's disks); returns how many. */
+int64_t gpu_rank_detect(GpuRank *g, double vmax);
+/* A round of the choice (first: the first of the step): returns the pair events still live here, and
+ * into *out the keys of the disks gpu_rank_pack sent, in its order (the rank's buffer). */
+int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out);
+/* The copies' keys as their owners sent them (the halo's order), then the round's accept pass. */
+void gpu_rank_accept(GpuRank *g, const GpuKey *in);
+/* The own disks moved; those whose x left [c0, c1) (no bound below for the first strip, above for the
+ * last) leave: their records into *leavers (the rank's buffer). The halo is dropped. */
+void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

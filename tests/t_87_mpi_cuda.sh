@@ -1,0 +1,130 @@
+# mpi_cuda (mpi.c built with MPI_CUDA, mpi_cuda.cu): mpi's ranks, each stepping its strip on a GPU
+# with cuda's kernels, print seq's bytes at 1 to 4 ranks (ranks share a GPU where there are fewer
+# GPUs than ranks; each takes its node-local rank's GPU modulo the GPUs):
+# - the bundled inputs (walled and periodic), the worked examples and the hard cases;
+# - the omp and mpi tests' generated scenes (tests/omp_scenes.txt): slow, fast, dense, overlapping,
+#   deep rounds of the choice, a few fast disks among slow ones crossing the strips;
+# - random placement (--seed), --substeps 2, --dump17, --output FILE, a gas crowded in one corner;
+# - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
+#   seq and by mpi at another rank count);
+# - options it does not take (--pressure, --threads) refused with one line.
+# SKIP without a GPU, mpirun or ./mpi_cuda (make builds it where nvcc and mpicc both exist).
+G=$TMP/gpu
+mkdir -p "$G"
+if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi_cuda ] || ! have_gpu; then
+    skip "mpi_cuda" "no GPU, no mpirun or no ./mpi_cuda (it needs nvcc and mpicc)"
+else
+    mpi_env
+    pick() { if all_suite; then echo "$1"; else echo "$2"; fi; }
+    run_gpu() { # P ARGS...: mpi_cuda on P ranks
+        local p=$1
+        shift
+        "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@"
+    }
+    gpu_ranks() { # NAME EXPECTED "P..." ARGS...: mpi_cuda at each rank count prints EXPECTED's bytes
+        local name=$1 expected=$2 counts=$3 p bad=""
+        shift 3
+        for p in $counts; do
+            if ! run_gpu "$p" "$@" --quiet > "$G/out" 2> "$G/err" < /dev/null; then
+                bad="$bad $p:exit($(head -c 150 "$G/err"))"
+            elif ! cmp -s "$G/out" "$expected"; then
+                bad="$bad $p:differs($(cmp "$G/out" "$expected" 2>&1 | head -1))"
+            fi
+        done
+        if [ -z "$bad" ]; then pass "mpi_cuda $name: seq's bytes at $counts ranks"; else fail "mpi_cuda $name" "$bad"; fi
+    }
+    for f in inputs/*.in; do
+        b=$(basename "$f" .in)
+        gpu_ranks "inputs/$b" "outputs/$b.out" "$(pick "1 2 3 4" "2 3")" "$f"
+    done
+    for f in inputs/periodic/*.in; do
+        b=$(basename "$f" .in)
+        gpu_ranks "periodic/$b" "outputs/periodic/$b.out" "$(pick "1 2 3 4" "2 4")" "$f" --periodic
+    done
+    k=0
+    for f in tests/cases/*.in; do
+        k=$((k + 1))
+        all_suite || [ $((k % 2)) = 1 ] || continue
+        gpu_ranks "cases/$(basename "$f" .in)" "${f%.in}.out" "$(pick "1 3 4" "3")" "$f"
+    done
+    k=0
+    for f in tests/hard/*.in; do
+        [ -f "${f%.in}.out" ] || continue
+        k=$((k + 1))
+        all_suite || [ $((k % 3)) = 1 ] || continue
+        gpu_ranks "hard/$(basename "$f" .in)" "${f%.in}.out" "$(pick "2 4" "2")" "$f"
+    done
+    combos=("1 3" "2 4" "3 4" "4 2")
+    k=0
+    while read -r name args; do
+        # shellcheck disable=SC2086
+        tools/gen $args > "$G/$name.in"
+        ./seq "$G/$name.in" --quiet > "$G/$name.ref"
+        gpu_ranks "$name" "$G/$name.ref" "$(pick "1 2 3 4" "${combos[k % 4]}")" "$G/$name.in"
+        k=$((k + 1))
+    done < <(grep -v '^#' tests/omp_scenes.txt)
+
+    # random placement, --substeps, --dump17, --output, a mixed scene, fast disks crossing the strips
+    printf '300\n400\n1\n15\nprint\n' > "$G/random.in"
+    ./seq "$G/random.in" --quiet --seed 7 > "$G/random.ref"
+    gpu_ranks "random placement --seed 7" "$G/random.ref" "3" "$G/random.in" --seed 7
+    tools/gen 400 --assignment --L 2000 --steps 20 > "$G/sub.in"
+    ./seq "$G/sub.in" --quiet --substeps 2 > "$G/sub.ref"
+    gpu_ranks "--substeps 2" "$G/sub.ref" "$(pick "2 3" "3")" "$G/sub.in" --substeps 2
+    ./seq "$G/overlap_print.in" --quiet --dump17 > "$G/dump17.ref"
+    gpu_ranks "--dump17" "$G/dump17.ref" "2" "$G/overlap_print.in" --dump17
+    if run_gpu 3 "$G/slow_print.in" --quiet --output "$G/file.out" > "$G/out" 2> "$G/err" &&
+        cmp -s "$G/file.out" "$G/slow_print.ref" && [ ! -s "$G/out" ]; then
+        pass "mpi_cuda --output FILE: seq's bytes in FILE at 3 ranks, nothing on stdout"
+    else
+        fail "mpi_cuda --output FILE" "$(head -c 200 "$G/err")"
+    fi
+    tools/gen 1500 --fraction 0.2 --speed 0.5 --fast 0.02 --steps 10 > "$G/mixed.in"
+    ./seq "$G/mixed.in" --quiet > "$G/mixed.ref"
+    gpu_ranks "mixed scene" "$G/mixed.ref" "$(pick "2 4" "4")" "$G/mixed.in"
+    tools/gen 400 --speed 0.5 --fast 0.005 --steps 200 --mode print > "$G/fast_few.in"
+    ./seq "$G/fast_few.in" --quiet > "$G/fast_few.ref"
+    gpu_ranks "two fast disks crossing the strips" "$G/fast_few.ref" "3" "$G/fast_few.in"
+    awk 'NR == 2 { $1 = 4 * $1 } { print }' "$G/mid_dense.in" > "$G/corner.in"
+    ./seq "$G/corner.in" --quiet > "$G/corner.ref"
+    gpu_ranks "a gas in one corner of the box" "$G/corner.ref" "4" "$G/corner.in"
+    tools/gen 20000 --fraction 0.3 --speed 0.5 --steps 10 --seed 11 > "$G/gas.in"
+    ./seq "$G/gas.in" --quiet > "$G/gas.ref"
+    gpu_ranks "gas of 20000" "$G/gas.ref" "$(pick "1 2 3 4" "4")" "$G/gas.in"
+
+    # --checkpoint: seq's file; resumed across backends
+    tools/gen 500 --fraction 0.3 --steps 40 --mode print --seed 7 > "$G/ck.in"
+    tools/gen 300 --periodic --assignment --L 300 --steps 40 --seed 8 > "$G/pck.in"
+    for scene in ck pck; do
+        args=()
+        [ "$scene" = pck ] && args=(--periodic --substeps 2)
+        rm -f "$G/seq.ck" "$G/gpu.ck"
+        ./seq "$G/$scene.in" "${args[@]}" --quiet --checkpoint "$G/seq.ck" --checkpoint-every 13 > "$G/seq.out"
+        if run_gpu 3 "$G/$scene.in" "${args[@]}" --quiet --checkpoint "$G/gpu.ck" --checkpoint-every 13 > "$G/out" 2> "$G/err" &&
+            cmp -s "$G/out" "$G/seq.out" && cmp -s "$G/gpu.ck" "$G/seq.ck"; then
+            pass "mpi_cuda --checkpoint ($scene): seq's file and output at 3 ranks"
+        else
+            fail "mpi_cuda --checkpoint ($scene)" "$(head -c 200 "$G/err") $(cmp "$G/gpu.ck" "$G/seq.ck" 2>&1 | head -1)"
+        fi
+        ./seq --resume "$G/seq.ck" > "$G/resumed.ref" 2> /dev/null
+        bad=""
+        run_gpu 2 --resume "$G/seq.ck" > "$G/r1" 2> /dev/null && cmp -s "$G/r1" "$G/resumed.ref" || bad="$bad mpi_cuda(seq's)"
+        ./seq --resume "$G/gpu.ck" > "$G/r2" 2> /dev/null && cmp -s "$G/r2" "$G/resumed.ref" || bad="$bad seq(mpi_cuda's)"
+        if have_mpi; then
+            run_mpi 2 1 --resume "$G/gpu.ck" > "$G/r3" 2> /dev/null && cmp -s "$G/r3" "$G/resumed.ref" || bad="$bad mpi(mpi_cuda's)"
+        fi
+        if [ -z "$bad" ]; then pass "mpi_cuda --resume ($scene): seq's output across backends"; else fail "mpi_cuda --resume ($scene)" "$bad"; fi
+    done
+
+    # what it does not take
+    for opt in "--pressure" "--threads 2" "--balance 2"; do
+        # shellcheck disable=SC2086
+        if run_gpu 2 "$G/sub.in" $opt > "$G/out" 2> "$G/err" < /dev/null; then
+            fail "mpi_cuda $opt refused" "it ran"
+        elif [ -s "$G/out" ] || ! grep -q "mpi_cuda: .*${opt%% *}" "$G/err"; then
+            fail "mpi_cuda $opt refused" "stdout $(wc -c < "$G/out") bytes; $(head -c 200 "$G/err")"
+        else
+            pass "mpi_cuda $opt refused with its line, nothing on stdout"
+        fi
+    done
+fi
