@@ -24,6 +24,9 @@
  * --balance K the cuts move every K steps so that the ranks' measured work evens out (balance).
  * Input, output and the pressure's sum go through the ranks' own disks too (mpi_io.c): no rank ever
  * holds the whole state (but for standard input and random placement, read or made on rank 0).
+ * Built with MPI_CUDA (mpi_cuda), the same steps run each rank's disks on a GPU (run_steps_gpu): the
+ * GPU does each phase's work (mpi_cuda.cu), this file the exchanges, each round of step 4 with one
+ * exchange of keys.
  */
 #define _XOPEN_SOURCE 700 /* getrusage */
 #include "mpi.h"

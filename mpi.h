@@ -1,5 +1,6 @@
 /* mpi.h: the MPI backend's files: mpi_comm.c (ranks, cuts, exchanges), mpi_io.c (distributed input and
- * output) and mpi.c (the steps and main), each calling only those before it.
+ * output) and mpi.c (the steps and main), each calling only those before it. Built with MPI_CUDA (the
+ * program mpi_cuda), mpi.c runs each rank's steps on a GPU instead, through mpi_cuda.h.
  *
  * The box is cut into np vertical strips, one per rank: rank q owns the disks whose centres lie in
  * [mpi_cut[q], mpi_cut[q + 1]) (mpi_owner). The cuts are placed at equal counts of disks as the input
