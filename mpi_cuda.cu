@@ -34,7 +34,7 @@ struct GpuRank {
     int64_t nsend, send_cap;
     GpuKey *keys, *hkeys;   /* a round's keys out (nsend) and the copies' keys in (halo) */
     GpuKey *keys_host;
-    int64_t keys_cap, hkeys_cap;
+    int64_t hkeys_cap;
     double *rec, *rec_host; /* records in and out of the device (D_LEN doubles each) */
     int64_t rec_cap, rec_host_cap;
     unsigned long long *counter, *counter_host; /* appends: [0], [1]; the rounds' lists: [2], [3] */
@@ -44,7 +44,7 @@ struct GpuRank {
     const unsigned long long *len;
 };
 
-/* ---- kernels of the ranks alone: records, edges, keys, what stays --------------------------------- */
+/* ---- kernels of the ranks alone: records, edges, keys (the move is cuda's, with RankMove) ------- */
 
 __global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32_t *pc, int32_t *wc, int64_t at)
 {
