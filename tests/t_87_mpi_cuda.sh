@@ -8,9 +8,16 @@
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count);
 # - options it does not take (--pressure, --threads) refused with one line.
-# SKIP without a GPU, mpirun or ./mpi_cuda (make builds it where nvcc and mpicc both exist).
+# SKIP without a GPU, mpirun or ./mpi_cuda (make builds it where nvcc and mpicc both exist). Everywhere:
+# make says it left mpi_cuda out where nvcc is missing.
 G=$TMP/gpu
 mkdir -p "$G"
+if out=$(make -s --no-print-directory NVCC=/nonexistent/nvcc all 2>&1) &&
+    grep -q "^mpi_cuda skipped: it needs both /nonexistent/nvcc and" <<< "$out" && grep -q "^cuda skipped" <<< "$out"; then
+    pass "make without nvcc: says it skipped cuda and mpi_cuda"
+else
+    fail "make without nvcc" "$(head -c 300 <<< "$out")"
+fi
 if ! command -v mpirun > /dev/null 2>&1 || [ ! -x ./mpi_cuda ] || ! have_gpu; then
     skip "mpi_cuda" "no GPU, no mpirun or no ./mpi_cuda (it needs nvcc and mpicc)"
 else
