@@ -1446,6 +1446,14 @@ typedef struct {
     unsigned long long *count;
 } RankMove;
 
+/* A disk as a record of mpi_cuda.h (D_LEN doubles), for another rank or the host. */
+static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 vel, int32_t id, int32_t pc,
+                                                    int32_t wc)
+{
+    d[D_ID] = id, d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y, d[D_PC] = pc, d[D_WC] = wc;
+    d[D_WI] = 0;
+}
+
 /* A GPU rank's own disk after its move: kept at the front of out, or packed for another rank. */
 static __device__ __forceinline__ void rank_keep(const RankMove &rm, real2 pos, real2 vel, int32_t id, int32_t pc,
                                                  int32_t wc, DevState out)
@@ -1461,10 +1469,8 @@ static __device__ __forceinline__ void rank_keep(const RankMove &rm, real2 pos, 
         return;
     }
     unsigned long long k = list_append(&rm.count[1]);
-    if ((int64_t)k >= rm.cap) return; /* the host makes room and moves the step again */
-    double *d = rm.rec + k * D_LEN;
-    d[D_ID] = id, d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y, d[D_PC] = pc, d[D_WC] = wc;
-    d[D_WI] = 0;
+    /* beyond cap the host makes room and moves the step again */
+    if ((int64_t)k < rm.cap) write_record(rm.rec + k * D_LEN, pos, vel, id, pc, wc);
 }
 
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has

@@ -804,36 +804,49 @@ static void move(Run *r)
     r->events += events;
 }
 
+/* The leavers' records rec[0 .. moving) sent to the ranks of their new strips (mpi_owner): neighbours (a
+ * disk moves less than the reach in a step), or any rank where the cuts moved (moved). Returns the
+ * records that arrive, *got of them. */
+static double *send_leavers(Run *r, int moved, const double *rec, int64_t moving, int64_t *got)
+{
+    int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count), *rcount = sim_calloc((size_t)np, sizeof *rcount);
+    int *dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
+    for (int64_t k = 0; k < moving; k++) {
+        dest[k] = mpi_owner(rec[k * D_LEN + D_X]);
+        if (dest[k] == mpi_me ||
+            (!moved && (dest[k] < r->nlo || dest[k] > r->nhi || (r->par.periodic && !r->near[dest[k]]))))
+            sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
+                     r->nhi);
+        count[dest[k]]++;
+    }
+    double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
+    int64_t *at = sim_calloc((size_t)np, sizeof *at);
+    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
+    for (int64_t k = 0; k < moving; k++) memcpy(out + (at[dest[k]]++) * D_LEN, rec + k * D_LEN, D_LEN * sizeof *out);
+    double *in = moved ? exchange(out, count, D_LEN, got, rcount)
+                       : exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL,
+                                       TAG_MIGRATE, got, rcount);
+    free(out), free(at), free(dest), free(count), free(rcount);
+    return in;
+}
+
 /* Disks that left the strip go to the rank of their new strip: a neighbour (a disk moves less than
  * the reach in a step), or any rank where the cuts moved (moved). The fastest speed over the moved
  * disks, leavers too, is sent off to all ranks (into slot `speed` of run_steps' two). */
 static void migrate(Run *r, int moved, int speed)
 {
     Slots *s = &r->b.s;
-    int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count);
-    int *rcount = sim_calloc((size_t)np, sizeof *rcount);
     int64_t moving = 0, keep;
-    /* the leavers' slots, ascending, and their ranks (in cell_of, free between steps): few */
-    int32_t *leaver = r->b.cell_of, *dest = NULL;
+    /* the leavers' slots, ascending (in cell_of, free between steps): few */
+    int32_t *leaver = r->b.cell_of;
     r->speed_mine[speed] = own_speeds(r);
     MPI_Iallreduce(&r->speed_mine[speed], &r->speed_all[speed], 1, MPI_DOUBLE, MPI_MAX, r->speed_comm,
                    &r->speed_req[speed]);
-    if (np > 1)
-        for (int64_t q = 0; q < r->own; q++) {
-            int o = mpi_owner(s->x[q]);
-            if (o != mpi_me) count[o]++, leaver[moving++] = (int32_t)q;
-        }
-    dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
-    for (int64_t k = 0; k < moving; k++) {
-        dest[k] = mpi_owner(s->x[leaver[k]]);
-        if (!moved && (dest[k] < r->nlo || dest[k] > r->nhi || (r->par.periodic && !r->near[dest[k]])))
-            sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
-                     r->nhi);
-    }
+    if (mpi_np > 1)
+        for (int64_t q = 0; q < r->own; q++)
+            if (mpi_owner(s->x[q]) != mpi_me) leaver[moving++] = (int32_t)q;
     double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
-    int64_t *at = sim_calloc((size_t)np, sizeof *at);
-    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-    for (int64_t k = 0; k < moving; k++) pack(s, leaver[k], out + (at[dest[k]]++) * D_LEN);
+    for (int64_t k = 0; k < moving; k++) pack(s, leaver[k], out + k * D_LEN);
     /* the leavers' slots refilled from the end, the lowest first with the last disk that stays: the
      * rest keep their places (and their cell order) */
     keep = r->own;
@@ -849,9 +862,7 @@ static void migrate(Run *r, int moved, int speed)
         lo++;
     }
     int64_t got;
-    double *in = moved ? exchange(out, count, D_LEN, &got, rcount)
-                       : exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL,
-                                       TAG_MIGRATE, &got, rcount);
+    double *in = send_leavers(r, moved, out, moving, &got);
     run_reserve(r, keep + got);
     s = &r->b.s;
     real vm = r->own_vmax; /* own_speeds' over the disks before they left: still a bound */
@@ -862,7 +873,7 @@ static void migrate(Run *r, int moved, int speed)
     r->own_vmax = vm;
     r->own = keep + got;
     r->halo = 0;
-    free(in), free(out), free(at), free(count), free(rcount), free(dest);
+    free(in), free(out);
 }
 
 /* Every few steps the own disks are put in the order of the last step's grid cells, as omp keeps its
@@ -1075,7 +1086,8 @@ static void gpu_choose(Run *r)
         if (all == 0) break;
         /* each round accepts the smallest live event, at the latest the round after its disks' last
          * decisions arrive: a step has fewer rounds than twice its events */
-        if (round > 2 * all + 64) sim_fail("internal error: the choice's rounds do not end (%lld live)", (long long)all);
+        if (round > 2 * all + 64)
+            sim_fail("internal error: the choice's rounds do not end (%lld live)", (long long)all);
         r->rounds++;
         gpu_keys(r, out, in);
         gpu_rank_accept(r->gpu, in);
@@ -1083,26 +1095,13 @@ static void gpu_choose(Run *r)
     free(in);
 }
 
-/* 5: the leavers (records from the GPU's move) to the ranks of their new strips (neighbours). */
+/* 5: the leavers (records from the GPU's move) to the ranks of their new strips, theirs to the GPU. */
 static void gpu_migrate(Run *r, int64_t moving, const double *rec)
 {
-    int np = mpi_np, *count = sim_calloc((size_t)np, sizeof *count), *rcount = sim_calloc((size_t)np, sizeof *rcount);
-    int *dest = sim_calloc((size_t)(moving ? moving : 1), sizeof *dest);
-    for (int64_t k = 0; k < moving; k++) {
-        dest[k] = mpi_owner(rec[k * D_LEN + D_X]);
-        if (dest[k] == mpi_me || dest[k] < r->nlo || dest[k] > r->nhi || (r->par.periodic && !r->near[dest[k]]))
-            sim_fail("internal error: a disk moved to strip %d, beyond the neighbours %d to %d", dest[k], r->nlo,
-                     r->nhi);
-        count[dest[k]]++;
-    }
-    double *out = sim_calloc((size_t)(moving ? moving : 1) * D_LEN, sizeof *out);
-    int64_t *at = sim_calloc((size_t)np, sizeof *at), got;
-    for (int q = 1; q < np; q++) at[q] = at[q - 1] + count[q - 1];
-    for (int64_t k = 0; k < moving; k++) memcpy(out + (at[dest[k]]++) * D_LEN, rec + k * D_LEN, D_LEN * sizeof *out);
-    double *in = exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_MIGRATE, &got,
-                               rcount);
+    int64_t got;
+    double *in = send_leavers(r, 0, rec, moving, &got);
     gpu_rank_add_own(r->gpu, in, got);
-    free(in), free(out), free(at), free(dest), free(count), free(rcount);
+    free(in);
 }
 
 /* run_steps on the GPU: the own disks go to it first and come back for each output and at the end. The

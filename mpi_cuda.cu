@@ -66,10 +66,7 @@ __global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
     int64_t s = slot ? slot[i] : i;
-    real2 pos = st.pos[s], vel = st.vel[s];
-    double *d = rec + i * D_LEN;
-    d[D_ID] = st.id[s], d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y;
-    d[D_PC] = pc[s], d[D_WC] = wc[s], d[D_WI] = 0;
+    write_record(rec + i * D_LEN, st.pos[s], st.vel[s], st.id[s], pc[s], wc[s]);
 }
 
 /* The own disks outside (in0, in1), or all of them: halo_targets' first test, in the same doubles. */
@@ -277,6 +274,21 @@ void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n)
     g->own += n;
 }
 
+/* The plan of a step of one time slice whose largest velocity component is vmax, and the buffers it
+ * takes (the entries' follow the slots', cap of them). */
+static void plan_step(GpuRank *g, Plan *pl, double vmax)
+{
+    Cuda *c = &g->c;
+    memset(pl, 0, sizeof *pl);
+    pl->vmax = speed_bits(vmax);
+    pl->K = 1, pl->W = 1, pl->levels = 1;
+    pl->gcap = grid_fit(&c->lim, vmax, 1, INT64_MAX).g;
+    pl->wcells[0] = pl->gcap * pl->gcap;
+    pl->went[0] = g->cap;
+    c->n = g->cap;
+    if (!buffers_fit(c, pl)) buffers_grow(c, pl);
+}
+
 void gpu_rank_ready(GpuRank *g, double vmax)
 {
     Cuda *c = &g->c;
@@ -291,13 +303,7 @@ void gpu_rank_ready(GpuRank *g, double vmax)
         events_alloc(c, own / EVENTS_PER_DISK + 4096);
     }
     Plan pl;
-    memset(&pl, 0, sizeof pl);
-    pl.K = 1, pl.W = 1, pl.levels = 1;
-    pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, 1, INT64_MAX).g; /* as cuda plans: room for slower disks */
-    pl.wcells[0] = pl.gcap * pl.gcap;
-    pl.went[0] = g->cap;
-    c->n = g->cap;
-    if (!buffers_fit(c, &pl)) buffers_grow(c, &pl);
+    plan_step(g, &pl, vmax / SPEED_SLACK); /* as cuda plans: room for slower disks */
     rank_sync(g);
 }
 
@@ -370,16 +376,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
     Cuda *c = &g->c;
     int64_t n = g->own + g->halo;
     Plan *pl = &g->pl;
-    memset(pl, 0, sizeof *pl);
-    pl->vmax = speed_bits(vmax);
-    pl->K = 1;
-    pl->gcap = grid_fit(&c->lim, vmax, 1, INT64_MAX).g; /* what the gate fits, from the same speed */
-    pl->W = 1;
-    pl->levels = 1;
-    pl->wcells[0] = pl->gcap * pl->gcap;
-    pl->went[0] = g->cap; /* the entries' buffers follow the slots' */
-    c->n = g->cap;
-    if (!buffers_fit(c, pl)) buffers_grow(c, pl);
+    plan_step(g, pl, vmax); /* what the gate fits, from the same speed */
     c->n = n;
     pl->went[0] = n;
     CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
