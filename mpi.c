@@ -39,6 +39,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 
 static uint64_t bytes_sent; /* to other ranks, by exchange (--stats) */
@@ -1038,13 +1039,12 @@ static void gpu_halo(Run *r)
     int64_t n = gpu_rank_edge(r->gpu, in0, in1, any_whole, &cand, &xs), got;
     halo_list(r, whole, any_whole, n, cand, xs);
     free(whole);
-    double *out = sim_calloc((size_t)(r->nsend ? r->nsend : 1) * D_LEN, sizeof *out);
-    gpu_rank_pack(r->gpu, r->send, r->nsend, out);
+    const double *out = gpu_rank_pack(r->gpu, r->send, r->nsend);
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
                                &got, r->rcount);
     gpu_rank_set_halo(r->gpu, in, got);
     r->halo = got;
-    free(in), free(out);
+    free(in);
 }
 
 /* A round's keys of the disks sent as copies (out, in r->send's order) to the ranks that hold them,
@@ -1076,7 +1076,7 @@ static void gpu_keys(Run *r, const GpuKey *out, GpuKey *in)
  * between its min passes and its accept pass (mpi_cuda.cu). */
 static void gpu_choose(Run *r)
 {
-    GpuKey *in = sim_calloc((size_t)(r->halo ? r->halo : 1), sizeof *in);
+    GpuKey *in = gpu_rank_keys_in(r->gpu);
     for (int64_t round = 0;; round++) {
         const GpuKey *out;
         int64_t live = gpu_rank_round(r->gpu, round == 0, &out), all;
@@ -1090,9 +1090,8 @@ static void gpu_choose(Run *r)
             sim_fail("internal error: the choice's rounds do not end (%lld live)", (long long)all);
         r->rounds++;
         gpu_keys(r, out, in);
-        gpu_rank_accept(r->gpu, in);
+        gpu_rank_accept(r->gpu);
     }
-    free(in);
 }
 
 /* 5: the leavers (records from the GPU's move) to the ranks of their new strips, theirs to the GPU. */
@@ -1232,6 +1231,22 @@ int main(int argc, char **argv)
     MPI_Bcast(&ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
     if (mpi_me != 0) io_parse_args(argc, argv, &opt);
 
+#ifdef MPI_CUDA
+    /* the rank's place on its node: its GPU, and its share of the node's cores for the text (the host
+     * has no steps to run; --threads is not an option of mpi_cuda) */
+    int local = 0, locals = 1;
+    {
+        MPI_Comm node;
+        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+        MPI_Comm_rank(node, &local);
+        MPI_Comm_size(node, &locals);
+        MPI_Comm_free(&node);
+        int procs = omp_get_num_procs(); /* the rank's mask: its own cores, or the node's where unbound */
+        long online = sysconf(_SC_NPROCESSORS_ONLN);
+        opt.threads = procs >= online && locals > 1 ? procs / locals : procs;
+        if (opt.threads < 1) opt.threads = 1;
+    }
+#endif
     Run r;
     memset(&r, 0, sizeof r);
     r.opt = &opt;
@@ -1250,14 +1265,7 @@ int main(int argc, char **argv)
     }
     t_read = MPI_Wtime() - t_read;
 #ifdef MPI_CUDA
-    { /* the rank's GPU: its node-local rank's, before anything is written */
-        MPI_Comm node;
-        int local = 0;
-        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
-        MPI_Comm_rank(node, &local);
-        MPI_Comm_free(&node);
-        r.gpu = gpu_rank_open(&r.par, local);
-    }
+    r.gpu = gpu_rank_open(&r.par, local); /* before anything is written */
 #endif
     r.par.substeps = opt.substeps;
     if (opt.output) mpi_output_file(opt.output);
@@ -1303,6 +1311,9 @@ int main(int argc, char **argv)
 #ifdef MPI_CUDA
     (void)run_steps;
     st.seconds = run_steps_gpu(&r, &st);
+    double gpu_times[GPU_CALLS], gpu_most[GPU_CALLS];
+    memcpy(gpu_times, gpu_rank_times(r.gpu), sizeof gpu_times);
+    MPI_Reduce(gpu_times, gpu_most, GPU_CALLS, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     gpu_rank_close(r.gpu);
 #else
     st.seconds = run_steps(&r, &st);
@@ -1352,6 +1363,15 @@ int main(int argc, char **argv)
                     "%.4f to %.4f s (mean %.4f)\n", sim_program, split_least[0], split_most[0],
                     split_sum[0] / mpi_np, split_least[1], split_most[1], split_sum[1] / mpi_np);
         if (r.clock) clock_report(r.clock);
+#ifdef MPI_CUDA
+        if (opt.stats) {
+            static const char *const name[GPU_CALLS] = GPU_CALL_NAMES;
+            fprintf(stderr, "%s: the host's seconds in each GPU call, the slowest rank's (rank 0's):", sim_program);
+            for (int k = 0; k < GPU_CALLS; k++)
+                fprintf(stderr, "%s %s %.4f (%.4f)", k ? "," : "", name[k], gpu_most[k], gpu_times[k]);
+            fprintf(stderr, "\n");
+        }
+#endif
         if (opt.stats)
             fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
                     "state %.4f s\n", sim_program, t_read, t_step0, t_final);

@@ -20,6 +20,8 @@
 #include "cuda.cu"
 #include "mpi_cuda.h"
 
+#define CHUNK ((int64_t)1 << 20) /* records a copy to or from the host takes at a time (64 MB pinned) */
+
 struct GpuRank {
     Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
     int64_t own, halo, cap; /* slots: own disks at [0, own), copies after them; buffers for cap */
@@ -35,10 +37,14 @@ struct GpuRank {
     GpuKey *keys, *hkeys;   /* a round's keys out (nsend) and the copies' keys in (halo) */
     GpuKey *keys_host;
     int64_t hkeys_cap;
-    double *rec, *rec_host; /* records in and out of the device (D_LEN doubles each) */
+    double *rec, *rec_host; /* records in and out of the device (D_LEN doubles each): the halo's and the
+                               leavers' whole, the own disks' CHUNK at a time through stage */
+    double *stage;          /* pinned, CHUNK records */
+    GpuKey *hkeys_host;     /* pinned: the copies' keys as received (halo) */
     int64_t rec_cap, rec_host_cap;
     unsigned long long *counter, *counter_host; /* appends: [0], [1]; the rounds' lists: [2], [3] */
     StepInfo *info_host;
+    double secs[GPU_CALLS]; /* the host's seconds in each call (gpu_rank_times) */
     Plan pl;
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
@@ -59,13 +65,13 @@ __global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32
     if (pc) pc[at + i] = (int32_t)d[D_PC], wc[at + i] = (int32_t)d[D_WC];
 }
 
-/* Slots slot[i] (all of [0, n) where slot is NULL) as records. */
-__global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *wc, const int32_t *slot, int64_t n,
-                                 double *rec)
+/* Slots slot[i] (first + i where slot is NULL), i < n, as records. */
+__global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *wc, const int32_t *slot, int64_t first,
+                                 int64_t n, double *rec)
 {
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    int64_t s = slot ? slot[i] : i;
+    int64_t s = slot ? slot[i] : first + i;
     write_record(rec + i * D_LEN, st.pos[s], st.vel[s], st.id[s], pc[s], wc[s]);
 }
 
@@ -182,6 +188,8 @@ static void hkeys_reserve(GpuRank *g, int64_t halo)
     if (halo <= g->hkeys_cap) return;
     int64_t cap = halo + halo / 4 + 1024;
     REGROW(g->hkeys, 0, cap * sizeof(GpuKey), "the halo");
+    cudaFreeHost(g->hkeys_host);
+    CUDA_CHECK(cudaMallocHost((void **)&g->hkeys_host, (size_t)cap * sizeof(GpuKey)));
     g->hkeys_cap = cap;
 }
 
@@ -191,6 +199,18 @@ static void rank_sync(GpuRank *g)
 }
 
 /* ---- the calls ------------------------------------------------------------------------------------------ */
+
+/* A call's host seconds, added to g->secs[k] as it returns. */
+struct CallClock {
+    double *sum, t0;
+    CallClock(GpuRank *g, int k) : sum(&g->secs[k]), t0(sim_clock()) {}
+    ~CallClock() { *sum += sim_clock() - t0; }
+};
+
+const double *gpu_rank_times(const GpuRank *g)
+{
+    return g->secs;
+}
 
 GpuRank *gpu_rank_open(const Params *par, int local)
 {
@@ -228,6 +248,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     g->counter = (unsigned long long *)dev_alloc(4 * sizeof(unsigned long long), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 4 * sizeof(unsigned long long)));
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
+    CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     events_alloc(c, 4096);
     rank_reserve(g, 1024);
     rank_sync(g);
@@ -250,25 +271,33 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(g->keys), cudaFree(g->hkeys), cudaFree(g->rec), cudaFree(g->counter);
     cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host), cudaFreeHost(g->keys_host);
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
+    cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host);
     cudaStreamDestroy(c->stream);
     free(g);
 }
 
-/* n records from the host into slots at..at + n (with counts where own). */
+/* n records from the host into slots at..at + n (with counts where own), a chunk at a time through the
+ * pinned stage: the device holds a chunk of records, not all of them. */
 static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, int own)
 {
-    if (n == 0) return;
     Cuda *c = &g->c;
-    rec_reserve(g, n);
-    CUDA_CHECK(cudaMemcpyAsync(g->rec, rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyHostToDevice, c->stream));
-    rank_put_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(g->rec, n, c->st[c->cur], own ? g->pc[g->pcur] : NULL,
-                                                              own ? g->wc[g->pcur] : NULL, at);
-    CUDA_LAUNCHED();
-    rank_sync(g); /* rec is the caller's until then */
+    rec_reserve(g, n < CHUNK ? n : CHUNK);
+    for (int64_t k = 0; k < n; k += CHUNK) {
+        int64_t m = n - k < CHUNK ? n - k : CHUNK;
+        size_t bytes = (size_t)m * D_LEN * sizeof(double);
+        memcpy(g->stage, rec + k * D_LEN, bytes);
+        CUDA_CHECK(cudaMemcpyAsync(g->rec, g->stage, bytes, cudaMemcpyHostToDevice, c->stream));
+        rank_put_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(g->rec, m, c->st[c->cur],
+                                                                  own ? g->pc[g->pcur] : NULL,
+                                                                  own ? g->wc[g->pcur] : NULL, at + k);
+        CUDA_LAUNCHED();
+        rank_sync(g); /* the stage is rewritten next */
+    }
 }
 
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n)
 {
+    CallClock clock_(g, GPU_ADD);
     rank_reserve(g, g->own + n);
     put_records(g, rec, n, g->own, 1);
     g->own += n;
@@ -314,19 +343,24 @@ int64_t gpu_rank_own(const GpuRank *g)
 
 void gpu_rank_get(GpuRank *g, double *rec)
 {
+    CallClock clock_(g, GPU_GET);
     Cuda *c = &g->c;
-    if (g->own == 0) return;
-    rec_reserve(g, g->own);
-    rank_pack_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
-                                                                     NULL, g->own, g->rec);
-    CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(rec, g->rec, (size_t)g->own * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
-                               c->stream));
-    rank_sync(g);
+    rec_reserve(g, g->own < CHUNK ? g->own : CHUNK);
+    for (int64_t k = 0; k < g->own; k += CHUNK) {
+        int64_t m = g->own - k < CHUNK ? g->own - k : CHUNK;
+        size_t bytes = (size_t)m * D_LEN * sizeof(double);
+        rank_pack_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
+                                                                    NULL, k, m, g->rec);
+        CUDA_LAUNCHED();
+        CUDA_CHECK(cudaMemcpyAsync(g->stage, g->rec, bytes, cudaMemcpyDeviceToHost, c->stream));
+        rank_sync(g);
+        memcpy(rec + k * D_LEN, g->stage, bytes);
+    }
 }
 
 int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x)
 {
+    CallClock clock_(g, GPU_EDGE);
     Cuda *c = &g->c;
     int64_t n = 0;
     if (g->own > 0) {
@@ -347,24 +381,28 @@ int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t
     return n;
 }
 
-void gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend, double *out)
+const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend)
 {
+    CallClock clock_(g, GPU_PACK);
     Cuda *c = &g->c;
     send_reserve(g, nsend);
+    rec_host_reserve(g, nsend);
     g->nsend = nsend;
-    if (nsend == 0) return;
+    if (nsend == 0) return g->rec_host;
     rec_reserve(g, nsend);
     CUDA_CHECK(cudaMemcpyAsync(g->send, send, (size_t)nsend * 4, cudaMemcpyHostToDevice, c->stream));
     rank_pack_kernel<<<blocks_for(nsend), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
-                                                                    g->send, nsend, g->rec);
+                                                                    g->send, 0, nsend, g->rec);
     CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(out, g->rec, (size_t)nsend * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+    CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)nsend * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
                                c->stream));
-    rank_sync(g);
+    rank_sync(g); /* send is the caller's until then */
+    return g->rec_host;
 }
 
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 {
+    CallClock clock_(g, GPU_HALO);
     rank_reserve(g, g->own + got);
     hkeys_reserve(g, got);
     put_records(g, in, got, g->own, 0);
@@ -373,6 +411,7 @@ void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 
 int64_t gpu_rank_detect(GpuRank *g, double vmax)
 {
+    CallClock clock_(g, GPU_DETECT);
     Cuda *c = &g->c;
     int64_t n = g->own + g->halo;
     Plan *pl = &g->pl;
@@ -415,6 +454,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
 
 int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out)
 {
+    CallClock clock_(g, GPU_ROUND);
     Cuda *c = &g->c;
     int64_t blocks = g->pl.choose_blocks[0];
     if (!first) {
@@ -442,21 +482,29 @@ int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out)
     return live < c->ev_cap ? live : c->ev_cap;
 }
 
-void gpu_rank_accept(GpuRank *g, const GpuKey *in)
+GpuKey *gpu_rank_keys_in(GpuRank *g)
 {
+    return g->hkeys_host;
+}
+
+void gpu_rank_accept(GpuRank *g)
+{
+    CallClock clock_(g, GPU_ACCEPT);
     Cuda *c = &g->c;
     if (g->halo > 0) {
-        CUDA_CHECK(cudaMemcpyAsync(g->hkeys, in, (size_t)g->halo * sizeof(GpuKey), cudaMemcpyHostToDevice, c->stream));
+        CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey), cudaMemcpyHostToDevice,
+                                   c->stream));
         step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, g->where,
                     c->best_hi, c->best_lo, c->partner);
     }
     step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
                 c->best_lo, c->partner);
-    rank_sync(g); /* in is the caller's until then */
+    rank_sync(g); /* the keys' buffer is received into again next round */
 }
 
 void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers)
 {
+    CallClock clock_(g, GPU_MOVE);
     Cuda *c = &g->c;
     int64_t n = g->own + g->halo;
     int in = 1 - c->cur, out = c->cur, p = g->pcur; /* in: the gathered state; out: the one it came from */

@@ -26,6 +26,10 @@ typedef struct {
 
 typedef struct GpuRank GpuRank;
 
+/* The calls below whose host seconds gpu_rank_times sums (--stats), and their names. */
+enum { GPU_EDGE, GPU_PACK, GPU_HALO, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
+#define GPU_CALL_NAMES {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get"}
+
 /* What a step's move reports: the disks that left the strip (records), the largest velocity component
  * of the own disks after it, its accepted events and pair tests. */
 typedef struct {
@@ -38,6 +42,9 @@ typedef struct {
  * par (par->n disks in all ranks). */
 GpuRank *gpu_rank_open(const Params *par, int local);
 void gpu_rank_close(GpuRank *g);
+/* The seconds the host has spent in each call so far, by GPU_EDGE .. GPU_GET (the waits for the device
+ * included: each call returns with the device done) */
+const double *gpu_rank_times(const GpuRank *g);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
 /* The buffers a step of the own disks takes, made before the steps (their largest velocity component
@@ -49,8 +56,9 @@ void gpu_rank_get(GpuRank *g, double *rec);
 /* The own disks that other strips may need: all where `all`, else those not within (in0, in1) (mpi.c's
  * halo_targets decides). Returns how many, their slots and x into *slot and *x (the rank's buffers). */
 int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x);
-/* The own slots send[0 .. nsend) packed as records into out; the rounds send their keys in this order. */
-void gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend, double *out);
+/* The own slots send[0 .. nsend) packed as records (returned: the rank's pinned buffer, valid until
+ * the move); the rounds send their keys in this order. */
+const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend);
 /* The copies received (got records) put after the own disks: the halo, in this order (gpu_rank_accept). */
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
 /* One step's pair events over the own disks and the halo, on the box's grid for largest velocity
@@ -59,8 +67,11 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax);
 /* A round of the choice (first: the first of the step): returns the pair events still live here, and
  * into *out the keys of the disks gpu_rank_pack sent, in its order (the rank's buffer). */
 int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out);
-/* The copies' keys as their owners sent them (the halo's order), then the round's accept pass. */
-void gpu_rank_accept(GpuRank *g, const GpuKey *in);
+/* Where the copies' keys are received each round, as their owners send them (the halo's order; the
+ * rank's pinned buffer, valid from gpu_rank_set_halo to the move). */
+GpuKey *gpu_rank_keys_in(GpuRank *g);
+/* The copies' keys (gpu_rank_keys_in) onto the device, then the round's accept pass. */
+void gpu_rank_accept(GpuRank *g);
 /* The own disks moved; those whose x left [c0, c1) (no bound below for the first strip, above for the
  * last) leave: their records into *leavers (the rank's buffer). The halo is dropped. */
 void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers);

@@ -134,7 +134,11 @@ run() {
         "$(stat_of "$err" 'outside MPI calls [0-9.]* to \([0-9.]*\) s')" \
         "$(stat_of "$err" 'inside them [0-9.]* to [0-9.]* s (mean \([0-9.]*\))')"
     # mpi: where the last run's steps went, phase by phase (the steps' slowest rank against the mean)
-    case $prog in omp | cuda) ;; *) sed -n 's/^mpi[_a-z]*: the steps. phases/# the last run'"'"'s phases/p' "$err" ;; esac
+    case $prog in
+        omp | cuda) ;;
+        *) sed -n -e 's/^mpi[_a-z]*: the steps. phases/# the last run'"'"'s phases/p' \
+               -e 's/^mpi_cuda: the host.s seconds in each GPU call/# the last run'"'"'s host seconds in each GPU call/p' "$err" ;;
+    esac
 }
 
 summary=()
