@@ -134,6 +134,7 @@ typedef struct {
     unsigned long long events; /* accepted events */
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
+    unsigned long long outside; /* a slab grid's (GridLimits): disks binned outside its rows (never) */
 } StepInfo;
 
 /* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
@@ -164,6 +165,9 @@ typedef struct {
     int periodic;   /* --periodic: the cells wrap (1 or at least 3 a side, so no cell neighbours
                        another twice), and so do the differences between disks (wrap_delta) */
     real Lw, halfw; /* L and L / 2 as Params holds them */
+    int slab;       /* GridLimits' slab: the cells are keyed column first, of the columns from xoff on
+                       (around the box where periodic), rows of them, the last one empty */
+    int64_t xoff, rows;
 } Grid;
 
 /* Speed levels. A disk whose velocity components are at most vmax / 2^l (vmax: the largest component
@@ -257,6 +261,12 @@ typedef struct {
     int max_slices;   /* K never exceeds this: what the device holds entries for, capped */
     int64_t cell_cap; /* cells (slices x g^2) count and start hold */
     int periodic;     /* --periodic */
+    /* slab (one slice a step, mpi_cuda): every disk binned lies in x0 <= x <= x1 (around the box where
+     * periodic), a strip of the box; the grid is the box's, but its table holds the strip's columns
+     * only, keyed column first so that they are one run of cells. A pair search reads the cells of a
+     * column and of the next, so the cells are the box's as the search sees them. */
+    int slab;
+    double x0, x1;
 } GridLimits;
 
 /* Time slices for a step whose largest velocity component is vmax: K trades binning work (n K entries)
@@ -300,6 +310,19 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     gr.cs = L / (double)gr.g;
     gr.inv_cs = (double)gr.g / L;
     gr.ncell = (uint32_t)(gr.g * gr.g);
+    gr.slab = 0, gr.xoff = 0, gr.rows = gr.g;
+    if (lim->slab && gr.g >= 4) { /* the columns of x0 and x1 as bin_kernel's cell_of finds them */
+        double a = lim->x0, b = lim->x1;
+        if (lim->periodic) a -= L * floor(a / L), b -= L * floor(b / L);
+        double ca = fmin(fmax(floor(a * gr.inv_cs), 0.0), (double)(gr.g - 1));
+        double cb = fmin(fmax(floor(b * gr.inv_cs), 0.0), (double)(gr.g - 1));
+        int64_t span = (int64_t)cb - (int64_t)ca;
+        if (span < 0) span += gr.g; /* periodic: around the box */
+        if (span + 2 < gr.g) {       /* else the whole table, as without a slab */
+            gr.slab = 1, gr.xoff = (int64_t)ca, gr.rows = span + 2;
+            gr.ncell = (uint32_t)(gr.rows * gr.g);
+        }
+    }
     /* float midpoints and sums round by a few units of 6e-8 of the scale: 1e-5 of it covers them */
     gr.pad = (float)(2 * r + 2 * margin + 1e-5 * scale);
     return gr;
@@ -531,6 +554,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->active[0] = ctl->refused ? 0 : lim.n;
     info->events = 0;
     info->tests = 0;
+    info->outside = 0;
     for (int r = 0; r < WMAX * (MAX_ROUNDS + 1); r++) counts[r] = 0;
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
@@ -604,6 +628,15 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
             my = my - L * floor(my / L);
         }
         int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
+        if (gr.slab) { /* column first: the column's place in the slab is the row */
+            int64_t col = cx - gr.xoff;
+            if (col < 0) col += gr.g;
+            if (col >= gr.rows - 1) { /* never (the caller's bounds): counted, and kept in the table */
+                atomicAdd(&((StepInfo *)info)->outside, 1ull);
+                col = gr.rows - 2;
+            }
+            cx = cy, cy = col;
+        }
         uint32_t key = (uint32_t)(x.row * gr.ncell + cy * gr.g + cx);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);

@@ -129,7 +129,7 @@ static double strip_distance(double x, int q, double L)
  * records, rcount[q] from rank q): point to point with the neighbours only, so a rank waits for them
  * and not for every rank. */
 static double *exchange_near(const double *out, const int *count, int width, int lo, int hi, const char *near,
-                             int tag, int64_t *got, int *rcount)
+                             int tag, int64_t *got, int *rcount, double *(*room)(void *, int64_t), void *ctx)
 {
     int n = hi - lo + 1;
     MPI_Datatype t;
@@ -155,7 +155,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
         MPI_Get_count(&st, t, &rcount[q]);
         total += rcount[q];
     }
-    double *in = sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
+    double *in = room ? room(ctx, total) : sim_calloc((size_t)(total ? total : 1) * (size_t)width, sizeof *in);
     off = 0;
     for (int q = lo; q <= hi; q++) {
         req[n + q - lo] = MPI_REQUEST_NULL;
@@ -211,6 +211,7 @@ typedef struct {
     int nlo, nhi;     /* this step's neighbours (neighbours()) */
     char *near;       /* the periodic box: by rank, whether a neighbour (nlo .. nhi are all ranks) */
     int whole;        /* the periodic box: this rank holds the whole torus (whole_torus) */
+    double halo_secs[2]; /* GPU ranks, --stats: the host's seconds in halo_list and exchange_near */
     int most_near;    /* the most neighbours in any step (--stats) */
     double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
     real own_vmax;    /* a bound on the own disks' fastest velocity component */
@@ -403,13 +404,18 @@ static int halo_targets(const Run *r, double x, const char *whole, int any_whole
     return n;
 }
 
+/* The reach: two disks close in by at most twice the fastest speed. */
+static double reach_of(const Run *r)
+{
+    return (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+}
+
 /* 1: the reach and this step's neighbours (whole: by rank, whether its strip holds the whole torus);
  * returns whether any does. */
 static int halo_reach(Run *r, char *whole)
 {
     int any_whole = 0;
-    /* two disks close in by at most twice the fastest speed */
-    r->reach = (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    r->reach = reach_of(r);
     if (r->par.periodic) {
         neighbours_periodic(r, whole);
         for (int k = 0; k < mpi_np; k++) any_whole |= whole[k];
@@ -467,7 +473,7 @@ static void halo_send(Run *r)
     for (int64_t k = 0; k < r->nsend; k++) pack(s, r->send[k], out + k * D_LEN);
     int64_t got;
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
-                               &got, r->rcount);
+                               &got, r->rcount, NULL, NULL);
     run_reserve(r, r->own + got);
     s = &r->b.s;
     real vm = r->own_vmax; /* the grid's, over the disks this rank sees */
@@ -826,7 +832,7 @@ static double *send_leavers(Run *r, int moved, const double *rec, int64_t moving
     for (int64_t k = 0; k < moving; k++) memcpy(out + (at[dest[k]]++) * D_LEN, rec + k * D_LEN, D_LEN * sizeof *out);
     double *in = moved ? exchange(out, count, D_LEN, got, rcount)
                        : exchange_near(out, count, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL,
-                                       TAG_MIGRATE, got, rcount);
+                                       TAG_MIGRATE, got, rcount, NULL, NULL);
     free(out), free(at), free(dest), free(count), free(rcount);
     return in;
 }
@@ -1027,24 +1033,47 @@ static void gpu_download(Run *r)
     free(rec);
 }
 
+/* exchange_near's room for the halo's records: the GPU rank's pinned buffer, straight to the device. */
+static double *gpu_halo_room(void *g, int64_t n)
+{
+    return gpu_rank_halo_in((GpuRank *)g, n);
+}
+
+/* The strip the own disks and the copies lie in at this step's midpoints (binned there, moved half a
+ * step, less than the reach): the grid's table holds its cells only, unless the rank holds the whole
+ * torus. */
+static void gpu_slab(Run *r)
+{
+    double m = 2 * r->reach;
+    gpu_rank_slab(r->gpu, !r->whole, mpi_cut[mpi_me] - m, mpi_cut[mpi_me + 1] + m);
+}
+
 /* 1 and 2: the reach and the copies, as halo_exchange, of the own disks near the strip's edges (the
- * GPU picks them by halo_targets' first test), sent there; theirs into the GPU's halo. */
+ * GPU picks them by halo_targets' first test, but for the edge at a wall, which has no strip beyond),
+ * sent there; theirs into the GPU's halo. */
 static void gpu_halo(Run *r)
 {
     char *whole = sim_calloc((size_t)mpi_np, 1);
     int any_whole = halo_reach(r, whole);
     const int32_t *cand;
     const double *xs;
-    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
+    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach, m = 1e-9 * (double)r->par.L;
+    if (!r->par.periodic && mpi_me == 0) /* no strip below the first: only disks near the next one */
+        in0 = -INFINITY, in1 -= m;       /* (less m: x + reach rounds up to the cut only within m) */
+    if (!r->par.periodic && mpi_me == mpi_np - 1) in1 = INFINITY, in0 += mpi_me ? m : 0;
     int64_t n = gpu_rank_edge(r->gpu, in0, in1, any_whole, &cand, &xs), got;
+    double t0 = sim_clock();
     halo_list(r, whole, any_whole, n, cand, xs);
     free(whole);
+    double t1 = sim_clock();
     const double *out = gpu_rank_pack(r->gpu, r->send, r->nsend);
+    double t2 = sim_clock();
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
-                               &got, r->rcount);
+                               &got, r->rcount, gpu_halo_room, r->gpu);
+    r->halo_secs[0] += t1 - t0, r->halo_secs[1] += sim_clock() - t2;
     gpu_rank_set_halo(r->gpu, in, got);
     r->halo = got;
-    free(in);
+    gpu_slab(r);
 }
 
 /* A round's keys of the disks sent as copies (out, in r->send's order) to the ranks that hold them,
@@ -1117,6 +1146,9 @@ static double run_steps_gpu(Run *r, RunStats *st)
     (void)own_speeds(r);
     double vm = (double)r->own_vmax;
     MPI_Allreduce(MPI_IN_PLACE, &vm, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    r->speed = vm * 1.41422;
+    r->reach = reach_of(r);
+    gpu_slab(r);
     gpu_rank_ready(r->gpu, vm);
     /* the step loop as cuda times it: from the state on the device to the last step's end */
     MPI_Barrier(MPI_COMM_WORLD);
@@ -1311,9 +1343,10 @@ int main(int argc, char **argv)
 #ifdef MPI_CUDA
     (void)run_steps;
     st.seconds = run_steps_gpu(&r, &st);
-    double gpu_times[GPU_CALLS], gpu_most[GPU_CALLS];
-    memcpy(gpu_times, gpu_rank_times(r.gpu), sizeof gpu_times);
-    MPI_Reduce(gpu_times, gpu_most, GPU_CALLS, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    double gpu_times[GPU_CALLS + 2], gpu_most[GPU_CALLS + 2]; /* and the halo's host work (Run) */
+    memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
+    gpu_times[GPU_CALLS] = r.halo_secs[0], gpu_times[GPU_CALLS + 1] = r.halo_secs[1];
+    MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 2, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     gpu_rank_close(r.gpu);
 #else
     st.seconds = run_steps(&r, &st);
@@ -1365,9 +1398,10 @@ int main(int argc, char **argv)
         if (r.clock) clock_report(r.clock);
 #ifdef MPI_CUDA
         if (opt.stats) {
-            static const char *const name[GPU_CALLS] = GPU_CALL_NAMES;
-            fprintf(stderr, "%s: the host's seconds in each GPU call, the slowest rank's (rank 0's):", sim_program);
-            for (int k = 0; k < GPU_CALLS; k++)
+            static const char *const name[GPU_CALLS + 2] = GPU_CALL_NAMES_AND("halo list", "halo exchange");
+            fprintf(stderr, "%s: the host's seconds in each GPU call, and in the halo's listing and exchange (its "
+                    "waits included), the slowest rank's (rank 0's):", sim_program);
+            for (int k = 0; k < GPU_CALLS + 2; k++)
                 fprintf(stderr, "%s %s %.4f (%.4f)", k ? "," : "", name[k], gpu_most[k], gpu_times[k]);
             fprintf(stderr, "\n");
         }

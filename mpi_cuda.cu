@@ -3,7 +3,8 @@
  * reach of its strip (the halo), after them. The step is cuda's step of one time slice, by cuda.cu's
  * own kernels (that file is included here whole, its main left out):
  *   detect   bin, scan, place, gather and the pair search over the own disks and the copies, on the
- *            grid cuda would fit to the whole box of N disks (a copy is a disk like any other here);
+ *            grid cuda would fit to the whole box of N disks, its table of cells cut to the strip's columns
+ *            (GridLimits' slab) (a copy is a disk like any other here);
  *   rounds   cuda's rounds of the choice, each with one exchange between its min and accept passes:
  *            the smallest live keys of the own disks that other ranks hold copies of go out, and the
  *            copies' keys from their owners replace those found here, which lack the copies' events
@@ -41,6 +42,8 @@ struct GpuRank {
                                leavers' whole, the own disks' CHUNK at a time through stage */
     double *stage;          /* pinned, CHUNK records */
     GpuKey *hkeys_host;     /* pinned: the copies' keys as received (halo) */
+    double *halo_host;      /* pinned: the halo's records as received (gpu_rank_halo_in) */
+    int64_t halo_host_cap;
     int64_t rec_cap, rec_host_cap;
     unsigned long long *counter, *counter_host; /* appends: [0], [1]; the rounds' lists: [2], [3] */
     StepInfo *info_host;
@@ -230,7 +233,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     cudaGetLastError();
     c->scan_tiles = SCAN_TILES; /* the host waits for every step: no graphs, no programmatic launches */
     /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
-     * of the box's disks, wherever its strip lies */
+     * of the box's disks, wherever its strip lies; the table holds the strip's cells (gpu_rank_slab) */
     GridLimits *lim = &c->lim;
     lim->n = par->n > 0 ? par->n : 1;
     lim->L = par->L;
@@ -271,7 +274,7 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(g->keys), cudaFree(g->hkeys), cudaFree(g->rec), cudaFree(g->counter);
     cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host), cudaFreeHost(g->keys_host);
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
-    cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host);
+    cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
     cudaStreamDestroy(c->stream);
     free(g);
 }
@@ -313,9 +316,20 @@ static void plan_step(GpuRank *g, Plan *pl, double vmax)
     pl->K = 1, pl->W = 1, pl->levels = 1;
     pl->gcap = grid_fit(&c->lim, vmax, 1, INT64_MAX).g;
     pl->wcells[0] = pl->gcap * pl->gcap;
+    if (c->lim.slab) { /* grid_fit's columns of a slab, at most (x1 - x0) g / L + 4 of them, g <= gcap */
+        double rows = floor((c->lim.x1 - c->lim.x0) * (double)pl->gcap / c->lim.L) + 5;
+        if (rows < (double)pl->gcap) pl->wcells[0] = (int64_t)rows * pl->gcap;
+    }
     pl->went[0] = g->cap;
     c->n = g->cap;
     if (!buffers_fit(c, pl)) buffers_grow(c, pl);
+}
+
+void gpu_rank_slab(GpuRank *g, int on, double x0, double x1)
+{
+    GridLimits *lim = &g->c.lim;
+    lim->slab = on && x1 - x0 < lim->L;
+    lim->x0 = x0, lim->x1 = x1;
 }
 
 void gpu_rank_ready(GpuRank *g, double vmax)
@@ -400,13 +414,34 @@ const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend)
     return g->rec_host;
 }
 
+double *gpu_rank_halo_in(GpuRank *g, int64_t n)
+{
+    if (n > g->halo_host_cap) {
+        int64_t cap = n + n / 4 + 1024;
+        cudaFreeHost(g->halo_host);
+        CUDA_CHECK(cudaMallocHost((void **)&g->halo_host, (size_t)cap * D_LEN * sizeof(double)));
+        g->halo_host_cap = cap;
+    }
+    return g->halo_host;
+}
+
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 {
     CallClock clock_(g, GPU_HALO);
+    Cuda *c = &g->c;
     rank_reserve(g, g->own + got);
     hkeys_reserve(g, got);
-    put_records(g, in, got, g->own, 0);
     g->halo = got;
+    if (in != g->halo_host) {
+        put_records(g, in, got, g->own, 0);
+        return;
+    }
+    if (got == 0) return;
+    rec_reserve(g, got); /* pinned: one copy, no stage */
+    CUDA_CHECK(cudaMemcpyAsync(g->rec, in, (size_t)got * D_LEN * sizeof(double), cudaMemcpyHostToDevice, c->stream));
+    rank_put_kernel<<<blocks_for(got), THREADS, 0, c->stream>>>(g->rec, got, c->st[c->cur], NULL, NULL, g->own);
+    CUDA_LAUNCHED();
+    rank_sync(g); /* the buffer is received into again next step */
 }
 
 int64_t gpu_rank_detect(GpuRank *g, double vmax)
@@ -437,6 +472,9 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
         }
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
         rank_sync(g);
+        if (g->info_host->outside)
+            sim_fail("internal error: %llu disks outside the slab of the grid (%g to %g)", g->info_host->outside,
+                     c->lim.x0, c->lim.x1);
         int64_t found = (int64_t)g->info_host->found[0];
         if (found <= c->ev_cap) break;
         /* a list too short: longer, and the step's search again (the state it started from is intact) */

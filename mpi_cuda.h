@@ -28,7 +28,7 @@ typedef struct GpuRank GpuRank;
 
 /* The calls below whose host seconds gpu_rank_times sums (--stats), and their names. */
 enum { GPU_EDGE, GPU_PACK, GPU_HALO, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
-#define GPU_CALL_NAMES {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get"}
+#define GPU_CALL_NAMES_AND(...) {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get", __VA_ARGS__}
 
 /* What a step's move reports: the disks that left the strip (records), the largest velocity component
  * of the own disks after it, its accepted events and pair tests. */
@@ -47,6 +47,9 @@ void gpu_rank_close(GpuRank *g);
 const double *gpu_rank_times(const GpuRank *g);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
+/* The disks of the steps to come lie within x0 <= x <= x1 (around the box where periodic), if `on`: the
+ * grid's table then holds that strip's cells, not the box's (GridLimits' slab; else the box's). */
+void gpu_rank_slab(GpuRank *g, int on, double x0, double x1);
 /* The buffers a step of the own disks takes, made before the steps (their largest velocity component
  * vmax sets the grid) */
 void gpu_rank_ready(GpuRank *g, double vmax);
@@ -59,6 +62,9 @@ int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t
 /* The own slots send[0 .. nsend) packed as records (returned: the rank's pinned buffer, valid until
  * the move); the rounds send their keys in this order. */
 const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend);
+/* Room for n received records of the halo (the rank's pinned buffer, valid until the next call):
+ * gpu_rank_set_halo takes them from there to the device with no copy on the host. */
+double *gpu_rank_halo_in(GpuRank *g, int64_t n);
 /* The copies received (got records) put after the own disks: the halo, in this order (gpu_rank_accept). */
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
 /* One step's pair events over the own disks and the halo, on the box's grid for largest velocity
