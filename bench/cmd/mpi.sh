@@ -27,7 +27,8 @@
 #           seconds of each, the base's with program omp_base and mpi_base);
 #   gpu     GPU ranks (mpi_cuda, a GPU a rank) against cuda on one GPU: a gas of GPU_N disks (default
 #           1e8) on each count of GPU_RANKS (default 1 to the machine's GPUs), then GPU_PER_RANK disks
-#           (default 1e8) a GPU at each count (not in the default; needs nvcc, mpicc and GPUs);
+#           (default 1e8) a GPU at each count of GPU_WEAK_RANKS (default GPU_RANKS) (not in the default;
+#           needs nvcc, mpicc and GPUs);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
@@ -176,7 +177,7 @@ for part in $PARTS; do
                 summary+=("gpu strong N=$n: mpi_cuda on $p GPUs $LOOP_RATE particle-steps/s against cuda on one GPU $one: $(awk -v a="$LOOP_RATE" -v b="$one" 'BEGIN { printf "%.2fx", a / b }')")
             done
             base=""
-            for p in $GPU_RANKS; do
+            for p in ${GPU_WEAK_RANKS:-$GPU_RANKS}; do
                 run gpu-weak mpi_cuda "$p" 1 $((per * p)) "$(gas $((per * p)))"
                 [ -z "$base" ] && base=$LOOP_RATE
                 summary+=("gpu weak $per disks a GPU: $p GPUs $LOOP_RATE particle-steps/s, efficiency $(awk -v a="$LOOP_RATE" -v b="$base" -v p="$p" 'BEGIN { printf "%.0f%%", 100 * a / (p * b) }') of one GPU's")
