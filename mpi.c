@@ -428,31 +428,46 @@ static int halo_reach(Run *r, char *whole)
 
 /* 2: r->send and r->scount, the own slots whose copies go to other strips' ranks (all of them
  * neighbours; halo_targets), in rank order: of the n own slots cand[k] at x xs[k] (a GPU's), or of
- * every own slot where cand is NULL. */
+ * every own slot where cand is NULL. The rank's threads each take a contiguous share of the slots,
+ * count its copies by rank, then list them where the counts before them end: the order one thread
+ * would list them in. */
 static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const int32_t *cand, const double *xs)
 {
     const Slots *s = &r->b.s;
-    int np = mpi_np, *q = sim_calloc((size_t)np, sizeof *q);
+    int np = mpi_np, nt = n < 2048 ? 1 : r->nt;
+    int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at); /* by thread and rank: counts, then places */
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
-    for (int pass = 0; pass < 2; pass++) { /* count, then list in rank order */
-        int64_t *at = NULL;
-        if (pass) {
-            at = sim_calloc((size_t)np, sizeof *at);
-            for (int k = 1; k < np; k++) at[k] = at[k - 1] + r->scount[k - 1];
-            r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), m = omp_get_num_threads(), *q = sim_calloc((size_t)np, sizeof *q);
+        int64_t k0 = n * t / m, k1 = n * (t + 1) / m, *mine = at + (size_t)t * (size_t)np;
+        for (int64_t k = k0; k < k1; k++) {
+            int c = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
+            for (int u = 0; u < c; u++) mine[q[u]]++;
         }
-        for (int64_t k = 0; k < n; k++) {
+#pragma omp barrier
+#pragma omp single
+        {
+            int64_t sum = 0;
+            for (int p = 0; p < np; p++)
+                for (int w = 0; w < m; w++) {
+                    int64_t c = at[(size_t)w * (size_t)np + p];
+                    at[(size_t)w * (size_t)np + p] = sum;
+                    sum += c;
+                    r->scount[p] += (int)c;
+                }
+            r->nsend = sum;
+            r->send = sim_grow(r->send, &r->send_cap, (size_t)sum, sizeof *r->send);
+        } /* (its barrier) */
+        for (int64_t k = k0; k < k1; k++) {
             int32_t slot = cand ? cand[k] : (int32_t)k;
-            int m = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
-            for (int u = 0; u < m; u++) {
-                if (pass) r->send[at[q[u]]++] = slot;
-                else r->scount[q[u]]++, r->nsend++;
-            }
+            int c = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
+            for (int u = 0; u < c; u++) r->send[mine[q[u]]++] = slot;
         }
-        free(at);
+        free(q);
     }
-    free(q);
+    free(at);
 }
 
 /* 1 and 2 on the CPU: copies of the own disks within reach of other strips sent there. */
