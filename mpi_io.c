@@ -15,6 +15,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -36,6 +37,16 @@ typedef struct {
 
 /* ---- sharing out ------------------------------------------------------------------------------------ */
 
+/* The rank's threads for the passes over its disks below (--threads; mpi_read_input and
+ * mpi_read_checkpoint set it): each pass a loop over the disks in contiguous shares, which keeps
+ * one thread's order. */
+static int pass_threads = 1;
+
+static int pass_nt(int64_t m)
+{
+    return m < 4096 ? 1 : pass_threads;
+}
+
 /* The first index of rank q's block (q = np: n) */
 static int64_t block_lo(int64_t n, int q)
 {
@@ -52,16 +63,48 @@ static int block_of(int64_t n, int64_t i)
 
 /* Sends item k of m (each `size` bytes) to rank dest[k]; returns what arrives, rank by rank, and its
  * count in *got. */
+static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
+                             void (*pack)(const void *ctx, int64_t k, void *to), const void *ctx);
+
 static void *exchange(const void *items, size_t size, const int *dest, int64_t m, int64_t *got)
 {
-    int np = mpi_np;
+    return exchange_packed(items, size, dest, m, got, NULL, NULL);
+}
+
+/* exchange, item k written straight into its place by pack(ctx, k, place) where pack is not NULL
+ * (items unused): no copy of the items in index order first. */
+static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
+                             void (*pack)(const void *ctx, int64_t k, void *to), const void *ctx)
+{
+    int np = mpi_np, nt = pass_nt(m);
     int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
-    int64_t *at = sim_calloc((size_t)np, sizeof *at);
-    for (int64_t k = 0; k < m; k++) sc[dest[k]]++;
-    for (int q = 1; q < np; q++) at[q] = at[q - 1] + sc[q - 1];
+    /* by thread and rank: its share's items for the rank, then where they go (in rank order, a
+     * rank's items in index order: one thread's order) */
+    int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at);
     char *out = sim_realloc(NULL, (size_t)(m ? m : 1), size);
-    for (int64_t k = 0; k < m; k++)
-        memcpy(out + (size_t)(at[dest[k]]++) * size, (const char *)items + (size_t)k * size, size);
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), w = omp_get_num_threads();
+        int64_t k0 = m * t / w, k1 = m * (t + 1) / w, *mine = at + (size_t)t * (size_t)np;
+        for (int64_t k = k0; k < k1; k++) mine[dest[k]]++;
+#pragma omp barrier
+#pragma omp single
+        {
+            int64_t sum = 0;
+            for (int q = 0; q < np; q++)
+                for (int u = 0; u < w; u++) {
+                    int64_t c = at[(size_t)u * (size_t)np + q];
+                    at[(size_t)u * (size_t)np + q] = sum;
+                    sum += c;
+                    sc[q] += (int)c;
+                }
+        }
+        for (int64_t k = k0; k < k1; k++) {
+            char *to = out + (size_t)(mine[dest[k]]++) * size;
+            if (pack) pack(ctx, k, to);
+            else memcpy(to, (const char *)items + (size_t)k * size, size);
+        }
+    }
     MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
     void *in = mpi_alltoallv(out, sc, rc, size, got);
     free(out), free(sc), free(rc), free(at);
@@ -73,6 +116,8 @@ static void local_append(Local *l, const Disk *d, int64_t m)
 {
     local_reserve(l, l->own + m);
     Slots *s = &l->s;
+    int nt = pass_nt(m);
+#pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < m; k++) {
         int64_t at = l->own + k;
         s->x[at] = d[k].x, s->y[at] = d[k].y, s->vx[at] = d[k].vx, s->vy[at] = d[k].vy;
@@ -83,28 +128,36 @@ static void local_append(Local *l, const Disk *d, int64_t m)
     l->own += m;
 }
 
+/* Own slot k of Local ctx as a Disk at to. */
+static void pack_slot(const void *ctx, int64_t k, void *to)
+{
+    const Local *l = ctx;
+    const Slots *s = &l->s;
+    Disk e = {s->x[k], s->y[k], s->vx[k], s->vy[k], s->id[k], s->pc[k], s->wc[k], l->with_wi ? s->wi[k] : 0};
+    memcpy(to, &e, sizeof e);
+}
+
 /* Each rank's disks of its index block, from wherever they are: position k holds disk lo + k (wi
  * too where l has it). */
 static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *lo, int64_t *m)
 {
     int64_t n = par->n, own = l->own;
     const Slots *s = &l->s;
-    Disk *d = sim_realloc(NULL, (size_t)own, sizeof *d);
-    int *dest = sim_realloc(NULL, (size_t)own, sizeof *dest);
-    for (int64_t k = 0; k < own; k++) {
-        Disk e = {s->x[k], s->y[k], s->vx[k], s->vy[k], s->id[k], s->pc[k], s->wc[k], l->with_wi ? s->wi[k] : 0};
-        d[k] = e;
-        dest[k] = block_of(n, s->id[k]);
-    }
+    int *dest = sim_realloc(NULL, (size_t)(own ? own : 1), sizeof *dest);
+    int nt = pass_nt(own);
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int64_t k = 0; k < own; k++) dest[k] = block_of(n, s->id[k]);
     int64_t got;
-    Disk *in = exchange(d, sizeof *d, dest, own, &got);
-    free(d), free(dest);
+    Disk *in = exchange_packed(NULL, sizeof(Disk), dest, own, &got, pack_slot, l);
+    free(dest);
     *lo = block_lo(n, mpi_me);
     *m = block_lo(n, mpi_me + 1) - *lo;
     if (got != *m)
         sim_fail("internal error: %lld disks of block %d, not %lld", (long long)got, mpi_me, (long long)*m);
     if (sim_alloc(blk, *m ? *m : 1)) sim_fail("out of memory for %lld disks", (long long)*m);
     if (l->with_wi) blk->wi = sim_calloc((size_t)(*m ? *m : 1), sizeof *blk->wi);
+    nt = pass_nt(got);
+#pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < got; k++) {
         int64_t at = in[k].id - *lo;
         blk->x[at] = in[k].x, blk->y[at] = in[k].y, blk->vx[at] = in[k].vx, blk->vy[at] = in[k].vy;
@@ -244,6 +297,8 @@ static void to_strips(const Params *par, const Disk *d, int64_t m, Local *l)
     mpi_place_cuts(hist, (double)m, par->L, 0);
     free(hist);
     int *dest = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *dest);
+    int nt = pass_nt(m);
+#pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < m; k++) dest[k] = mpi_owner(d[k].x);
     int64_t got;
     Disk *mine = exchange(d, sizeof *d, dest, m, &got);
@@ -364,6 +419,7 @@ static void scatter(const Params *par, const Sim *all, Local *l)
 
 void mpi_read_input(const Options *opt, Params *par, Local *l)
 {
+    pass_threads = opt->threads > 0 ? opt->threads : 1;
     Head h;
     memset(&h, 0, sizeof h);
     Sim all; /* HEAD_ROOT: the whole state, on rank 0 only */
@@ -563,6 +619,7 @@ void mpi_checkpoint(Output *out, const Params *par, const Options *opt, const Lo
 
 void mpi_read_checkpoint(Options *opt, Params *par, Local *l)
 {
+    pass_threads = opt->threads > 0 ? opt->threads : 1;
     int32_t o[5] = {0, 0, 0, 0, 0};
     if (mpi_me == 0) {
         io_resume_check(opt, par);

@@ -6,9 +6,11 @@
 #   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10, 2 runs; BIG=0 leaves it out)
-#   Both end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
+#   ./bench.sh io mpi            the gas of 4e6 disks, S = 0: omp on 2 threads, mpi (--output FILE) on
+#                                    1 rank of 2 threads and 2 ranks of 1 (no checkpoints)
+#   The first two end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
 #   the whole process of resuming one.
-#   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda), built in bench/tmp/base,
+#   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda; mpi: and mpi), built in bench/tmp/base,
 #                                    row by row
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -20,6 +22,8 @@ mode=${1:-cpu}
 THREADS=${THREADS:-$([ "$mode" = gpu ] && echo "1 2 4 8 16" || echo "1 2")}
 make -s seq omp tools/gen >/dev/null
 [ "$mode" != gpu ] || make -s cuda >/dev/null
+[ "$mode" != mpi ] || make -s mpi >/dev/null
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 mkdir -p "$WORK"
 machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)"
 echo "# REPEATS=$REPEATS; output to $WORK/io.out (a new file each run)"
@@ -30,7 +34,7 @@ echo "program,threads,n,steps,in_mb,out_mb,best_s,median_s,mb_per_s,stats"
 run() {
     local n=$1 steps=$2 in=$3 prog=$4 threads=$5 progs=() walls=() s e k p
     shift 5
-    if [ -n "${BASE_REV:-}" ] && { [ "$prog" = omp ] || [ "$prog" = cuda ]; }; then progs+=("bench/tmp/base/$prog"); fi
+    case "${BASE_REV:+x}$prog" in xomp | xcuda | xmpi_r*) progs+=("bench/tmp/base/$prog") ;; esac
     progs+=("$prog")
     local args=("$in" --stats "$@")
     [ "$threads" = - ] || args+=(--threads "$threads")
@@ -70,9 +74,30 @@ gas() { # gas N STEPS: the file of a gas of N disks (fraction 0.2, speeds up to 
 if [ -n "${BASE_REV:-}" ]; then
     targets=omp
     [ "$mode" != gpu ] || targets="omp cuda"
+    [ "$mode" != mpi ] || targets="omp mpi"
     build_revision "$BASE_REV" bench/tmp/base "$WORK/base_build.log" "$targets" ||
         { tail -5 "$WORK/base_build.log"; exit 1; }
     echo "# bench/tmp/base/{$targets}: revision $BASE_REV's build"
+fi
+# mpi_rR: mpirun of R ranks around the mpi beside it (here, or the base's), its output to --output's
+# file (the rows' --threads: a rank's)
+mpi_wrappers() { # DIR
+    local r
+    for r in 1 2; do
+        printf '#!/bin/sh\nexec mpirun -np %s --oversubscribe --bind-to none "$(dirname "$0")/mpi" "$@" --output %s\n' \
+            "$r" "$PWD/$WORK/io.out" > "$1/mpi_r$r"
+        chmod +x "$1/mpi_r$r"
+    done
+}
+if [ "$mode" = mpi ]; then
+    mpi_wrappers .
+    [ -z "${BASE_REV:-}" ] || mpi_wrappers bench/tmp/base
+    in=$(gas 4000000 0)
+    run 4000000 0 "$in" omp 2
+    run 4000000 0 "$in" mpi_r1 2
+    run 4000000 0 "$in" mpi_r2 1
+    rm -f mpi_r1 mpi_r2 "$WORK/io.out"
+    exit 0
 fi
 in=$(gas 1000000 0)
 for t in $THREADS; do run 1000000 0 "$in" omp "$t"; done
