@@ -164,3 +164,18 @@ if OUTPUT_QUICK="$TMP/dense.csv" TMP_DIR="$TMP/dense" JOBS=2 THREADS=1 ./bench.s
 else
     fail "bench.sh dense --quick" "exit status non-zero: $(tail -n 2 "$TMP/dense.log")"
 fi
+
+# ./bench.sh io mpi: a row each for omp, mpi on 1 rank and on 2, with the input's and output's sizes
+# (the same output from each) and a plausible time
+if have_mpi; then
+    IO_N=20000 REPEATS=1 WORK="$TMP/io" ./bench.sh io mpi > "$TMP/io_mpi.log" 2>&1
+    io_rc=$?
+    io_rows=$(awk -F, '/^(omp|mpi_r1|mpi_r2),/ && $5 > 0 && $6 > 0 && $7 > 0 && $9 > 0 { print $1, $6 }' "$TMP/io_mpi.log")
+    if [ "$io_rc" -eq 0 ] && [ "$(wc -l <<< "$io_rows")" -eq 3 ] && [ "$(cut -d' ' -f2 <<< "$io_rows" | sort -u | wc -l)" -eq 1 ]; then
+        pass "bench.sh io mpi: omp's, 1 rank's and 2 ranks' rows, the same output size"
+    else
+        fail "bench.sh io mpi" "exit $io_rc, rows: $(tr '\n' ';' <<< "$io_rows") $(tail -n 2 "$TMP/io_mpi.log")"
+    fi
+else
+    skip "bench.sh io mpi" "no mpirun or no ./mpi"
+fi

@@ -6,8 +6,8 @@
 #   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10, 2 runs; BIG=0 leaves it out)
-#   ./bench.sh io mpi            the gas of 4e6 disks, S = 0: omp on 2 threads, mpi (--output FILE) on
-#                                    1 rank of 2 threads and 2 ranks of 1 (no checkpoints)
+#   ./bench.sh io mpi            the gas of 4e6 disks (IO_N), S = 0: omp on 2 threads, mpi (--output FILE)
+#                                    on 1 rank of 2 threads and 2 ranks of 1 (no checkpoints)
 #   The first two end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
 #   the whole process of resuming one.
 #   BASE_REV=REV ./bench.sh io   also revision REV's omp (gpu: and cuda; mpi: and mpi), built in bench/tmp/base,
@@ -85,17 +85,18 @@ mpi_wrappers() { # DIR
     local r
     for r in 1 2; do
         printf '#!/bin/sh\nexec mpirun -np %s --oversubscribe --bind-to none "$(dirname "$0")/mpi" "$@" --output %s\n' \
-            "$r" "$PWD/$WORK/io.out" > "$1/mpi_r$r"
+            "$r" "$(cd "$WORK" && pwd)/io.out" > "$1/mpi_r$r"
         chmod +x "$1/mpi_r$r"
     done
 }
 if [ "$mode" = mpi ]; then
     mpi_wrappers .
     [ -z "${BASE_REV:-}" ] || mpi_wrappers bench/tmp/base
-    in=$(gas 4000000 0)
-    run 4000000 0 "$in" omp 2
-    run 4000000 0 "$in" mpi_r1 2
-    run 4000000 0 "$in" mpi_r2 1
+    n=${IO_N:-4000000}
+    in=$(gas "$n" 0)
+    run "$n" 0 "$in" omp 2
+    run "$n" 0 "$in" mpi_r1 2
+    run "$n" 0 "$in" mpi_r2 1
     rm -f mpi_r1 mpi_r2 "$WORK/io.out"
     exit 0
 fi
