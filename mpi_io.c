@@ -15,6 +15,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -71,6 +72,46 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
     return exchange_packed(items, size, dest, m, got, NULL, NULL);
 }
 
+/* mpi_alltoallv of out (count[q] items of `size` bytes to rank q) on the rank's threads: the rank's own items
+ * copied by the threads, not by MPI, and the pages of the rest touched by them first. A fresh buffer
+ * faults in its pages as it is first written, which one thread inside MPI did at a fraction of the
+ * memory's speed (a third of mpi's whole process at 4e6 disks on one rank). */
+static void *receive(const char *out, int *count, int *rcount, size_t size, int64_t *got)
+{
+    int np = mpi_np, me = mpi_me, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int64_t total = 0, off = 0;
+    for (int q = 0; q < np; q++) {
+        if (off > INT_MAX || total > INT_MAX) sim_fail("internal error: more than 2^31 records for one rank");
+        sd[q] = (int)off, rd[q] = (int)total;
+        off += count[q], total += rcount[q];
+    }
+    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
+    size_t own0 = (size_t)rd[me] * size, own = (size_t)count[me] * size, from = (size_t)sd[me] * size,
+           all = (size_t)total * size;
+    int64_t pieces = (int64_t)(all >> 21) + 1, nt = pass_nt(total); /* 2 MB each */
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int64_t k = 0; k < pieces; k++) {
+        size_t a = all * (size_t)k / (size_t)pieces, b = all * (size_t)(k + 1) / (size_t)pieces;
+        for (size_t c = a; c < b;) { /* [a, b) against the own items' place [own0, own0 + own) */
+            size_t e = c < own0 ? (b < own0 ? b : own0) : (c < own0 + own ? (b < own0 + own ? b : own0 + own) : b);
+            if (c >= own0 && c < own0 + own) memcpy(in + c, out + from + (c - own0), e - c);
+            else memset(in + c, 0, e - c);
+            c = e;
+        }
+    }
+    int keep = count[me];
+    count[me] = rcount[me] = 0;
+    MPI_Datatype t;
+    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
+    MPI_Type_commit(&t);
+    MPI_Alltoallv(out, count, sd, t, in, rcount, rd, t, MPI_COMM_WORLD);
+    MPI_Type_free(&t);
+    count[me] = rcount[me] = keep;
+    free(sd), free(rd);
+    *got = total;
+    return in;
+}
+
 /* exchange, item k written straight into its place by pack(ctx, k, place) where pack is not NULL
  * (items unused): no copy of the items in index order first. */
 static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
@@ -106,7 +147,7 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
         }
     }
     MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
-    void *in = mpi_alltoallv(out, sc, rc, size, got);
+    void *in = receive(out, sc, rc, size, got);
     free(out), free(sc), free(rc), free(at);
     return in;
 }
