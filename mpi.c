@@ -449,16 +449,8 @@ static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const
 #pragma omp barrier
 #pragma omp single
         {
-            int64_t sum = 0;
-            for (int p = 0; p < np; p++)
-                for (int w = 0; w < m; w++) {
-                    int64_t c = at[(size_t)w * (size_t)np + p];
-                    at[(size_t)w * (size_t)np + p] = sum;
-                    sum += c;
-                    r->scount[p] += (int)c;
-                }
-            r->nsend = sum;
-            r->send = sim_grow(r->send, &r->send_cap, (size_t)sum, sizeof *r->send);
+            r->nsend = mpi_thread_places(at, m, r->scount);
+            r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         } /* (its barrier) */
         for (int64_t k = k0; k < k1; k++) {
             int32_t slot = cand ? cand[k] : (int32_t)k;

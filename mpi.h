@@ -37,6 +37,15 @@ int mpi_owner(double x);
  * a rank's displacements must stay below 2^31 records). */
 void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got);
 
+/* mpi_comm.c: the displacements of count (into sd) and of rcount (into rd) in rank order, as
+ * MPI_Alltoallv takes them; returns the sum of rcount. */
+int64_t mpi_displacements(const int *count, const int *rcount, int *sd, int *rd);
+
+/* mpi_comm.c: at[t * np + q] holds thread t's items for rank q (of `threads`); each becomes where the
+ * thread's first such item goes among all items in rank order, a rank's by thread (one thread's
+ * order), and count[q] gains rank q's. Returns the total. */
+int64_t mpi_thread_places(int64_t *at, int threads, int *count);
+
 /* mpi_comm.c: the cuts, from a weight over x binned in mpi_cut_bins() bins of [0, L) (mpi_cut_add adds w
  * at x). mpi_place_cuts, a collective, sums the ranks' histograms and places the cuts (alike on every
  * rank) at equal shares of the total weight: always the first time or with slack 0, else only where

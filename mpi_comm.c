@@ -80,15 +80,34 @@ void local_reserve(Local *l, int64_t n)
     l->cap = cap;
 }
 
-void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
+int64_t mpi_displacements(const int *count, const int *rcount, int *sd, int *rd)
 {
-    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
     int64_t total = 0, off = 0;
-    for (int q = 0; q < np; q++) {
+    for (int q = 0; q < mpi_np; q++) {
         if (off > INT_MAX || total > INT_MAX) sim_fail("internal error: more than 2^31 records for one rank");
         sd[q] = (int)off, rd[q] = (int)total;
         off += count[q], total += rcount[q];
     }
+    return total;
+}
+
+int64_t mpi_thread_places(int64_t *at, int threads, int *count)
+{
+    int64_t sum = 0;
+    for (int q = 0; q < mpi_np; q++)
+        for (int t = 0; t < threads; t++) {
+            int64_t c = at[(size_t)t * (size_t)mpi_np + q];
+            at[(size_t)t * (size_t)mpi_np + q] = sum;
+            sum += c;
+            count[q] += (int)c;
+        }
+    return sum;
+}
+
+void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
+{
+    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int64_t total = mpi_displacements(count, rcount, sd, rd);
     char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
     MPI_Datatype t;
     MPI_Type_contiguous((int)size, MPI_BYTE, &t);

@@ -15,7 +15,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <limits.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -79,12 +78,7 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
 static void *receive(const char *out, int *count, int *rcount, size_t size, int64_t *got)
 {
     int np = mpi_np, me = mpi_me, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
-    int64_t total = 0, off = 0;
-    for (int q = 0; q < np; q++) {
-        if (off > INT_MAX || total > INT_MAX) sim_fail("internal error: more than 2^31 records for one rank");
-        sd[q] = (int)off, rd[q] = (int)total;
-        off += count[q], total += rcount[q];
-    }
+    int64_t total = mpi_displacements(count, rcount, sd, rd);
     char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
     size_t own0 = (size_t)rd[me] * size, own = (size_t)count[me] * size, from = (size_t)sd[me] * size,
            all = (size_t)total * size;
@@ -130,16 +124,7 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
         for (int64_t k = k0; k < k1; k++) mine[dest[k]]++;
 #pragma omp barrier
 #pragma omp single
-        {
-            int64_t sum = 0;
-            for (int q = 0; q < np; q++)
-                for (int u = 0; u < w; u++) {
-                    int64_t c = at[(size_t)u * (size_t)np + q];
-                    at[(size_t)u * (size_t)np + q] = sum;
-                    sum += c;
-                    sc[q] += (int)c;
-                }
-        }
+        (void)mpi_thread_places(at, w, sc);
         for (int64_t k = k0; k < k1; k++) {
             char *to = out + (size_t)(mine[dest[k]]++) * size;
             if (pack) pack(ctx, k, to);
