@@ -28,7 +28,8 @@ typedef struct GpuRank GpuRank;
 
 /* The calls below whose host seconds gpu_rank_times sums (--stats), and their names. */
 enum { GPU_EDGE, GPU_PACK, GPU_HALO, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
-#define GPU_CALL_NAMES_AND(...) {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get", __VA_ARGS__}
+#define GPU_CALL_NAMES_AND(...) \
+    {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get", __VA_ARGS__}
 
 /* What a step's move reports: the disks that left the strip (records), the largest velocity component
  * of the own disks after it, its accepted events and pair tests. */

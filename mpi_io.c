@@ -71,10 +71,10 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
     return exchange_packed(items, size, dest, m, got, NULL, NULL);
 }
 
-/* mpi_alltoallv of out (count[q] items of `size` bytes to rank q) on the rank's threads: the rank's own items
- * copied by the threads, not by MPI, and the pages of the rest touched by them first. A fresh buffer
- * faults in its pages as it is first written, which one thread inside MPI did at a fraction of the
- * memory's speed (a third of mpi's whole process at 4e6 disks on one rank). */
+/* mpi_alltoallv of out (count[q] items of `size` bytes to rank q) on the rank's threads: the rank's
+ * own items copied by the threads, not by MPI, and the pages of the rest touched by them first. A
+ * fresh buffer faults in its pages as it is first written, which one thread inside MPI did at a
+ * fraction of the memory's speed (a third of mpi's whole process at 4e6 disks on one rank). */
 static void *receive(const char *out, int *count, int *rcount, size_t size, int64_t *got)
 {
     int np = mpi_np, me = mpi_me, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
