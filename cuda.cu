@@ -279,6 +279,17 @@ static __host__ __device__ int grid_slices(const GridLimits *lim, double vmax)
     return K < 1 ? 1 : K;
 }
 
+/* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours.
+ * c g / L is within a few units of 1e-16 of c / cs, far inside the slack that SIM_REL_MARGIN leaves
+ * in grid_fit's cells, and a division fewer: the binning was bound by its divisions. */
+static __host__ __device__ __forceinline__ int64_t cell_of(double c, double inv_cs, int64_t g)
+{
+    double q = floor(c * inv_cs);
+    if (!(q >= 0)) q = 0;
+    if (q > (double)(g - 1)) q = (double)(g - 1);
+    return (int64_t)q;
+}
+
 /* The binning of a step in K slices whose largest velocity component is at most vmax, with at most gcap
  * cells per side. A pair with an event at t in slice k is, at t, at most 2r apart per axis (plus
  * rounding, covered by the margin), and each midpoint of slice k is within |v| / (2K) of the disk at t,
@@ -314,12 +325,10 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     if (lim->slab && gr.g >= 4) { /* the columns of x0 and x1 as bin_kernel's cell_of finds them */
         double a = lim->x0, b = lim->x1;
         if (lim->periodic) a -= L * floor(a / L), b -= L * floor(b / L);
-        double ca = fmin(fmax(floor(a * gr.inv_cs), 0.0), (double)(gr.g - 1));
-        double cb = fmin(fmax(floor(b * gr.inv_cs), 0.0), (double)(gr.g - 1));
-        int64_t span = (int64_t)cb - (int64_t)ca;
+        int64_t ca = cell_of(a, gr.inv_cs, gr.g), span = cell_of(b, gr.inv_cs, gr.g) - ca;
         if (span < 0) span += gr.g; /* periodic: around the box */
         if (span + 2 < gr.g) {       /* else the whole table, as without a slab */
-            gr.slab = 1, gr.xoff = (int64_t)ca, gr.rows = span + 2;
+            gr.slab = 1, gr.xoff = ca, gr.rows = span + 2;
             gr.ncell = (uint32_t)(gr.rows * gr.g);
         }
     }
@@ -396,17 +405,6 @@ static __device__ __forceinline__ int64_t slice_of(real t, int K)
 {
     int64_t k = (int64_t)(t * (real)K);
     return k < K - 1 ? k : K - 1;
-}
-
-/* Cell coordinate of a midpoint coordinate; clamping is a contraction, so neighbours stay neighbours.
- * c g / L is within a few units of 1e-16 of c / cs, far inside the slack that SIM_REL_MARGIN leaves
- * in grid_fit's cells, and a division fewer: the binning was bound by its divisions. */
-static __device__ __forceinline__ int64_t cell_of(double c, double inv_cs, int64_t g)
-{
-    double q = floor(c * inv_cs);
-    if (!(q >= 0)) q = 0;
-    if (q > (double)(g - 1)) q = (double)(g - 1);
-    return (int64_t)q;
 }
 
 static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, real vy, const Params &par)
