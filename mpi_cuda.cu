@@ -128,12 +128,33 @@ static void regrow(void **p, size_t keep, size_t bytes, const char *what, cudaSt
 }
 #define REGROW(p, keep, bytes, what) regrow((void **)&(p), (size_t)(keep), (size_t)(bytes), what, g->c.stream)
 
+/* The capacity a buffer that must hold n grows to: a quarter more, so that it grows seldom. */
+static int64_t grown(int64_t n)
+{
+    return n + n / 4 + 1024;
+}
+
+/* A pinned host buffer of `bytes` in place of *p (its contents not kept). */
+static void pinned_regrow(void **p, size_t bytes)
+{
+    cudaFreeHost(*p);
+    CUDA_CHECK(cudaMallocHost(p, bytes));
+}
+
+/* Room for n records in the pinned host buffer *p of *cap records (contents not kept). */
+static void pinned_records(double **p, int64_t *cap, int64_t n)
+{
+    if (n <= *cap) return;
+    *cap = grown(n);
+    pinned_regrow((void **)p, (size_t)*cap * D_LEN * sizeof(double));
+}
+
 /* Room for n slots: the state and counts kept, the rest scratch. */
 static void rank_reserve(GpuRank *g, int64_t n)
 {
     if (n <= g->cap) return;
     Cuda *c = &g->c;
-    int64_t cap = n + n / 4 + 1024, used = g->own + g->halo;
+    int64_t cap = grown(n), used = g->own + g->halo;
     for (int b = 0; b < 2; b++) {
         size_t keep = b == c->cur ? (size_t)used : 0;
         REGROW(c->st[b].pos, keep * sizeof(real2), cap * sizeof(real2), "the state");
@@ -150,9 +171,8 @@ static void rank_reserve(GpuRank *g, int64_t n)
     REGROW(g->where, 0, cap * 4, "the event keys");
     REGROW(g->cand, 0, cap * 4, "the halo");
     REGROW(g->cand_x, 0, cap * 8, "the halo");
-    cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host);
-    CUDA_CHECK(cudaMallocHost((void **)&g->cand_host, (size_t)cap * 4));
-    CUDA_CHECK(cudaMallocHost((void **)&g->cand_x_host, (size_t)cap * 8));
+    pinned_regrow((void **)&g->cand_host, (size_t)cap * 4);
+    pinned_regrow((void **)&g->cand_x_host, (size_t)cap * 8);
     g->cap = cap;
 }
 
@@ -160,39 +180,33 @@ static void rank_reserve(GpuRank *g, int64_t n)
 static void rec_reserve(GpuRank *g, int64_t n)
 {
     if (n <= g->rec_cap) return;
-    int64_t cap = n + n / 4 + 1024;
+    int64_t cap = grown(n);
     REGROW(g->rec, 0, (size_t)cap * D_LEN * sizeof(double), "the records between ranks");
     g->rec_cap = cap;
 }
 
 static void rec_host_reserve(GpuRank *g, int64_t n)
 {
-    if (n <= g->rec_host_cap) return;
-    int64_t cap = n + n / 4 + 1024;
-    cudaFreeHost(g->rec_host);
-    CUDA_CHECK(cudaMallocHost((void **)&g->rec_host, (size_t)cap * D_LEN * sizeof(double)));
-    g->rec_host_cap = cap;
+    pinned_records(&g->rec_host, &g->rec_host_cap, n);
 }
 
 /* The halo's lists: the slots sent and their keys (nsend), the copies' keys (halo). */
 static void send_reserve(GpuRank *g, int64_t nsend)
 {
     if (nsend <= g->send_cap) return;
-    int64_t cap = nsend + nsend / 4 + 1024;
+    int64_t cap = grown(nsend);
     REGROW(g->send, 0, cap * 4, "the halo");
     REGROW(g->keys, 0, cap * sizeof(GpuKey), "the halo");
-    cudaFreeHost(g->keys_host);
-    CUDA_CHECK(cudaMallocHost((void **)&g->keys_host, (size_t)cap * sizeof(GpuKey)));
+    pinned_regrow((void **)&g->keys_host, (size_t)cap * sizeof(GpuKey));
     g->send_cap = cap;
 }
 
 static void hkeys_reserve(GpuRank *g, int64_t halo)
 {
     if (halo <= g->hkeys_cap) return;
-    int64_t cap = halo + halo / 4 + 1024;
+    int64_t cap = grown(halo);
     REGROW(g->hkeys, 0, cap * sizeof(GpuKey), "the halo");
-    cudaFreeHost(g->hkeys_host);
-    CUDA_CHECK(cudaMallocHost((void **)&g->hkeys_host, (size_t)cap * sizeof(GpuKey)));
+    pinned_regrow((void **)&g->hkeys_host, (size_t)cap * sizeof(GpuKey));
     g->hkeys_cap = cap;
 }
 
@@ -280,21 +294,23 @@ void gpu_rank_close(GpuRank *g)
 }
 
 /* n records from the host into slots at..at + n (with counts where own), a chunk at a time through the
- * pinned stage: the device holds a chunk of records, not all of them. */
+ * pinned stage (the halo's pinned buffer goes straight): the device holds a chunk of records, not all. */
 static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, int own)
 {
     Cuda *c = &g->c;
+    int pinned = rec == g->halo_host;
     rec_reserve(g, n < CHUNK ? n : CHUNK);
     for (int64_t k = 0; k < n; k += CHUNK) {
         int64_t m = n - k < CHUNK ? n - k : CHUNK;
         size_t bytes = (size_t)m * D_LEN * sizeof(double);
-        memcpy(g->stage, rec + k * D_LEN, bytes);
-        CUDA_CHECK(cudaMemcpyAsync(g->rec, g->stage, bytes, cudaMemcpyHostToDevice, c->stream));
+        const double *from = rec + k * D_LEN;
+        if (!pinned) memcpy(g->stage, from, bytes), from = g->stage;
+        CUDA_CHECK(cudaMemcpyAsync(g->rec, from, bytes, cudaMemcpyHostToDevice, c->stream));
         rank_put_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(g->rec, m, c->st[c->cur],
                                                                   own ? g->pc[g->pcur] : NULL,
                                                                   own ? g->wc[g->pcur] : NULL, at + k);
         CUDA_LAUNCHED();
-        rank_sync(g); /* the stage is rewritten next */
+        rank_sync(g); /* the stage is rewritten next, the halo's buffer next step */
     }
 }
 
@@ -416,32 +432,17 @@ const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend)
 
 double *gpu_rank_halo_in(GpuRank *g, int64_t n)
 {
-    if (n > g->halo_host_cap) {
-        int64_t cap = n + n / 4 + 1024;
-        cudaFreeHost(g->halo_host);
-        CUDA_CHECK(cudaMallocHost((void **)&g->halo_host, (size_t)cap * D_LEN * sizeof(double)));
-        g->halo_host_cap = cap;
-    }
+    pinned_records(&g->halo_host, &g->halo_host_cap, n);
     return g->halo_host;
 }
 
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 {
     CallClock clock_(g, GPU_HALO);
-    Cuda *c = &g->c;
     rank_reserve(g, g->own + got);
     hkeys_reserve(g, got);
+    put_records(g, in, got, g->own, 0);
     g->halo = got;
-    if (in != g->halo_host) {
-        put_records(g, in, got, g->own, 0);
-        return;
-    }
-    if (got == 0) return;
-    rec_reserve(g, got); /* pinned: one copy, no stage */
-    CUDA_CHECK(cudaMemcpyAsync(g->rec, in, (size_t)got * D_LEN * sizeof(double), cudaMemcpyHostToDevice, c->stream));
-    rank_put_kernel<<<blocks_for(got), THREADS, 0, c->stream>>>(g->rec, got, c->st[c->cur], NULL, NULL, g->own);
-    CUDA_LAUNCHED();
-    rank_sync(g); /* the buffer is received into again next step */
 }
 
 int64_t gpu_rank_detect(GpuRank *g, double vmax)
