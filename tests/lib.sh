@@ -158,7 +158,7 @@ ck_start() {
     if [ "$seg" = 0 ]; then
         while kill -0 "$pid" 2> /dev/null && [ ! -e "$C/run.ck" ]; do sleep 0.01; done
     else
-        while kill -0 "$pid" 2> /dev/null && ! grep -q resuming "$C/seg.$seg.err"; do sleep 0.01; done
+        while kill -0 "$pid" 2> /dev/null && ! grep -qs resuming "$C/seg.$seg.err"; do sleep 0.01; done
     fi
     delay=$(awk -v s="$RANDOM" -v m="$max" 'BEGIN { srand(s); printf "%.3f", rand() * m }')
     sleep "$delay"

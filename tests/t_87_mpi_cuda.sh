@@ -6,7 +6,8 @@
 #   deep rounds of the choice, a few fast disks among slow ones crossing the strips;
 # - random placement (--seed), --substeps 2, --dump17, --output FILE, a gas crowded in one corner;
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
-#   seq and by mpi at another rank count);
+#   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
+#   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
 # - options it does not take (--pressure, --threads) refused with one line.
 # SKIP without a GPU, mpirun or ./mpi_cuda (make builds it where nvcc and mpicc both exist). Everywhere:
 # make says it left mpi_cuda out where nvcc is missing.
@@ -122,6 +123,37 @@ else
         fi
         if [ -z "$bad" ]; then pass "mpi_cuda --resume ($scene): seq's output across backends"; else fail "mpi_cuda --resume ($scene)" "$bad"; fi
     done
+
+    # kill trials (ck_trial, tests/lib.sh): the job killed with SIGKILL while it writes a checkpoint
+    # every step or every few, resumed by mpi_cuda at another rank count, by mpi and by seq; through
+    # --output FILE, as t_88's (a killed mpirun loses the stdout it had not passed on)
+    C=$G/kill
+    mkdir -p "$C"
+    CK_SEED=${CK_SEED:-$(($(date +%s) % 32768))}
+    RANDOM=$CK_SEED
+    CK_KILLS=0
+    gpu="${MPIRUN[*]} --oversubscribe -np"
+    tools/gen 150 --speed 0.5 --steps 1500 --mode print --seed 3 > "$C/kill.in"
+    tools/gen 150 --periodic --speed 0.5 --steps 1500 --mode print --seed 9 > "$C/pkill.in"
+    ./seq "$C/kill.in" --quiet > "$C/kill.ref"
+    ./seq "$C/pkill.in" --periodic --quiet > "$C/pkill.ref"
+    ck_trial "kill: mpi_cuda 2 ranks print every step, resumed by mpi_cuda 3 ranks" "$C/kill.ref" 150 print 1 0.5 \
+        "$gpu 2 ./mpi_cuda $C/kill.in --output @OUT@" "$gpu 3 ./mpi_cuda --output @OUT@"
+    ck_trial "kill: mpi_cuda 3 ranks print, resumed by mpi_cuda 2 ranks, killed, then by seq" "$C/kill.ref" 150 \
+        print 7 0.4 "$gpu 3 ./mpi_cuda $C/kill.in --output @OUT@" "$gpu 2 ./mpi_cuda --output @OUT@" "./seq"
+    ck_trial "kill: mpi_cuda 2 ranks --periodic print every step, resumed by mpi_cuda 4 ranks" "$C/pkill.ref" \
+        150 print 1 0.5 "$gpu 2 ./mpi_cuda $C/pkill.in --periodic --output @OUT@" "$gpu 4 ./mpi_cuda --output @OUT@"
+    min_kills=4
+    if have_mpi; then
+        ck_trial "kill: mpi_cuda 3 ranks print, resumed by mpi 2 ranks" "$C/kill.ref" 150 print 3 0.4 \
+            "$gpu 3 ./mpi_cuda $C/kill.in --output @OUT@" "$gpu 2 ./mpi --output @OUT@"
+        min_kills=5
+    fi
+    if [ "$CK_KILLS" -ge "$min_kills" ]; then
+        pass "kill: $CK_KILLS mpi_cuda jobs killed with SIGKILL and resumed (seed $CK_SEED)"
+    else
+        fail "kill: mpi_cuda trials" "only $CK_KILLS jobs were killed (at least $min_kills wanted; seed $CK_SEED)"
+    fi
 
     # what it does not take
     for opt in "--pressure" "--threads 2" "--balance 2"; do
