@@ -431,10 +431,18 @@ static int halo_reach(Run *r, char *whole)
  * every own slot where cand is NULL. The rank's threads each take a contiguous share of the slots,
  * count its copies by rank, then list them where the counts before them end: the order one thread
  * would list them in. */
+#ifndef HALO_THREAD_ITEMS
+#define HALO_THREAD_ITEMS 16384
+#endif
 static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const int32_t *cand, const double *xs)
 {
     const Slots *s = &r->b.s;
-    int np = mpi_np, nt = n < 2048 ? 1 : r->nt;
+    /* threads of HALO_THREAD_ITEMS candidates each at least: a GPU rank of the 1e8 gas on 4 GPUs lists a
+     * few tens of thousands, over which 16 threads took 0.21 s in 20 steps, one thread 0.018 and this
+     * share 0.014 (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log) */
+    int64_t share = (n + HALO_THREAD_ITEMS - 1) / HALO_THREAD_ITEMS;
+    int np = mpi_np, nt = share < r->nt ? (int)share : r->nt;
+    if (nt < 1) nt = 1;
     int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at); /* by thread and rank: counts, then places */
     memset(r->scount, 0, (size_t)np * sizeof *r->scount);
     r->nsend = 0;
