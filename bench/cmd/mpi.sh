@@ -29,10 +29,14 @@
 #           1e8) on each count of GPU_RANKS (default 1 to the machine's GPUs), then GPU_PER_RANK disks
 #           (default 1e8) a GPU at each count of GPU_WEAK_RANKS (default GPU_RANKS) (not in the default;
 #           needs nvcc, mpicc and GPUs);
+#   gpu-big a gas of BIG_N disks (default 1e9), BIG_STEPS steps (default 10), on BIG_RANKS GPU ranks
+#           (default the machine's GPUs): the generator's seconds (on all cores), then one run (REPEATS,
+#           no warm-up) whose output goes to MPI_SINK, its text phases and memory (not in the default;
+#           needs nvcc, mpicc and GPUs);
 #   balance the largest count of RANKS on a gas of PER_RANK disks a rank while a busy loop shares the
 #           last rank's core: the cuts placed by count only (--balance 0) against moved by measured
 #           time every 4 steps (--balance 4) (not in the default).
-# Each point is REPEATS runs (default 3) after one discarded warm-up; rows give the best and median
+# Each point is REPEATS runs (default 3) after WARMUPS discarded warm-ups (default 1); rows give the best and median
 # step loop (the program's own seconds) and the best whole process (wall clock: reading, steps,
 # writing the output into a file: omp through its stdout, mpi with --output). mpi's rows add the bytes sent between ranks a step, the rounds of the choice a step and
 # the largest rank's and all ranks' peak memory (mpi --stats).
@@ -41,7 +45,8 @@
 # Variables: PARTS ("strong weak memory"), RANKS (default: powers of two up to the cores), THREADS
 # (threads per rank, default "1"), STEPS (20), STRONG_N, PER_RANK, MEM_N, REPEATS, WORK (bench/tmp).
 # MPIRUN_FLAGS adds options to mpirun (default "--bind-to core" where ranks x threads fit the cores);
-# MPI_ARGS adds options to mpi (e.g. "--balance 4": the cuts moved by measured time every 4 steps).
+# MPI_ARGS adds options to mpi (e.g. "--balance 4": the cuts moved by measured time every 4 steps);
+# MPI_SINK is the file mpi writes its output into (--output; default one in WORK; /dev/null: none).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 die() { echo "bench.sh mpi: $*" >&2; exit 1; }
@@ -50,6 +55,7 @@ die() { echo "bench.sh mpi: $*" >&2; exit 1; }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 CORES=$(nproc)
 REPEATS=${REPEATS:-3}
+WARMUPS=${WARMUPS:-1}
 PARTS=${PARTS:-"strong weak memory"}
 THREADS=${THREADS:-1}
 STEPS=${STEPS:-20}
@@ -66,7 +72,7 @@ command -v mpirun > /dev/null || die "no mpirun (apt-get install openmpi-bin lib
 make -s omp mpi tools/gen tools/contend > /dev/null
 [ -x ./mpi ] || die "./mpi was not built (no mpicc?)"
 case " $PARTS " in
-    *" gpu "*)
+    *" gpu "* | *" gpu-big "*)
         make -s cuda mpi_cuda > /dev/null
         GPU_RANKS=${GPU_RANKS:-$(seq -s ' ' 1 "$(nvidia-smi -L 2> /dev/null | wc -l)")} ;;
 esac
@@ -91,7 +97,7 @@ loop_stdin() { sed -n 's/.* \([0-9.e+-]*\) s step loop.*/\1/p' | tail -n 1; } # 
 
 # run PART PROGRAM RANKS THREADS N INPUT: one CSV row; LOOP_RATE is left with its best rate
 run() {
-    local part=$1 prog=$2 ranks=$3 threads=$4 n=$5 input=$6 k s e walls=() loops=() cmd sink=$WORK/mpi_bench.out
+    local part=$1 prog=$2 ranks=$3 threads=$4 n=$5 input=$6 k s e walls=() loops=() cmd sink=${MPI_SINK:-$WORK/mpi_bench.out}
     if [ "$prog" = omp ]; then
         cmd=(./omp "$input" --stats --threads "$threads")
     elif [ "$prog" = cuda ]; then
@@ -114,11 +120,11 @@ run() {
         sink=/dev/null
     fi
     echo "# ${cmd[*]}"
-    for ((k = 0; k <= REPEATS; k++)); do
+    for ((k = 1 - WARMUPS; k <= REPEATS; k++)); do
         s=${EPOCHREALTIME/[.,]/}
         "${cmd[@]}" > "$sink" 2> "$WORK/mpi_last.err" || die "failed: ${cmd[*]}: $(head -c 300 "$WORK/mpi_last.err")"
         e=${EPOCHREALTIME/[.,]/}
-        [ "$k" -eq 0 ] && continue
+        [ "$k" -le 0 ] && continue
         walls+=("$(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.4f", (b - a) / 1e6 }')")
         loops+=("$(loop_seconds "$WORK/mpi_last.err")")
     done
@@ -182,6 +188,17 @@ for part in $PARTS; do
                 [ -z "$base" ] && base=$LOOP_RATE
                 summary+=("gpu weak $per disks a GPU: $p GPUs $LOOP_RATE particle-steps/s, efficiency $(awk -v a="$LOOP_RATE" -v b="$base" -v p="$p" 'BEGIN { printf "%.0f%%", 100 * a / (p * b) }') of one GPU's")
             done
+            ;;
+        gpu-big)
+            [ -x ./mpi_cuda ] || die "./mpi_cuda was not built (it needs nvcc and mpicc)"
+            n=$(integer "${BIG_N:-1e9}") p=${BIG_RANKS:-${GPU_RANKS##* }} steps=${BIG_STEPS:-10}
+            s=${EPOCHREALTIME/[.,]/}
+            input=$(STEPS=$steps gas "$n")
+            e=${EPOCHREALTIME/[.,]/}
+            echo "# tools/gen $n --fraction 0.2 --speed 0.5 --steps $steps --seed 3 ($(nproc) cores): $(awk -v a="$s" -v b="$e" 'BEGIN { printf "%.1f", (b - a) / 1e6 }') s, $(stat -c %s "$input") bytes (0 s: made before)"
+            STEPS=$steps WARMUPS=0 run gpu-big mpi_cuda "$p" 1 "$n" "$input"
+            sed -n 's/^mpi_cuda: \(input read.*\|.*peak memory.*\|the run .*\)/# \1/p' "$WORK/mpi_last.err"
+            summary+=("gpu big N=$n, $steps steps, $p GPUs: step loop $LOOP_RATE particle-steps/s; $(sed -n 's/^mpi_cuda: \(input read.*\)/\1/p' "$WORK/mpi_last.err")")
             ;;
         memory)
             input=$(gas "$MEM_N")
