@@ -218,6 +218,22 @@ static int64_t read_at(int fd, char *buf, size_t len, int64_t off)
     return (int64_t)done;
 }
 
+/* read_at on the rank's threads, in pieces of 16 MB at least: one thread's copies out of the page
+ * cache, and the faults of buf's fresh pages, ran at a fraction of the memory's speed. */
+static int64_t read_at_threads(int fd, char *buf, size_t len, int64_t off)
+{
+    int64_t pieces = (int64_t)(len >> 24) + 1, got = 0, bad = 0;
+    int nt = pieces < pass_threads ? (int)pieces : pass_threads;
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : got, bad)
+    for (int64_t k = 0; k < pieces; k++) {
+        size_t a = len * (size_t)k / (size_t)pieces, b = len * (size_t)(k + 1) / (size_t)pieces;
+        int64_t r = read_at(fd, buf + a, b - a, off + (int64_t)a);
+        if (r < 0) bad++;
+        else got += r;
+    }
+    return bad ? -1 : got; /* short only at the end of the file, where the last pieces stop */
+}
+
 /* Rank 0: the header of the regular file fd, from as much of the file's start as holds it whole. */
 static void read_head(const Options *opt, int fd, Head *h)
 {
@@ -272,7 +288,7 @@ static char *read_share(const Options *opt, const Head *h, char **text, size_t *
     /* from the byte before a, which says whether a line starts at a */
     int64_t lo = a > h->body ? a - 1 : a, cap = b - lo, got;
     char *buf = sim_realloc(NULL, (size_t)cap + 1, 1);
-    if ((got = read_at(fd, buf, (size_t)cap, lo)) < 0) goto fail;
+    if ((got = read_at_threads(fd, buf, (size_t)cap, lo)) < 0) goto fail;
     int64_t s = a; /* the first line start >= a */
     if (a > h->body) {
         char *nl = memchr(buf, '\n', (size_t)got);
@@ -318,12 +334,20 @@ fail:
  * placed at equal counts of disks first. */
 static void to_strips(const Params *par, const Disk *d, int64_t m, Local *l)
 {
-    double *hist = sim_calloc((size_t)mpi_cut_bins(), sizeof *hist);
-    for (int64_t k = 0; k < m; k++) mpi_cut_add(hist, d[k].x, par->L, 1);
+    int nt = pass_nt(m);
+    int64_t bins = mpi_cut_bins();
+    double *hist = sim_calloc((size_t)bins * (size_t)nt, sizeof *hist); /* a histogram a thread, then summed */
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), w = omp_get_num_threads();
+        double *mine = hist + (size_t)bins * (size_t)t;
+        for (int64_t k = m * t / w; k < m * (t + 1) / w; k++) mpi_cut_add(mine, d[k].x, par->L, 1);
+    }
+    for (int t = 1; t < nt; t++) /* counts: exact in any order */
+        for (int64_t b = 0; b < bins; b++) hist[b] += hist[(size_t)bins * (size_t)t + (size_t)b];
     mpi_place_cuts(hist, (double)m, par->L, 0);
     free(hist);
     int *dest = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *dest);
-    int nt = pass_nt(m);
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < m; k++) dest[k] = mpi_owner(d[k].x);
     int64_t got;
@@ -370,23 +394,43 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     int32_t *ids = sim_realloc(NULL, (size_t)records, sizeof *ids);
     int *dest = sim_realloc(NULL, (size_t)records, sizeof *dest);
     Disk *d = sim_realloc(NULL, (size_t)records, sizeof *d);
-    for (int64_t k = 0, m = 0; k < pc.lines; k++) {
-        if (pc.idx[k] < 0) continue;
+    int nt = pass_nt(pc.lines);
+    int64_t *first = sim_calloc((size_t)nt + 1, sizeof *first); /* each thread's first record */
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), w = omp_get_num_threads();
+        int64_t k0 = pc.lines * t / w, k1 = pc.lines * (t + 1) / w, mine = 0;
+        for (int64_t k = k0; k < k1; k++) mine += pc.idx[k] >= 0;
+        first[t + 1] = mine;
+#pragma omp barrier
+#pragma omp single
+        for (int u = 0; u < w; u++) first[u + 1] += first[u];
         const Sim *p = &pc.disks;
-        Disk e = {p->x[k], p->y[k], p->vx[k], p->vy[k], pc.idx[k], 0, 0, 0};
-        d[m] = e;
-        ids[m] = pc.idx[k];
-        dest[m++] = block_of(n, pc.idx[k]);
+        for (int64_t k = k0, m = first[t]; k < k1; k++) {
+            if (pc.idx[k] < 0) continue;
+            Disk e = {p->x[k], p->y[k], p->vx[k], p->vy[k], pc.idx[k], 0, 0, 0};
+            d[m] = e;
+            ids[m] = pc.idx[k];
+            dest[m++] = block_of(n, pc.idx[k]);
+        }
     }
+    free(first);
     io_piece_free(&pc);
     int32_t *in = exchange(ids, sizeof *ids, dest, records, &got);
     int64_t lo = block_lo(n, mpi_me);
-    unsigned char *have = sim_calloc((size_t)((block_lo(n, mpi_me + 1) - lo) / 8 + 1), 1);
+    uint64_t *have = sim_calloc((size_t)((block_lo(n, mpi_me + 1) - lo) / 64 + 1), sizeof *have);
     int dup = 0;
-    for (int64_t k = 0; k < got && !dup; k++) {
+    nt = pass_nt(got);
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(| : dup)
+    for (int64_t k = 0; k < got; k++) {
         int64_t i = in[k] - lo;
-        dup = (have[i / 8] >> (i % 8)) & 1;
-        have[i / 8] |= (unsigned char)(1u << (i % 8));
+        uint64_t bit = (uint64_t)1 << (i % 64), old;
+#pragma omp atomic capture
+        {
+            old = have[i / 64];
+            have[i / 64] |= bit;
+        }
+        dup |= (old & bit) != 0;
     }
     free(have), free(in), free(ids);
     int any;
