@@ -71,52 +71,21 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
     return exchange_packed(items, size, dest, m, got, NULL, NULL);
 }
 
-/* mpi_alltoallv of out (count[q] items of `size` bytes to rank q) on the rank's threads: the rank's
- * own items copied by the threads, not by MPI, and the pages of the rest touched by them first. A
- * fresh buffer faults in its pages as it is first written, which one thread inside MPI did at a
- * fraction of the memory's speed (a third of mpi's whole process at 4e6 disks on one rank). */
-static void *receive(const char *out, int *count, int *rcount, size_t size, int64_t *got)
-{
-    int np = mpi_np, me = mpi_me, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
-    int64_t total = mpi_displacements(count, rcount, sd, rd);
-    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
-    size_t own0 = (size_t)rd[me] * size, own = (size_t)count[me] * size, from = (size_t)sd[me] * size,
-           all = (size_t)total * size;
-    int64_t pieces = (int64_t)(all >> 21) + 1, nt = pass_nt(total); /* 2 MB each */
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int64_t k = 0; k < pieces; k++) {
-        size_t a = all * (size_t)k / (size_t)pieces, b = all * (size_t)(k + 1) / (size_t)pieces;
-        for (size_t c = a; c < b;) { /* [a, b) against the own items' place [own0, own0 + own) */
-            size_t e = c < own0 ? (b < own0 ? b : own0) : (c < own0 + own ? (b < own0 + own ? b : own0 + own) : b);
-            if (c >= own0 && c < own0 + own) memcpy(in + c, out + from + (c - own0), e - c);
-            else memset(in + c, 0, e - c);
-            c = e;
-        }
-    }
-    int keep = count[me];
-    count[me] = rcount[me] = 0;
-    MPI_Datatype t;
-    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
-    MPI_Type_commit(&t);
-    MPI_Alltoallv(out, count, sd, t, in, rcount, rd, t, MPI_COMM_WORLD);
-    MPI_Type_free(&t);
-    count[me] = rcount[me] = keep;
-    free(sd), free(rd);
-    *got = total;
-    return in;
-}
-
 /* exchange, item k written straight into its place by pack(ctx, k, place) where pack is not NULL
- * (items unused): no copy of the items in index order first. */
+ * (items unused): no copy of the items in index order first. The rank's own items are packed straight
+ * into the buffer that receives the others' (a copy fewer: all of them on one rank), and that buffer's
+ * other pages are touched by the threads first: a fresh buffer faults in its pages as it is first
+ * written, which one thread inside MPI did at a fraction of the memory's speed (a third of mpi's whole
+ * process at 4e6 disks on one rank). */
 static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
                              void (*pack)(const void *ctx, int64_t k, void *to), const void *ctx)
 {
-    int np = mpi_np, nt = pass_nt(m);
+    int np = mpi_np, me = mpi_me, nt = pass_nt(m);
     int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
+    int *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
     /* by thread and rank: its share's items for the rank, then where they go (in rank order, a
      * rank's items in index order: one thread's order) */
     int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at);
-    char *out = sim_realloc(NULL, (size_t)(m ? m : 1), size);
 #pragma omp parallel num_threads(nt)
     {
         int t = omp_get_thread_num(), w = omp_get_num_threads();
@@ -125,15 +94,44 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
 #pragma omp barrier
 #pragma omp single
         (void)mpi_thread_places(at, w, sc);
+    }
+    MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
+    int64_t total = mpi_displacements(sc, rc, sd, rd), own = sc[me];
+    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
+    char *out = sim_realloc(NULL, (size_t)(m - own ? m - own : 1), size); /* the others' items */
+    char *own_to = in + (size_t)rd[me] * size, *gap = out + (size_t)sd[me] * size;
+    size_t own0 = (size_t)rd[me] * size, own1 = own0 + (size_t)own * size, all = (size_t)total * size;
+    int64_t pieces = (int64_t)(all >> 21) + 1; /* 2 MB each */
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), w = omp_get_num_threads();
+#pragma omp for schedule(static)
+        for (int64_t k = 0; k < pieces; k++) { /* the received items' pages, not the own ones' */
+            size_t a = all * (size_t)k / (size_t)pieces, b = all * (size_t)(k + 1) / (size_t)pieces;
+            if (a < own0) memset(in + a, 0, (b < own0 ? b : own0) - a);
+            if (b > own1) memset(in + (a > own1 ? a : own1), 0, b - (a > own1 ? a : own1));
+        }
+        int64_t k0 = m * t / w, k1 = m * (t + 1) / w, *mine = at + (size_t)t * (size_t)np;
         for (int64_t k = k0; k < k1; k++) {
-            char *to = out + (size_t)(mine[dest[k]]++) * size;
+            int q = dest[k];
+            int64_t place = mine[q]++;
+            /* the own items' places in out are taken out of it: those after them move down */
+            char *to = q == me          ? own_to + (size_t)(place - sd[me]) * size
+                       : place < sd[me] ? out + (size_t)place * size
+                                        : gap + (size_t)(place - sd[me] - own) * size;
             if (pack) pack(ctx, k, to);
             else memcpy(to, (const char *)items + (size_t)k * size, size);
         }
     }
-    MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
-    void *in = receive(out, sc, rc, size, got);
-    free(out), free(sc), free(rc), free(at);
+    for (int q = me + 1; q < np; q++) sd[q] -= own;
+    sc[me] = rc[me] = 0;
+    MPI_Datatype t;
+    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
+    MPI_Type_commit(&t);
+    MPI_Alltoallv(out, sc, sd, t, in, rc, rd, t, MPI_COMM_WORLD);
+    MPI_Type_free(&t);
+    free(out), free(sc), free(rc), free(sd), free(rd), free(at);
+    *got = total;
     return in;
 }
 
