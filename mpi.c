@@ -1053,8 +1053,9 @@ static void gpu_download(Run *r)
 {
     int64_t own = gpu_rank_own(r->gpu);
     run_reserve(r, own);
-    double *rec = sim_calloc((size_t)(own ? own : 1) * D_LEN, sizeof *rec);
+    double *rec = sim_realloc(NULL, (size_t)(own ? own : 1) * D_LEN, sizeof *rec);
     gpu_rank_get(r->gpu, rec);
+#pragma omp parallel for schedule(static) num_threads(own < 4096 ? 1 : r->nt)
     for (int64_t q = 0; q < own; q++) unpack(&r->b.s, q, rec + q * D_LEN);
     r->own = own;
     free(rec);
@@ -1166,7 +1167,9 @@ static double run_steps_gpu(Run *r, RunStats *st)
 {
     int64_t k = r->par.substeps, last = r->par.steps * k, first = r->par.first_step * k;
     uint64_t tests = 0;
-    double *rec = sim_calloc((size_t)(r->own ? r->own : 1) * D_LEN, sizeof *rec);
+    /* the records packed on the rank's threads (2.5e8 a rank in the 1e9 run) */
+    double *rec = sim_realloc(NULL, (size_t)(r->own ? r->own : 1) * D_LEN, sizeof *rec);
+#pragma omp parallel for schedule(static) num_threads(r->own < 4096 ? 1 : r->nt)
     for (int64_t q = 0; q < r->own; q++) pack(&r->b.s, q, rec + q * D_LEN);
     gpu_rank_add_own(r->gpu, rec, r->own);
     free(rec);
