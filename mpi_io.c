@@ -86,6 +86,7 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
     /* by thread and rank: its share's items for the rank, then where they go (in rank order, a
      * rank's items in index order: one thread's order) */
     int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at);
+    int shares = 1; /* the items' shares, one a thread of the counting team */
 #pragma omp parallel num_threads(nt)
     {
         int t = omp_get_thread_num(), w = omp_get_num_threads();
@@ -93,7 +94,10 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
         for (int64_t k = k0; k < k1; k++) mine[dest[k]]++;
 #pragma omp barrier
 #pragma omp single
-        (void)mpi_thread_places(at, w, sc);
+        {
+            (void)mpi_thread_places(at, w, sc);
+            shares = w;
+        }
     }
     MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
     int64_t total = mpi_displacements(sc, rc, sd, rd), own = sc[me];
@@ -104,23 +108,25 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
     int64_t pieces = (int64_t)(all >> 21) + 1; /* 2 MB each */
 #pragma omp parallel num_threads(nt)
     {
-        int t = omp_get_thread_num(), w = omp_get_num_threads();
 #pragma omp for schedule(static)
         for (int64_t k = 0; k < pieces; k++) { /* the received items' pages, not the own ones' */
             size_t a = all * (size_t)k / (size_t)pieces, b = all * (size_t)(k + 1) / (size_t)pieces;
             if (a < own0) memset(in + a, 0, (b < own0 ? b : own0) - a);
             if (b > own1) memset(in + (a > own1 ? a : own1), 0, b - (a > own1 ? a : own1));
         }
-        int64_t k0 = m * t / w, k1 = m * (t + 1) / w, *mine = at + (size_t)t * (size_t)np;
-        for (int64_t k = k0; k < k1; k++) {
-            int q = dest[k];
-            int64_t place = mine[q]++;
-            /* the own items' places in out are taken out of it: those after them move down */
-            char *to = q == me          ? own_to + (size_t)(place - sd[me]) * size
-                       : place < sd[me] ? out + (size_t)place * size
-                                        : gap + (size_t)(place - sd[me] - own) * size;
-            if (pack) pack(ctx, k, to);
-            else memcpy(to, (const char *)items + (size_t)k * size, size);
+#pragma omp for schedule(static)
+        for (int u = 0; u < shares; u++) { /* the counting team's shares, whatever this team's size */
+            int64_t k0 = m * u / shares, k1 = m * (u + 1) / shares, *mine = at + (size_t)u * (size_t)np;
+            for (int64_t k = k0; k < k1; k++) {
+                int q = dest[k];
+                int64_t place = mine[q]++;
+                /* the own items' places in out are taken out of it: those after them move down */
+                char *to = q == me          ? own_to + (size_t)(place - sd[me]) * size
+                           : place < sd[me] ? out + (size_t)place * size
+                                            : gap + (size_t)(place - sd[me] - own) * size;
+                if (pack) pack(ctx, k, to);
+                else memcpy(to, (const char *)items + (size_t)k * size, size);
+            }
         }
     }
     for (int q = me + 1; q < np; q++) sd[q] -= own;
@@ -584,6 +590,21 @@ static void format_task(void *ctx, int64_t k)
     io_format_block(&f->t[k], f->step, f->blk, from, to, f->lo, f->with_counts, f->dump17);
 }
 
+/* The text buffers of a state's pieces, kept from one state to the next: fresh buffers fault in their
+ * pages as they are first written, at every state (print mode: every step). */
+static TextBlock *text_pool;
+static int64_t text_held;
+
+static TextBlock *text_pieces(int64_t pieces)
+{
+    if (pieces > text_held) {
+        text_pool = sim_realloc(text_pool, (size_t)pieces, sizeof *text_pool);
+        memset(text_pool + text_held, 0, (size_t)(pieces - text_held) * sizeof *text_pool);
+        text_held = pieces;
+    }
+    return text_pool;
+}
+
 void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t step, int with_counts)
 {
     int how[2] = {0, 0}; /* rank 0's --dump17 and --threads */
@@ -593,21 +614,17 @@ void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t ste
     int64_t lo, m;
     gather_block(par, l, &blk, &lo, &m);
     int64_t pieces = (m + TEXT_PIECE - 1) / TEXT_PIECE;
-    Format f = {sim_calloc((size_t)pieces, sizeof(TextBlock)), &blk, step, lo, m, with_counts, how[0]};
+    Format f = {text_pieces(pieces), &blk, step, lo, m, with_counts, how[0]};
     mpi_parallel(how[1], pieces, format_task, &f);
     sim_free(&blk);
     if (out_fd >= 0) {
         write_at_offset(f.t, pieces);
-        for (int64_t k = 0; k < pieces; k++) free(f.t[k].buf);
-        free(f.t);
         return;
     }
     for (int64_t k = 0; k < pieces; k++) {
         if (mpi_me == 0) io_write_bytes(out, f.t[k].buf, f.t[k].len);
         else MPI_Send(f.t[k].buf, (int)f.t[k].len, MPI_CHAR, 0, TAG_TEXT, MPI_COMM_WORLD);
-        free(f.t[k].buf);
     }
-    free(f.t);
     if (mpi_me != 0) return;
     /* the other blocks in rank order, a piece at a time */
     char *buf = NULL;
