@@ -6,7 +6,8 @@
 #   ./bench.sh io                the gas of 1e6 disks, S = 0, omp on THREADS (default "1 2"), seq
 #   ./bench.sh io gpu            the same at 1, 2, 4, 8, 16 threads; cuda on the gas of 1e7 disks
 #                                    (S = 0 and 50) and of 1e8 (S = 10, 2 runs; BIG=0 leaves it out)
-#   ./bench.sh io mpi            the gas of 4e6 disks (IO_N), S = 0: omp on 2 threads, mpi (--output FILE)
+#   ./bench.sh io mpi            the gas of 4e6 disks (IO_N), S = 0 (IO_STEPS; IO_MODE=print: every step
+#                                written): omp on 2 threads, mpi (--output FILE)
 #                                    on 1 rank of 2 threads and 2 ranks of 1 (no checkpoints)
 #   The first two end with checkpoints: seconds and MB/s of one (omp on the gas of 1e6; gpu: cuda on 1e7), and
 #   the whole process of resuming one.
@@ -65,9 +66,9 @@ run() {
     done
 }
 
-gas() { # gas N STEPS: the file of a gas of N disks (fraction 0.2, speeds up to r/2)
-    local f=$WORK/io_gas_$1_$2.in
-    [ -s "$f" ] || tools/gen "$1" --fraction 0.2 --speed 0.5 --steps "$2" > "$f"
+gas() { # gas N STEPS [MODE]: the file of a gas of N disks (fraction 0.2, speeds up to r/2), perf mode or MODE
+    local f=$WORK/io_gas_$1_$2${3:+_$3}.in
+    [ -s "$f" ] || tools/gen "$1" --fraction 0.2 --speed 0.5 --steps "$2" --mode "${3:-perf}" > "$f"
     echo "$f"
 }
 
@@ -92,11 +93,11 @@ mpi_wrappers() { # DIR
 if [ "$mode" = mpi ]; then
     mpi_wrappers .
     [ -z "${BASE_REV:-}" ] || mpi_wrappers bench/tmp/base
-    n=${IO_N:-4000000}
-    in=$(gas "$n" 0)
-    run "$n" 0 "$in" omp 2
-    run "$n" 0 "$in" mpi_r1 2
-    run "$n" 0 "$in" mpi_r2 1
+    n=$(integer "${IO_N:-4000000}") steps=${IO_STEPS:-0}
+    in=$(gas "$n" "$steps" "${IO_MODE:-}")
+    run "$n" "$steps" "$in" omp 2
+    run "$n" "$steps" "$in" mpi_r1 2
+    run "$n" "$steps" "$in" mpi_r2 1
     rm -f mpi_r1 mpi_r2 "$WORK/io.out"
     exit 0
 fi
