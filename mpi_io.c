@@ -590,21 +590,6 @@ static void format_task(void *ctx, int64_t k)
     io_format_block(&f->t[k], f->step, f->blk, from, to, f->lo, f->with_counts, f->dump17);
 }
 
-/* The text buffers of a state's pieces, kept from one state to the next: fresh buffers fault in their
- * pages as they are first written, at every state (print mode: every step). */
-static TextBlock *text_pool;
-static int64_t text_held;
-
-static TextBlock *text_pieces(int64_t pieces)
-{
-    if (pieces > text_held) {
-        text_pool = sim_realloc(text_pool, (size_t)pieces, sizeof *text_pool);
-        memset(text_pool + text_held, 0, (size_t)(pieces - text_held) * sizeof *text_pool);
-        text_held = pieces;
-    }
-    return text_pool;
-}
-
 void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t step, int with_counts)
 {
     int how[2] = {0, 0}; /* rank 0's --dump17 and --threads */
@@ -614,17 +599,21 @@ void mpi_write_state(Output *out, const Params *par, const Local *l, int64_t ste
     int64_t lo, m;
     gather_block(par, l, &blk, &lo, &m);
     int64_t pieces = (m + TEXT_PIECE - 1) / TEXT_PIECE;
-    Format f = {text_pieces(pieces), &blk, step, lo, m, with_counts, how[0]};
+    Format f = {sim_calloc((size_t)pieces, sizeof(TextBlock)), &blk, step, lo, m, with_counts, how[0]};
     mpi_parallel(how[1], pieces, format_task, &f);
     sim_free(&blk);
     if (out_fd >= 0) {
         write_at_offset(f.t, pieces);
+        for (int64_t k = 0; k < pieces; k++) free(f.t[k].buf);
+        free(f.t);
         return;
     }
     for (int64_t k = 0; k < pieces; k++) {
         if (mpi_me == 0) io_write_bytes(out, f.t[k].buf, f.t[k].len);
         else MPI_Send(f.t[k].buf, (int)f.t[k].len, MPI_CHAR, 0, TAG_TEXT, MPI_COMM_WORLD);
+        free(f.t[k].buf);
     }
+    free(f.t);
     if (mpi_me != 0) return;
     /* the other blocks in rank order, a piece at a time */
     char *buf = NULL;
