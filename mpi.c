@@ -66,7 +66,7 @@ static void unpack(Slots *s, int64_t q, const double *d)
  * disk, most of it the faults of to's fresh pages. */
 static void copy_own(Slots *to, const Slots *from, int64_t n, int nt)
 {
-#pragma omp parallel for schedule(static) num_threads(n < 4096 ? 1 : nt)
+#pragma omp parallel for schedule(static) num_threads(mpi_pass_threads(nt, n))
     for (int64_t q = 0; q < n; q++) {
         to->x[q] = from->x[q], to->y[q] = from->y[q], to->vx[q] = from->vx[q], to->vy[q] = from->vy[q];
         to->id[q] = from->id[q], to->pc[q] = from->pc[q], to->wc[q] = from->wc[q];
@@ -1055,7 +1055,7 @@ static void gpu_download(Run *r)
     run_reserve(r, own);
     double *rec = sim_realloc(NULL, (size_t)(own ? own : 1) * D_LEN, sizeof *rec);
     gpu_rank_get(r->gpu, rec);
-#pragma omp parallel for schedule(static) num_threads(own < 4096 ? 1 : r->nt)
+#pragma omp parallel for schedule(static) num_threads(mpi_pass_threads(r->nt, own))
     for (int64_t q = 0; q < own; q++) unpack(&r->b.s, q, rec + q * D_LEN);
     r->own = own;
     free(rec);
@@ -1169,7 +1169,7 @@ static double run_steps_gpu(Run *r, RunStats *st)
     uint64_t tests = 0;
     /* the records packed on the rank's threads (2.5e8 a rank in the 1e9 run) */
     double *rec = sim_realloc(NULL, (size_t)(r->own ? r->own : 1) * D_LEN, sizeof *rec);
-#pragma omp parallel for schedule(static) num_threads(r->own < 4096 ? 1 : r->nt)
+#pragma omp parallel for schedule(static) num_threads(mpi_pass_threads(r->nt, r->own))
     for (int64_t q = 0; q < r->own; q++) pack(&r->b.s, q, rec + q * D_LEN);
     gpu_rank_add_own(r->gpu, rec, r->own);
     free(rec);

@@ -37,6 +37,15 @@ int mpi_owner(double x);
  * a rank's displacements must stay below 2^31 records). */
 void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got);
 
+/* mpi_comm.c: MPI_Alltoallv of items of `size` bytes, count[q] of them from out + sd[q] items to rank q,
+ * rcount[q] from rank q into in + rd[q] items. */
+void mpi_alltoallv_into(const void *out, const int *count, const int *sd, void *in, const int *rcount,
+                        const int *rd, size_t size);
+
+/* mpi_comm.c: the threads of a pass over n items on a rank of `threads` (one below 4096 items, which
+ * a team's start would cost more than it saves). */
+int mpi_pass_threads(int threads, int64_t n);
+
 /* mpi_comm.c: the displacements of count (into sd) and of rcount (into rd) in rank order, as
  * MPI_Alltoallv takes them; returns the sum of rcount. */
 int64_t mpi_displacements(const int *count, const int *rcount, int *sd, int *rd);

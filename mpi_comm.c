@@ -104,19 +104,30 @@ int64_t mpi_thread_places(int64_t *at, int threads, int *count)
     return sum;
 }
 
-void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
+void mpi_alltoallv_into(const void *out, const int *count, const int *sd, void *in, const int *rcount,
+                        const int *rd, size_t size)
 {
-    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
-    int64_t total = mpi_displacements(count, rcount, sd, rd);
-    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
     MPI_Datatype t;
     MPI_Type_contiguous((int)size, MPI_BYTE, &t);
     MPI_Type_commit(&t);
     MPI_Alltoallv(out, count, sd, t, in, rcount, rd, t, MPI_COMM_WORLD);
     MPI_Type_free(&t);
+}
+
+void *mpi_alltoallv(const void *out, const int *count, const int *rcount, size_t size, int64_t *got)
+{
+    int np = mpi_np, *sd = sim_calloc((size_t)np, sizeof *sd), *rd = sim_calloc((size_t)np, sizeof *rd);
+    int64_t total = mpi_displacements(count, rcount, sd, rd);
+    char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
+    mpi_alltoallv_into(out, count, sd, in, rcount, rd, size);
     free(sd), free(rd);
     *got = total;
     return in;
+}
+
+int mpi_pass_threads(int threads, int64_t n)
+{
+    return n < 4096 || threads < 1 ? 1 : threads;
 }
 
 void mpi_parallel(int threads, int64_t tasks, void (*task)(void *ctx, int64_t k), void *ctx)

@@ -44,7 +44,7 @@ static int pass_threads = 1;
 
 static int pass_nt(int64_t m)
 {
-    return m < 4096 ? 1 : pass_threads;
+    return mpi_pass_threads(pass_threads, m);
 }
 
 /* The first index of rank q's block (q = np: n) */
@@ -131,11 +131,7 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
     }
     for (int q = me + 1; q < np; q++) sd[q] -= own;
     sc[me] = rc[me] = 0;
-    MPI_Datatype t;
-    MPI_Type_contiguous((int)size, MPI_BYTE, &t);
-    MPI_Type_commit(&t);
-    MPI_Alltoallv(out, sc, sd, t, in, rc, rd, t, MPI_COMM_WORLD);
-    MPI_Type_free(&t);
+    mpi_alltoallv_into(out, sc, sd, in, rc, rd, size);
     free(out), free(sc), free(rc), free(sd), free(rd), free(at);
     *got = total;
     return in;
