@@ -135,6 +135,8 @@ typedef struct {
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
     unsigned long long outside; /* a slab grid's (GridLimits): disks binned outside its rows (never) */
+    unsigned long long ahead[2]; /* 1 in [0]: the step takes the keys the move before it gave; in [1]: it
+                                    bins anew, their cells being too fine for its speed */
 } StepInfo;
 
 /* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
@@ -148,6 +150,7 @@ typedef struct {
     unsigned long long tests, events;             /* sums over committed steps */
     unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */
     unsigned long long wfound[WMAX], wactive[WMAX]; /* per window: pair events found, disks still free */
+    unsigned long long ahead[2];                    /* sums of StepInfo.ahead */
 } Control;
 
 /* Binning of one step. */
@@ -168,6 +171,8 @@ typedef struct {
     int slab;       /* GridLimits' slab: the cells are keyed column first, of the columns from xoff on
                        (around the box where periodic), rows of them, the last one empty */
     int64_t xoff, rows;
+    int keyed;      /* one slice: the move of the step before keyed the disks on this grid (move_kernel's
+                       MoveBin), so the step's own binning only counts them */
 } Grid;
 
 /* Speed levels. A disk whose velocity components are at most vmax / 2^l (vmax: the largest component
@@ -523,22 +528,44 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
 /* The first kernel of a step (one thread): fits the step's grid to the largest speed of its disks,
  * within the plan's slices and cells per side (the host's plan comes from a speed a batch or two old),
  * and clears the step's counters. */
-__global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
-                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid)
+static __device__ Grid gate_grid(const GridLimits *lim, double vmax, int K, int64_t gcap, int F, int W, int levels)
 {
-    after_previous();
-    /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
-     * search nothing (their state buffers may hold anything, even memory never written, whose disks
-     * could all fall into one cell); the counters are cleared all the same */
-    double vmax = __longlong_as_double((long long)ctl->vmax);
-    int k = grid_slices(&lim, vmax);
-    Grid gr = grid_fit(&lim, vmax, k < K ? k : K, gcap);
+    int k = grid_slices(lim, vmax);
+    Grid gr = grid_fit(lim, vmax, k < K ? k : K, gcap);
     int windows = gr.K > 1 ? W : 1;
     for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= windows ? window_start(w, F, windows, gr.K) : gr.K;
     /* the plan's levels: its windows keep their slices, and its cells hold their rows */
     gr.levels = gr.K > 1 ? levels : 1;
     gr.vlev = vmax;
     gr.cells = (int64_t)window_rows(0, gr.wb[1], gr.levels) * gr.ncell;
+    gr.keyed = 0;
+    return gr;
+}
+
+/* ahead: the grid the step's move is to key the disks on for the next step (ahead_slack > 0), in one
+ * slice, fitted to ahead_slack times the step's largest speed (its own grid would leave no room for the
+ * speed to grow); keyed: the move before did, and the step takes that grid if its cells are at least as
+ * wide as the step's speed needs (their number per side no larger), else it bins anew (bin_place_launch). */
+__global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
+                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid,
+                            Grid *ahead, int keyed, double ahead_slack)
+{
+    after_previous();
+    /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
+     * search nothing (their state buffers may hold anything, even memory never written, whose disks
+     * could all fall into one cell); the counters are cleared all the same */
+    double vmax = __longlong_as_double((long long)ctl->vmax);
+    Grid gr = gate_grid(&lim, vmax, K, gcap, F, W, levels);
+    info->ahead[0] = info->ahead[1] = 0;
+    if (keyed && !ctl->refused) {
+        if (gr.K == 1 && ahead->g <= gr.g) gr = *ahead;
+        info->ahead[gr.keyed ? 0 : 1] = 1;
+    }
+    if (ahead_slack > 0) {
+        Grid next = gate_grid(&lim, vmax * ahead_slack, 1, gcap, F, W, levels);
+        next.keyed = 1;
+        *ahead = next;
+    }
     if (ctl->refused) {
         gr.cells = 0;
         for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
@@ -582,7 +609,32 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
         ctl->tests += info->tests;
         ctl->events += info->events;
         ctl->faster += info->faster;
+        ctl->ahead[0] += info->ahead[0];
+        ctl->ahead[1] += info->ahead[1];
     }
+}
+
+/* The cell key of a disk at pos with velocity vel, at the fraction f of the step, in row `row`. */
+static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, real2 vel, double f, int64_t row,
+                                                    const StepInfo *info)
+{
+    double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
+    if (gr.periodic) { /* into [0, L): the cells wrap with the box */
+        double L = (double)gr.Lw;
+        mx = mx - L * floor(mx / L);
+        my = my - L * floor(my / L);
+    }
+    int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
+    if (gr.slab) { /* column first: the column's place in the slab is the row */
+        int64_t col = cx - gr.xoff;
+        if (col < 0) col += gr.g;
+        if (col >= gr.rows - 1) { /* never (the caller's bounds): counted, and kept in the table */
+            atomicAdd(&((StepInfo *)info)->outside, 1ull);
+            col = gr.rows - 2;
+        }
+        cx = cy, cy = col;
+    }
+    return (uint32_t)(row * gr.ncell + cy * gr.g + cx);
 }
 
 /* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
@@ -602,6 +654,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
 {
     after_previous();
     const Grid gr = *grid;
+    if (gr.keyed) return; /* by the move before: count_kernel counts them */
     /* !LEVELS_LISTED: the compiler drops the lists' decoding (one-slice steps: 44 registers against 52,
      * 5 blocks a multiprocessor against 4) */
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
@@ -617,25 +670,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
                 continue;
             }
         }
-        real2 pos = st.pos[s];
-        double f = slice_mid(k, l, gr.K);
-        double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
-        if (gr.periodic) { /* into [0, L): the cells wrap with the box */
-            double L = (double)gr.Lw;
-            mx = mx - L * floor(mx / L);
-            my = my - L * floor(my / L);
-        }
-        int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
-        if (gr.slab) { /* column first: the column's place in the slab is the row */
-            int64_t col = cx - gr.xoff;
-            if (col < 0) col += gr.g;
-            if (col >= gr.rows - 1) { /* never (the caller's bounds): counted, and kept in the table */
-                atomicAdd(&((StepInfo *)info)->outside, 1ull);
-                col = gr.rows - 2;
-            }
-            cx = cy, cy = col;
-        }
-        uint32_t key = (uint32_t)(x.row * gr.ncell + cy * gr.g + cx);
+        uint32_t key = cell_key(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
     }
@@ -692,6 +727,14 @@ __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *
         keys_sorted[p] = key;
         order[p] = (uint32_t)e;
     }
+}
+
+/* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells. */
+__global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count)
+{
+    after_previous();
+    if (!grid->keyed) return;
+    ENTRY_LOOP(false, e, n) rank[e] = atomicAdd(&count[keys[e]], 1u);
 }
 
 /* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with
@@ -1498,15 +1541,27 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos,
     return false;
 }
 
+/* One slice a step: the move also keys its disks' cells for the next step, each slot being its entry, on
+ * the grid the gate fitted ahead (gate_kernel); the next step only counts them (count_kernel), and spares
+ * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
+ * -> 4.749e9 (bench/gpu_h100_goals.log, first section). Counting in the move as well, with an atomic a
+ * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). */
+typedef struct {
+    const Grid *grid;
+    uint32_t *keys;
+} MoveBin;
+
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
  * overflowed the list decided on part of them only: it is refused here, before anything is written.
- * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. */
-template <bool RANK>
+ * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. BIN (not with RANK): the
+ * disks keyed for the next step (MoveBin). */
+template <bool RANK, bool BIN>
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
-                            StepInfo *info, int64_t cap, Control *ctl, RankMove rm)
+                            StepInfo *info, int64_t cap, Control *ctl, RankMove rm, MoveBin mb)
 {
+    static_assert(!(RANK && BIN), "a GPU rank bins its disks with its halo");
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
@@ -1589,6 +1644,8 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         } else {
             out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
         }
+        if (BIN) /* as bin_kernel keys the entry of slot s in a step of one slice */
+            mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
         real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
         vabs = ax < ay ? ay : ax;
     }
@@ -1661,6 +1718,9 @@ __global__ void pair_up_kernel(DevState st, int64_t n, const real *x, const real
 #endif
 #define RING (2 * BATCH)    /* steps in flight at most: two batches */
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
+#ifndef BIN_AHEAD
+#define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
+#endif
 #define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
 
 typedef struct {
@@ -1687,6 +1747,8 @@ typedef struct {
     int slices_held;     /* the buffers of steps of several slices are there (wall_win, act, lev, level_of) */
     int64_t grown;       /* times buffers_grow ran (--stats): after the first, each waited for the device */
     Grid *grid;          /* the current step's grid, fitted on the device */
+    Grid *ahead;         /* the grid a move keys the disks on for the next step (MoveBin) */
+    double ahead_slack;  /* 0: moves do not key; else the speed the ahead grid allows, over the step's */
     uint64_t *wall_hi, *best_hi, *best_lo;
     uint64_t *wall_win;  /* the wall event as the current window's choice sees it (K > 1) */
     int32_t *partner;
@@ -1850,6 +1912,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
     c->scan_alternate = c->scan_tiles < 0;
     if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
+    /* SIM_CUDA_BIN_AHEAD=S: moves key the disks' cells for the next step of their batch on cells fitted to
+     * S times the speed (0: they do not; the tests take 1, where steps often bin anew) */
+    const char *bin_ahead = getenv("SIM_CUDA_BIN_AHEAD");
+    c->ahead_slack = bin_ahead ? atof(bin_ahead) : BIN_AHEAD;
+    if (!(c->ahead_slack >= 1)) c->ahead_slack = 0;
     c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
@@ -1870,6 +1937,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
+    c->ahead = (Grid *)dev_alloc(sizeof(Grid), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&c->ctl_host, 2 * sizeof(Control)));
     /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
      * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
@@ -1969,6 +2037,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->info);
     cudaFree(c->ctl);
     cudaFree(c->grid);
+    cudaFree(c->ahead);
     cudaFreeHost(c->ctl_host);
     cudaFree(c->out_dev);
     for (int b = 0; b < 2; b++) {
@@ -2009,6 +2078,8 @@ static void phase_report(const Cuda *c, const Control *h)
     }
     fprintf(stderr, "\ncuda: cell tables scanned in two short kernels: %lld, by cub: %lld", (long long)c->scans[1],
             (long long)c->scans[0]);
+    fprintf(stderr, "\ncuda: steps keyed by the move before them: %llu, binned anew (those cells too fine for "
+            "their speed): %llu", h->ahead[0], h->ahead[1]);
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
             "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
 }
@@ -2261,10 +2332,13 @@ static bool scan_short(const Cuda *c, int64_t len)
     return (len + SCAN_TILE - 1) / SCAN_TILE <= c->scan_tiles;
 }
 
-/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). */
+/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
+ * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
+ * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
+ * where the keys are taken loops over its entries: few blocks to start. */
 template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
-                             int ring)
+                             int ring, bool keyed)
 {
     int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
     bool short_scan = scan_short(c, len);
@@ -2275,12 +2349,18 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)clear * sizeof(uint32_t), c->stream));
         c->dirty = 0;
     }
-    if (lev)
-        step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
-                    c->info, c->wall_hi, c->keys, c->rank, c->count);
-    else
-        step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
-                    c->info, c->wall_hi, c->keys, c->rank, c->count);
+    if (keyed) { /* one slice */
+        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false>, c->st[in], c->n, c->grid, 0,
+                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count);
+        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
+    } else {
+        if (lev)
+            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
+                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+        else
+            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
+                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+    }
     phase_mark(c, ring, w, 1);
     if (short_scan) {
         step_kernel(c, tiles, THREADS, 0, tile_sum_kernel, c->count, len, c->tile_sums);
@@ -2326,18 +2406,20 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
 }
 
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
- * ring: the step's phase marks under --stats. */
-static void step_launch(Cuda *c, const Plan *pl, int ring)
+ * ring: the step's phase marks under --stats. Steps of one slice: keyed, the move of the step before
+ * keyed the disks' cells for this one; key_ahead, this one's move keys them for the next (MoveBin). */
+static void step_launch(Cuda *c, const Plan *pl, int ring, bool keyed, bool key_ahead)
 {
     int64_t n = c->n;
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
+    keyed = keyed && pl->K == 1, key_ahead = key_ahead && pl->K == 1;
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
-                pl->levels, c->grid);
+                pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
-        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring);
+        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
         step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
                     c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL);
         in = 1 - in;
@@ -2363,9 +2445,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
                             act, c->info, c->partner, c->wall_hi, c->wall_win, c->best_hi, c->best_lo, c->level_of,
                             c->lev);
             if (pl->W == 1 && !W1_LOOP)
-                bin_place_launch<false>(c, pl, w, in, act, lev, ring);
+                bin_place_launch<false>(c, pl, w, in, act, lev, ring, false);
             else
-                bin_place_launch<true>(c, pl, w, in, act, lev, ring);
+                bin_place_launch<true>(c, pl, w, in, act, lev, ring, false);
             step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act, lev,
                         c->info, c->order, c->start, grid, c->wall_hi, c->en);
             phase_mark(c, ring, w, 3);
@@ -2374,8 +2456,15 @@ static void step_launch(Cuda *c, const Plan *pl, int ring)
         }
     }
     RankMove none = {};
-    step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false>, c->st[in], c->st[1 - in], n, c->par, c->partner,
-                c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none);
+    if (key_ahead) {
+        MoveBin mb = {c->ahead, c->keys};
+        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false, true>, c->st[in], c->st[1 - in], n, c->par,
+                    c->partner, c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
+    } else {
+        MoveBin mb = {};
+        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false, false>, c->st[in], c->st[1 - in], n, c->par,
+                    c->partner, c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
+    }
     phase_mark(c, ring, pl->W - 1, 7);
     step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
     c->cur = 1 - in;
@@ -2413,7 +2502,7 @@ static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t 
     if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
     for (int64_t s = first; s <= last; s++) {
         cur_at[s % RING] = c->cur;
-        step_launch(c, pl, (int)(s % RING));
+        step_launch(c, pl, (int)(s % RING), s > first && c->ahead_slack > 0, s < last && c->ahead_slack > 0);
     }
     if (!graph) return;
     cudaGraph_t g;

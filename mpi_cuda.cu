@@ -458,9 +458,9 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
     int in = c->cur;
     for (;;) {
         step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
-                    c->grid);
+                    c->grid, c->grid, 0, 0.0); /* no binning ahead: the halo comes between two steps */
         if (n > 0) {
-            bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0);
+            bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
                         c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where);
             DevState *d = &c->st[1 - in];
@@ -559,8 +559,10 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMov
         CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 2 * sizeof(unsigned long long), c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
-        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<true>, c->st[in], c->st[out], n, c->par, c->partner,
-                    c->wall_hi, c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl, rm);
+        MoveBin none = {};
+        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<true, false>, c->st[in], c->st[out], n, c->par,
+                    c->partner, c->wall_hi, c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl,
+                    rm, none);
         CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 2 * sizeof(unsigned long long),
                                    cudaMemcpyDeviceToHost, c->stream));
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));

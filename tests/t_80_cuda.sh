@@ -143,6 +143,32 @@ for name in $(pick "slow fast walls random spread mixed_gas" "slow spread"); do
     done
 done
 
+# Steps of one slice: a move keys the disks' cells for the next step of its batch (cuda.cu, MoveBin) on
+# cells fitted to SIM_CUDA_BIN_AHEAD times its speed, and a step whose speed outgrew them bins anew. At 1
+# (no room) the speeds of these scenes, which grow as collisions spread them, send steps both ways:
+# --stats counts the steps each way, and both must have been taken. Then the same in graphs, through
+# refused steps and with cub's scans every other batch, and with no keys ahead (0). (Perf mode: print
+# mode's batches end at each step printed, one step here.)
+for name in $(pick "slow dense overlap" "slow dense"); do
+    label="cuda/$name perf, keyed by the move before or binned anew"
+    if ! have_gpu; then
+        for what in "" ", in graphs, refused steps, cub's scans" ", no keys ahead"; do skip "$label$what" "no GPU"; done
+        continue
+    fi
+    expected=$TMP/cuda_${name}_perf.expected
+    same_bytes "$label" "$expected" env SIM_CUDA_BIN_AHEAD=1 ./cuda "$TMP/cuda_${name}_perf.in" --quiet --stats
+    line=$(grep "keyed by the move before" "$TMP/err")
+    if [[ $line =~ before\ them:\ ([0-9]+),\ binned\ anew.*:\ ([0-9]+) ]] && [ "${BASH_REMATCH[1]}" -gt 0 ] &&
+        [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+        pass "$label: both ways taken"
+    else
+        fail "$label: both ways taken" "stats: ${line:-no line}"
+    fi
+    same_bytes "$label, in graphs, refused steps, cub's scans" "$expected" env SIM_CUDA_BIN_AHEAD=1 \
+        SIM_CUDA_EVENTS=2 SIM_CUDA_SCAN_TILES=-1 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
+    same_bytes "$label, no keys ahead" "$expected" env SIM_CUDA_BIN_AHEAD=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
+done
+
 # Time windows (cuda.cu, window_start): a step's slices are cut into windows whose choice is made one
 # after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
 # to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's

@@ -109,6 +109,13 @@ do_memcheck() {
                     && echo "memcheck $f${w:+ windows} output == seq" || echo "memcheck $f${w:+ windows} output DIFFERS"
             done
         done
+        # a gas of one slice a step, whose moves key the cells of the next step (cuda.cu, MoveBin)
+        tools/gen 3000 --fraction 0.2 --speed 0.5 --steps 12 --seed 15 > "$DATA/san_gas.in"
+        "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_gas.log" \
+            ./cuda "$DATA/san_gas.in" --quiet > "$DATA/gas.out" && echo "memcheck san_gas: clean" \
+            || { echo "memcheck san_gas: ERRORS"; tail -20 "$OUT/memcheck_gas.log"; }
+        ./seq "$DATA/san_gas.in" --quiet | cmp -s - "$DATA/gas.out" && echo "memcheck san_gas output == seq" \
+            || echo "memcheck san_gas output DIFFERS"
         # the time windows, forced from one slice (a scene this small gets one window otherwise)
         SIM_CUDA_WINDOW=1 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
             --log-file "$OUT/memcheck_windows.log" ./cuda "$DATA/san_random.in" --quiet > "$DATA/win.out" \
@@ -349,7 +356,7 @@ do_goals() {
         else
             rate=$(best_rate "$f" "$n" ./cuda "$DATA/$f.in")
         fi
-        grep -E 'phase|round|window|refused|memory' "$DATA/err" | sed "s/^/# $f: /" >> "$CSV"
+        grep -E 'phase|round|window|refused|memory|keyed' "$DATA/err" | sed "s/^/# $f: /" >> "$CSV"
         case $f in
         gas_*) goal "$f step loop, particle-steps/s" "$rate" 1.2e10 ge ;;
         dense_*) goal "$f step loop, particle-steps/s" "$rate" 1e10 ge ;;
