@@ -614,7 +614,8 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
     }
 }
 
-/* The cell key of a disk at pos with velocity vel, at the fraction f of the step, in row `row`. */
+/* The cell key of a disk at pos with velocity vel, at the fraction f of the step, in row `row` (info: where
+ * a slab's key outside its rows is counted, or NULL). */
 static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, real2 vel, double f, int64_t row,
                                                     const StepInfo *info)
 {
@@ -629,7 +630,7 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
         int64_t col = cx - gr.xoff;
         if (col < 0) col += gr.g;
         if (col >= gr.rows - 1) { /* never (the caller's bounds): counted, and kept in the table */
-            atomicAdd(&((StepInfo *)info)->outside, 1ull);
+            if (info) atomicAdd(&((StepInfo *)info)->outside, 1ull);
             col = gr.rows - 2;
         }
         cx = cy, cy = col;
@@ -712,7 +713,8 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
- * entry index is scattered; the disks, or their copies, are then gathered with coalesced writes. */
+ * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
+ * disk itself); the disks, or their copies, are then gathered with coalesced writes. */
 template <bool WINDOWS, bool LEVELS_LISTED>
 __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *lev, const StepInfo *info,
                              const uint32_t *keys, const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
@@ -724,7 +726,7 @@ __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
-        keys_sorted[p] = key;
+        if (keys_sorted) keys_sorted[p] = key;
         order[p] = (uint32_t)e;
     }
 }
@@ -1256,7 +1258,11 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         uint32_t p = p0 + threadIdx.x, seen = 0; /* seen: MID, the probe's candidates */
         Probe pr = {};
         if (p < end) {
-            uint32_t key = __ldg(&keys[p]), g = (uint32_t)gr.g;
+            /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
+             * disk itself (a pass of 8 bytes a disk fewer: place_kernel) */
+            uint32_t key = MID ? __ldg(&keys[p])
+                               : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
+            uint32_t g = (uint32_t)gr.g;
             uint32_t kl = key / gr.ncell; /* the cell row: a slice of one level */
             uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
             uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
@@ -2371,12 +2377,13 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
         c->dirty = len;
     }
     phase_mark(c, ring, w, 2);
+    uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
     if (lev)
         step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, true>, c->grid, w, c->n, lev, c->info, c->keys,
-                    c->rank, c->start, c->keys_sorted, c->order);
+                    c->rank, c->start, sorted, c->order);
     else
         step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, false>, c->grid, w, c->n, lev, c->info, c->keys,
-                    c->rank, c->start, c->keys_sorted, c->order);
+                    c->rank, c->start, sorted, c->order);
 }
 
 /* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the
