@@ -1550,7 +1550,7 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos,
 /* One slice a step: the move also keys its disks' cells for the next step, each slot being its entry, on
  * the grid the gate fitted ahead (gate_kernel); the next step only counts them (count_kernel), and spares
  * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
- * -> 4.749e9 (bench/gpu_h100_goals.log, first section). Counting in the move as well, with an atomic a
+ * -> 4.749e9 (bench/gpu_h100_goals.log, 71b5eb2's section). Counting in the move as well, with an atomic a
  * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). */
 typedef struct {
     const Grid *grid;
@@ -1724,10 +1724,10 @@ __global__ void pair_up_kernel(DevState st, int64_t n, const real *x, const real
 #endif
 #define RING (2 * BATCH)    /* steps in flight at most: two batches */
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
+#define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
 #endif
-#define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
 
 typedef struct {
     int64_t n;
