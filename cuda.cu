@@ -2413,15 +2413,16 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
 }
 
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
- * ring: the step's phase marks under --stats. Steps of one slice: keyed, the move of the step before
- * keyed the disks' cells for this one; key_ahead, this one's move keys them for the next (MoveBin). */
-static void step_launch(Cuda *c, const Plan *pl, int ring, bool keyed, bool key_ahead)
+ * ring: the step's phase marks under --stats; first, last: whether it is its batch's first, last. In
+ * steps of one slice where moves key ahead (MoveBin): keyed, the move of the step before keyed the
+ * disks' cells for this one; key_ahead, this one's move keys them for the next. */
+static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last)
 {
     int64_t n = c->n;
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
-    keyed = keyed && pl->K == 1, key_ahead = key_ahead && pl->K == 1;
+    bool ahead = pl->K == 1 && c->ahead_slack > 0, keyed = ahead && !first, key_ahead = ahead && !last;
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
                 pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
     if (pl->K == 1) {
@@ -2463,15 +2464,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool keyed, bool key_
         }
     }
     RankMove none = {};
-    if (key_ahead) {
-        MoveBin mb = {c->ahead, c->keys};
-        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false, true>, c->st[in], c->st[1 - in], n, c->par,
-                    c->partner, c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
-    } else {
-        MoveBin mb = {};
-        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<false, false>, c->st[in], c->st[1 - in], n, c->par,
-                    c->partner, c->wall_hi, c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
-    }
+    MoveBin mb = {c->ahead, c->keys}; /* read by move_kernel<false, true> alone */
+    auto move = key_ahead ? move_kernel<false, true> : move_kernel<false, false>;
+    step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
+                c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
     phase_mark(c, ring, pl->W - 1, 7);
     step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
     c->cur = 1 - in;
@@ -2509,7 +2505,7 @@ static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t 
     if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
     for (int64_t s = first; s <= last; s++) {
         cur_at[s % RING] = c->cur;
-        step_launch(c, pl, (int)(s % RING), s > first && c->ahead_slack > 0, s < last && c->ahead_slack > 0);
+        step_launch(c, pl, (int)(s % RING), s == first, s == last);
     }
     if (!graph) return;
     cudaGraph_t g;

@@ -458,7 +458,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
     int in = c->cur;
     for (;;) {
         step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
-                    c->grid, c->grid, 0, 0.0); /* no binning ahead: the halo comes between two steps */
+                    c->grid, (Grid *)NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         if (n > 0) {
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
