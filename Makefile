@@ -75,13 +75,13 @@ omp: $(OMP_SRC) $(BASE) $(HEADERS) $(OMP_H) Makefile
 # the MPI backend, run as mpirun -np P ./mpi INPUT (its own objects: mpicc may be another compiler);
 # omp's broad phase inside each rank
 MPI_SRC = mpi_comm.c mpi_io.c mpi.c omp_broad.c omp_paths.c omp_team.c $(CORE_SRC)
-mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h Makefile
+mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h mpi_halo.h Makefile
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) $(MPI_SRC) -o $@ $(LDLIBS)
 
 # mpi with a GPU for each rank: mpi.c's steps built with MPI_CUDA, cuda.cu's kernels through
 # mpi_cuda.cu (nvcc), linked by mpicc with the CUDA runtime
 CUDA_LIBDIR ?= $(abspath $(dir $(shell command -v $(NVCC) 2>/dev/null))../lib64)
-mpi_cuda: $(MPI_SRC) mpi_cuda.cu cuda.cu mpi_cuda.h $(HEADERS) $(OMP_H) mpi.h Makefile
+mpi_cuda: $(MPI_SRC) mpi_cuda.cu cuda.cu mpi_cuda.h mpi_halo.h $(HEADERS) $(OMP_H) mpi.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off -c mpi_cuda.cu -o mpi_cuda_gpu.o
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) -DMPI_CUDA $(MPI_SRC) mpi_cuda_gpu.o -o $@ $(LDLIBS) \
 		-L$(CUDA_LIBDIR) -Wl,-rpath,$(CUDA_LIBDIR) -lcudart -lstdc++

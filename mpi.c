@@ -124,17 +124,6 @@ static int whole_torus(int q, double reach, double L)
     return (mpi_cut[q + 1] - mpi_cut[q]) + 3 * reach >= L;
 }
 
-/* The distance from x to strip q around the torus (0 inside it). */
-static double strip_distance(double x, int q, double L)
-{
-    double best = INFINITY;
-    for (int k = -1; k <= 1; k++) {
-        double y = x + k * L, d = y < mpi_cut[q] ? mpi_cut[q] - y : (y >= mpi_cut[q + 1] ? y - mpi_cut[q + 1] : 0);
-        if (d < best) best = d;
-    }
-    return best;
-}
-
 /* Sends count[q] records of `width` doubles (packed in rank order in out) to each rank q of
  * lo .. hi but this one (count is 0 elsewhere) that is a neighbour (near[q], or every one where near
  * is NULL), every one of them a message even if empty, and returns theirs in rank order (*got
@@ -223,7 +212,7 @@ typedef struct {
     int nlo, nhi;     /* this step's neighbours (neighbours()) */
     char *near;       /* the periodic box: by rank, whether a neighbour (nlo .. nhi are all ranks) */
     int whole;        /* the periodic box: this rank holds the whole torus (whole_torus) */
-    double halo_secs[2]; /* GPU ranks, --stats: the host's seconds in halo_list and exchange_near */
+    double halo_secs; /* GPU ranks, --stats: the host's seconds in the halo's exchange_near */
     int most_near;    /* the most neighbours in any step (--stats) */
     double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
     real own_vmax;    /* a bound on the own disks' fastest velocity component */
@@ -394,25 +383,24 @@ static void neighbours_periodic(Run *r, char *whole)
     if (near > r->most_near) r->most_near = near;
 }
 
-/* The ranks but this one that get a copy of the own disk at x (into q; returns how many): those whose
- * strips lie within the reach, from mpi_owner(x - reach) to mpi_owner(x + reach); in the periodic
- * box around the torus, and every rank holding the whole torus (whole: by rank, any_whole: some). */
-static int halo_targets(const Run *r, double x, const char *whole, int any_whole, int *q)
+/* The view of the strips that mpi_halo.h decides the copies by, as halo_reach left them this step. */
+static HaloView halo_view(const Run *r, const char *whole, int any_whole)
 {
-    int n = 0;
-    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach;
-    if (!any_whole && x > in0 && x < in1) return 0; /* within the strip, by more than the reach */
-    if (r->par.periodic) {
-        for (int k = 0; k < mpi_np; k++)
-            if (r->near[k] && (whole[k] || strip_distance(x, k, r->par.L) <= r->reach)) q[n++] = k;
-        return n;
-    }
-    int q0 = mpi_owner(x - r->reach), q1 = mpi_owner(x + r->reach);
-    if (q0 < r->nlo || q1 > r->nhi)
-        sim_fail("internal error: a disk within reach of strips %d to %d, beyond the neighbours %d to %d", q0, q1,
-                 r->nlo, r->nhi);
-    for (int k = q0; k <= q1; k++)
-        if (k != mpi_me) q[n++] = k;
+    HaloView h = {mpi_cut, r->near, whole, r->reach, r->par.L, mpi_me, mpi_np, r->nlo, r->nhi, r->par.periodic,
+                  any_whole};
+    return h;
+}
+
+/* The ranks but this one that get a copy of the own disk at x (into q; returns how many). */
+static int halo_targets(const HaloView *h, double x, int *q)
+{
+    int n = 0, lo, hi;
+    if (halo_inside(h, x)) return 0;
+    if (!halo_span(h, x, &lo, &hi))
+        sim_fail("internal error: a disk within reach of strips %d to %d, beyond the neighbours %d to %d", lo, hi,
+                 h->nlo, h->nhi);
+    for (int k = lo; k <= hi; k++)
+        if (halo_takes(h, x, k)) q[n++] = k;
     return n;
 }
 
@@ -439,20 +427,17 @@ static int halo_reach(Run *r, char *whole)
 }
 
 /* 2: r->send and r->scount, the own slots whose copies go to other strips' ranks (all of them
- * neighbours; halo_targets), in rank order: of the n own slots cand[k] at x xs[k] (a GPU's), or of
- * every own slot where cand is NULL. The rank's threads each take a contiguous share of the slots,
- * count its copies by rank, then list them where the counts before them end: the order one thread
- * would list them in. */
+ * neighbours; halo_targets), in rank order. The rank's threads each take a contiguous share of the
+ * slots, count its copies by rank, then list them where the counts before them end: the order one
+ * thread would list them in. A GPU rank lists its own on its GPU (gpu_rank_halo_out). */
 #ifndef HALO_THREAD_ITEMS
-#define HALO_THREAD_ITEMS 16384
+#define HALO_THREAD_ITEMS 16384 /* slots a thread at least: a team's start costs more than a short share */
 #endif
-static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const int32_t *cand, const double *xs)
+static void halo_list(Run *r, const char *whole, int any_whole)
 {
     const Slots *s = &r->b.s;
-    /* threads of HALO_THREAD_ITEMS candidates each at least: a GPU rank of the 1e8 gas on 4 GPUs lists a
-     * few tens of thousands, over which 16 threads took 0.21 s in 20 steps, one thread 0.018 and this
-     * share 0.014 (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log) */
-    int64_t share = (n + HALO_THREAD_ITEMS - 1) / HALO_THREAD_ITEMS;
+    const HaloView h = halo_view(r, whole, any_whole);
+    int64_t n = r->own, share = (n + HALO_THREAD_ITEMS - 1) / HALO_THREAD_ITEMS;
     int np = mpi_np, nt = share < r->nt ? (int)share : r->nt;
     if (nt < 1) nt = 1;
     int64_t *at = sim_calloc((size_t)nt * (size_t)np, sizeof *at); /* by thread and rank: counts, then places */
@@ -463,7 +448,7 @@ static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const
         int t = omp_get_thread_num(), m = omp_get_num_threads(), *q = sim_calloc((size_t)np, sizeof *q);
         int64_t k0 = n * t / m, k1 = n * (t + 1) / m, *mine = at + (size_t)t * (size_t)np;
         for (int64_t k = k0; k < k1; k++) {
-            int c = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
+            int c = halo_targets(&h, (double)s->x[k], q);
             for (int u = 0; u < c; u++) mine[q[u]]++;
         }
 #pragma omp barrier
@@ -473,9 +458,8 @@ static void halo_list(Run *r, const char *whole, int any_whole, int64_t n, const
             r->send = sim_grow(r->send, &r->send_cap, (size_t)r->nsend, sizeof *r->send);
         } /* (its barrier) */
         for (int64_t k = k0; k < k1; k++) {
-            int32_t slot = cand ? cand[k] : (int32_t)k;
-            int c = halo_targets(r, cand ? xs[k] : (double)s->x[k], whole, any_whole, q);
-            for (int u = 0; u < c; u++) r->send[mine[q[u]]++] = slot;
+            int c = halo_targets(&h, (double)s->x[k], q);
+            for (int u = 0; u < c; u++) r->send[mine[q[u]]++] = (int32_t)k;
         }
         free(q);
     }
@@ -487,7 +471,7 @@ static void halo_exchange(Run *r)
 {
     char *whole = sim_calloc((size_t)mpi_np, 1);
     int any_whole = halo_reach(r, whole);
-    halo_list(r, whole, any_whole, r->own, NULL, NULL);
+    halo_list(r, whole, any_whole);
     free(whole);
     halo_send(r);
 }
@@ -1076,29 +1060,20 @@ static void gpu_slab(Run *r)
     gpu_rank_slab(r->gpu, !r->whole, mpi_cut[mpi_me] - m, mpi_cut[mpi_me + 1] + m);
 }
 
-/* 1 and 2: the reach and the copies, as halo_exchange, of the own disks near the strip's edges (the
- * GPU picks them by halo_targets' first test, but for the edge at a wall, which has no strip beyond),
- * sent there; theirs into the GPU's halo. */
+/* 1 and 2: the reach, and the copies of the own disks within it of other strips, as halo_exchange
+ * sends them, listed and packed on the GPU (mpi_halo.h decides alike there); theirs into the GPU's halo. */
 static void gpu_halo(Run *r)
 {
     char *whole = sim_calloc((size_t)mpi_np, 1);
     int any_whole = halo_reach(r, whole);
-    const int32_t *cand;
-    const double *xs;
-    double in0 = mpi_cut[mpi_me] + r->reach, in1 = mpi_cut[mpi_me + 1] - r->reach, m = 1e-9 * (double)r->par.L;
-    if (!r->par.periodic && mpi_me == 0) /* no strip below the first: only disks near the next one */
-        in0 = -INFINITY, in1 -= m;       /* (less m: x + reach rounds up to the cut only within m) */
-    if (!r->par.periodic && mpi_me == mpi_np - 1) in1 = INFINITY, in0 += mpi_me ? m : 0;
-    int64_t n = gpu_rank_edge(r->gpu, in0, in1, any_whole, &cand, &xs), got;
-    double t0 = sim_clock();
-    halo_list(r, whole, any_whole, n, cand, xs);
+    const HaloView h = halo_view(r, whole, any_whole);
+    const double *out = gpu_rank_halo_out(r->gpu, &h, r->scount, &r->nsend);
     free(whole);
-    double t1 = sim_clock();
-    const double *out = gpu_rank_pack(r->gpu, r->send, r->nsend);
-    double t2 = sim_clock();
+    double t0 = sim_clock();
+    int64_t got;
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
                                &got, r->rcount, gpu_halo_room, r->gpu);
-    r->halo_secs[0] += t1 - t0, r->halo_secs[1] += sim_clock() - t2;
+    r->halo_secs += sim_clock() - t0;
     gpu_rank_set_halo(r->gpu, in, got);
     r->halo = got;
     gpu_slab(r);
@@ -1369,10 +1344,10 @@ int main(int argc, char **argv)
 #ifdef MPI_CUDA
     (void)run_steps;
     st.seconds = run_steps_gpu(&r, &st);
-    double gpu_times[GPU_CALLS + 2], gpu_most[GPU_CALLS + 2]; /* and the halo's host work (Run) */
+    double gpu_times[GPU_CALLS + 1], gpu_most[GPU_CALLS + 1]; /* and the halo's exchange (Run) */
     memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
-    gpu_times[GPU_CALLS] = r.halo_secs[0], gpu_times[GPU_CALLS + 1] = r.halo_secs[1];
-    MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 2, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    gpu_times[GPU_CALLS] = r.halo_secs;
+    MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
     gpu_rank_close(r.gpu);
 #else
     st.seconds = run_steps(&r, &st);
@@ -1424,10 +1399,10 @@ int main(int argc, char **argv)
         if (r.clock) clock_report(r.clock);
 #ifdef MPI_CUDA
         if (opt.stats) {
-            static const char *const name[GPU_CALLS + 2] = GPU_CALL_NAMES_AND("halo list", "halo exchange");
-            fprintf(stderr, "%s: the host's seconds in each GPU call, and in the halo's listing and exchange (its "
-                    "waits included), the slowest rank's (rank 0's):", sim_program);
-            for (int k = 0; k < GPU_CALLS + 2; k++)
+            static const char *const name[GPU_CALLS + 1] = GPU_CALL_NAMES_AND("halo exchange");
+            fprintf(stderr, "%s: the host's seconds in each GPU call, and in the halo's exchange (its waits "
+                    "included), the slowest rank's (rank 0's):", sim_program);
+            for (int k = 0; k < GPU_CALLS + 1; k++)
                 fprintf(stderr, "%s %s %.4f (%.4f)", k ? "," : "", name[k], gpu_most[k], gpu_times[k]);
             fprintf(stderr, "\n");
         }

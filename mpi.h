@@ -11,6 +11,7 @@
 #ifndef MPI_H_SIM
 #define MPI_H_SIM
 
+#include "mpi_halo.h"
 #include "omp_step.h"
 
 #include <mpi.h>

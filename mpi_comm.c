@@ -61,14 +61,7 @@ int mpi_place_cuts(const double *h, double load, double L, double slack)
 
 int mpi_owner(double x)
 {
-    if (x >= mpi_cut[mpi_me] && x < mpi_cut[mpi_me + 1]) return mpi_me; /* most disks stay */
-    int lo = 0, hi = mpi_np - 1; /* the last q with cut[q] <= x (0 below the box, np - 1 above) */
-    while (lo < hi) {
-        int mid = (lo + hi + 1) / 2;
-        if (mpi_cut[mid] <= x) lo = mid;
-        else hi = mid - 1;
-    }
-    return lo;
+    return strip_owner(mpi_cut, mpi_me, mpi_np, x);
 }
 
 void local_reserve(Local *l, int64_t n)

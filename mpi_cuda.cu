@@ -29,11 +29,13 @@ struct GpuRank {
     int32_t *pc[2], *wc[2]; /* the own disks' collision counts by slot, pc[pcur] with the state */
     int pcur;
     uint32_t *where;        /* slot before the gather -> its cell place */
-    int32_t *cand;          /* gpu_rank_edge's slots and x (cap), and their host copies */
-    double *cand_x;
-    int32_t *cand_host;
-    double *cand_x_host;
-    int32_t *send;          /* gpu_rank_pack's slots, in the order their keys go out */
+    int32_t *cand;          /* gpu_rank_halo_out's own slots with a copy to send (cap) */
+    double *view_cut;       /* the HaloView's arrays on the device, for np ranks: cut (np + 1), then */
+    char *view_flags;       /* near and whole (np each); their pinned host stage, and the counts by */
+    double *view_host;      /* rank (np, then the candidates and the errors, then np places), */
+    unsigned long long *halo_count, *halo_count_host; /* with a host copy of the first np + 2 */
+    int view_np;
+    int32_t *send;          /* gpu_rank_halo_out's slots, in the order their keys go out */
     int64_t nsend, send_cap;
     GpuKey *keys, *hkeys;   /* a round's keys out (nsend) and the copies' keys in (halo) */
     GpuKey *keys_host;
@@ -78,17 +80,46 @@ __global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *
     write_record(rec + i * D_LEN, st.pos[s], st.vel[s], st.id[s], pc[s], wc[s]);
 }
 
-/* The own disks outside (in0, in1), or all of them: halo_targets' first test, in the same doubles. */
-__global__ void rank_edge_kernel(DevState st, int64_t own, double in0, double in1, int all, int32_t *cand,
-                                 double *cx, unsigned long long *count)
+/* The own disks that go to other ranks (h's arrays on the device): how many to each rank into count[0 ..
+ * np), their slots listed in cand (count[np] of them); count[np + 1] counts disks whose span reaches
+ * beyond the neighbours, which never happens. */
+__global__ void rank_halo_count_kernel(DevState st, int64_t own, HaloView h, int32_t *cand,
+                                       unsigned long long *count)
 {
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= own) return;
     double x = (double)st.pos[s].x;
-    if (!all && x > in0 && x < in1) return;
-    unsigned long long k = list_append(count);
-    cand[k] = (int32_t)s;
-    cx[k] = x;
+    if (halo_inside(&h, x)) return;
+    int lo, hi, n = 0;
+    if (!halo_span(&h, x, &lo, &hi)) {
+        atomicAdd(&count[h.np + 1], 1ull);
+        return;
+    }
+    for (int k = lo; k <= hi; k++)
+        if (halo_takes(&h, x, k)) atomicAdd(&count[k], 1ull), n++;
+    if (n) cand[list_append(&count[h.np])] = (int32_t)s;
+}
+
+/* The listed disks as records, in rank order (rank k's after the counts of the ranks before it), in any
+ * order within a rank's; send[] the slot of each record. fill: np places, cleared. */
+__global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int32_t *wc, HaloView h,
+                                      const int32_t *cand, const unsigned long long *count, unsigned long long *fill,
+                                      int32_t *send, double *rec)
+{
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= (int64_t)count[h.np]) return;
+    int32_t s = cand[i];
+    real2 pos = st.pos[s];
+    double x = (double)pos.x;
+    int lo, hi;
+    (void)halo_span(&h, x, &lo, &hi);
+    for (int k = lo; k <= hi; k++) {
+        if (!halo_takes(&h, x, k)) continue;
+        unsigned long long at = atomicAdd(&fill[k], 1ull);
+        for (int q = 0; q < k; q++) at += count[q];
+        send[at] = s;
+        write_record(rec + at * D_LEN, pos, st.vel[s], st.id[s], pc[s], wc[s]);
+    }
 }
 
 __global__ void rank_keys_out_kernel(const int32_t *send, int64_t nsend, const uint32_t *where, const uint64_t *best_hi,
@@ -170,9 +201,6 @@ static void rank_reserve(GpuRank *g, int64_t n)
     REGROW(c->partner, 0, cap * 4, "the event keys");
     REGROW(g->where, 0, cap * 4, "the event keys");
     REGROW(g->cand, 0, cap * 4, "the halo");
-    REGROW(g->cand_x, 0, cap * 8, "the halo");
-    pinned_regrow((void **)&g->cand_host, (size_t)cap * 4);
-    pinned_regrow((void **)&g->cand_x_host, (size_t)cap * 8);
     g->cap = cap;
 }
 
@@ -284,9 +312,11 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
     cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid);
-    cudaFree(g->where), cudaFree(g->cand), cudaFree(g->cand_x), cudaFree(g->send);
+    cudaFree(g->where), cudaFree(g->cand), cudaFree(g->send);
+    cudaFree(g->view_cut), cudaFree(g->view_flags), cudaFree(g->halo_count);
+    cudaFreeHost(g->view_host), cudaFreeHost(g->halo_count_host);
     cudaFree(g->keys), cudaFree(g->hkeys), cudaFree(g->rec), cudaFree(g->counter);
-    cudaFreeHost(g->cand_host), cudaFreeHost(g->cand_x_host), cudaFreeHost(g->keys_host);
+    cudaFreeHost(g->keys_host);
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
     cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
     cudaStreamDestroy(c->stream);
@@ -310,7 +340,8 @@ static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, in
                                                                   own ? g->pc[g->pcur] : NULL,
                                                                   own ? g->wc[g->pcur] : NULL, at + k);
         CUDA_LAUNCHED();
-        rank_sync(g); /* the stage is rewritten next, the halo's buffer next step */
+        if (!pinned) rank_sync(g); /* the stage is rewritten next (the halo's buffer only next step, after
+                                      the detection's sync) */
     }
 }
 
@@ -388,45 +419,65 @@ void gpu_rank_get(GpuRank *g, double *rec)
     }
 }
 
-int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x)
+/* Room for the view of np ranks, and its counts. */
+static void view_reserve(GpuRank *g, int np)
 {
-    CallClock clock_(g, GPU_EDGE);
-    Cuda *c = &g->c;
-    int64_t n = 0;
-    if (g->own > 0) {
-        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, sizeof(unsigned long long), c->stream));
-        rank_edge_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->own, in0, in1, all, g->cand,
-                                                                         g->cand_x, g->counter);
-        CUDA_LAUNCHED();
-        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
-                                   c->stream));
-        rank_sync(g);
-        n = (int64_t)g->counter_host[0];
-        CUDA_CHECK(cudaMemcpyAsync(g->cand_host, g->cand, (size_t)n * 4, cudaMemcpyDeviceToHost, c->stream));
-        CUDA_CHECK(cudaMemcpyAsync(g->cand_x_host, g->cand_x, (size_t)n * 8, cudaMemcpyDeviceToHost, c->stream));
-        rank_sync(g);
-    }
-    *slot = g->cand_host;
-    *x = g->cand_x_host;
-    return n;
+    if (np <= g->view_np) return;
+    cudaFree(g->view_cut), cudaFree(g->view_flags), cudaFree(g->halo_count);
+    cudaFreeHost(g->view_host), cudaFreeHost(g->halo_count_host);
+    g->view_cut = (double *)dev_alloc((size_t)(np + 1) * sizeof(double), "the halo");
+    g->view_flags = (char *)dev_alloc(2 * (size_t)np, "the halo");
+    g->halo_count = (unsigned long long *)dev_alloc((2 * (size_t)np + 2) * sizeof(unsigned long long), "the halo");
+    CUDA_CHECK(cudaMallocHost((void **)&g->view_host, (size_t)(np + 1) * sizeof(double) + 2 * (size_t)np));
+    CUDA_CHECK(cudaMallocHost((void **)&g->halo_count_host, ((size_t)np + 2) * sizeof(unsigned long long)));
+    g->view_np = np;
 }
 
-const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend)
+const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, int *scount, int64_t *nsend)
 {
-    CallClock clock_(g, GPU_PACK);
+    CallClock clock_(g, GPU_HALO_OUT);
     Cuda *c = &g->c;
-    send_reserve(g, nsend);
-    rec_host_reserve(g, nsend);
-    g->nsend = nsend;
-    if (nsend == 0) return g->rec_host;
-    rec_reserve(g, nsend);
-    CUDA_CHECK(cudaMemcpyAsync(g->send, send, (size_t)nsend * 4, cudaMemcpyHostToDevice, c->stream));
-    rank_pack_kernel<<<blocks_for(nsend), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
-                                                                    g->send, 0, nsend, g->rec);
+    int np = h->np;
+    view_reserve(g, np);
+    /* the view's arrays through the pinned stage (the sync below ends the copies before a next call) */
+    size_t cut_bytes = (size_t)(np + 1) * sizeof(double);
+    char *flags = (char *)g->view_host + cut_bytes;
+    memcpy(g->view_host, h->cut, cut_bytes);
+    for (int q = 0; q < np; q++) {
+        flags[q] = h->periodic ? h->near[q] : 0;
+        flags[np + q] = h->periodic ? h->whole[q] : 0;
+    }
+    CUDA_CHECK(cudaMemcpyAsync(g->view_cut, g->view_host, cut_bytes, cudaMemcpyHostToDevice, c->stream));
+    CUDA_CHECK(cudaMemcpyAsync(g->view_flags, flags, 2 * (size_t)np, cudaMemcpyHostToDevice, c->stream));
+    CUDA_CHECK(cudaMemsetAsync(g->halo_count, 0, (2 * (size_t)np + 2) * sizeof(unsigned long long), c->stream));
+    HaloView d = *h;
+    d.cut = g->view_cut, d.near = g->view_flags, d.whole = g->view_flags + np;
+    if (g->own > 0) {
+        rank_halo_count_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->own, d, g->cand,
+                                                                               g->halo_count);
+        CUDA_LAUNCHED();
+    }
+    CUDA_CHECK(cudaMemcpyAsync(g->halo_count_host, g->halo_count, ((size_t)np + 2) * sizeof(unsigned long long),
+                               cudaMemcpyDeviceToHost, c->stream));
+    rank_sync(g);
+    const unsigned long long *count = g->halo_count_host;
+    if (count[np + 1])
+        sim_fail("internal error: %llu disks within reach of strips beyond the neighbours %d to %d", count[np + 1],
+                 h->nlo, h->nhi);
+    int64_t n = 0;
+    for (int q = 0; q < np; q++) scount[q] = (int)count[q], n += (int64_t)count[q];
+    send_reserve(g, n);
+    rec_host_reserve(g, n);
+    g->nsend = *nsend = n;
+    if (n == 0) return g->rec_host;
+    rec_reserve(g, n);
+    rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, c->stream>>>(
+        c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur], d, g->cand, g->halo_count, g->halo_count + np + 2, g->send,
+        g->rec);
     CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)nsend * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+    CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
                                c->stream));
-    rank_sync(g); /* send is the caller's until then */
+    rank_sync(g);
     return g->rec_host;
 }
 
@@ -438,7 +489,7 @@ double *gpu_rank_halo_in(GpuRank *g, int64_t n)
 
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 {
-    CallClock clock_(g, GPU_HALO);
+    CallClock clock_(g, GPU_HALO_IN);
     rank_reserve(g, g->own + got);
     hkeys_reserve(g, got);
     put_records(g, in, got, g->own, 0);
@@ -538,7 +589,8 @@ void gpu_rank_accept(GpuRank *g)
     }
     step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
                 c->best_lo, c->partner);
-    rank_sync(g); /* the keys' buffer is received into again next round */
+    /* no wait: the next round, which always follows, waits for this one's work before the keys' buffer
+     * is received into again */
 }
 
 void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers)

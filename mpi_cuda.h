@@ -1,7 +1,7 @@
 /* mpi_cuda.h: a disk on the wire between mpi's ranks, and the GPU side of a rank of mpi_cuda (mpi.c
  * built with MPI_CUDA, its device work in mpi_cuda.cu). mpi.c does all the talking between ranks; each
  * call below is the device's share of one of its phases, in the order a step calls them:
- *   gpu_rank_edge, gpu_rank_pack, gpu_rank_set_halo   the halo (the copies of other ranks' disks)
+ *   gpu_rank_halo_out, gpu_rank_set_halo              the halo (the copies of other ranks' disks)
  *   gpu_rank_detect                                   the pair events of the own disks and copies
  *   gpu_rank_round, gpu_rank_accept                   the choice's rounds, keys exchanged between
  *   gpu_rank_move                                     the own disks moved, the leavers packed
@@ -10,6 +10,7 @@
 #define MPI_CUDA_H_SIM
 
 #include "common.h"
+#include "mpi_halo.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -27,9 +28,9 @@ typedef struct {
 typedef struct GpuRank GpuRank;
 
 /* The calls below whose host seconds gpu_rank_times sums (--stats), and their names. */
-enum { GPU_EDGE, GPU_PACK, GPU_HALO, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
+enum { GPU_HALO_OUT, GPU_HALO_IN, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
 #define GPU_CALL_NAMES_AND(...) \
-    {"edge", "pack", "halo", "detect", "rounds", "accept", "move", "add", "get", __VA_ARGS__}
+    {"halo out", "halo in", "detect", "rounds", "accept", "move", "add", "get", __VA_ARGS__}
 
 /* What a step's move reports: the disks that left the strip (records), the largest velocity component
  * of the own disks after it, its accepted events and pair tests. */
@@ -43,7 +44,7 @@ typedef struct {
  * par (par->n disks in all ranks). */
 GpuRank *gpu_rank_open(const Params *par, int local);
 void gpu_rank_close(GpuRank *g);
-/* The seconds the host has spent in each call so far, by GPU_EDGE .. GPU_GET (the waits for the device
+/* The seconds the host has spent in each call so far, by GPU_HALO_OUT .. GPU_GET (the waits for the device
  * included: each call returns with the device done) */
 const double *gpu_rank_times(const GpuRank *g);
 /* n records become own disks (between steps) */
@@ -57,12 +58,11 @@ void gpu_rank_ready(GpuRank *g, double vmax);
 int64_t gpu_rank_own(const GpuRank *g);
 /* the own disks as records into rec (own x D_LEN doubles), in slot order */
 void gpu_rank_get(GpuRank *g, double *rec);
-/* The own disks that other strips may need: all where `all`, else those not within (in0, in1) (mpi.c's
- * halo_targets decides). Returns how many, their slots and x into *slot and *x (the rank's buffers). */
-int64_t gpu_rank_edge(GpuRank *g, double in0, double in1, int all, const int32_t **slot, const double **x);
-/* The own slots send[0 .. nsend) packed as records (returned: the rank's pinned buffer, valid until
- * the move); the rounds send their keys in this order. */
-const double *gpu_rank_pack(GpuRank *g, const int32_t *send, int64_t nsend);
+/* The copies of the own disks that other ranks get this step (halo_inside, halo_span and halo_takes of
+ * h, whose arrays are the host's), listed and packed as records on the GPU: into scount[q] how many go
+ * to rank q, into *nsend all of them; returns them in rank order (the rank's pinned buffer, valid until
+ * the move). The rounds send the disks' keys in this order. */
+const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, int *scount, int64_t *nsend);
 /* Room for n received records of the halo (the rank's pinned buffer, valid until the next call):
  * gpu_rank_set_halo takes them from there to the device with no copy on the host. */
 double *gpu_rank_halo_in(GpuRank *g, int64_t n);
@@ -72,7 +72,7 @@ void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
  * component vmax (of every rank's disks); returns how many. */
 int64_t gpu_rank_detect(GpuRank *g, double vmax);
 /* A round of the choice (first: the first of the step): returns the pair events still live here, and
- * into *out the keys of the disks gpu_rank_pack sent, in its order (the rank's buffer). */
+ * into *out the keys of the disks gpu_rank_halo_out sent, in its order (the rank's buffer). */
 int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out);
 /* Where the copies' keys are received each round, as their owners send them (the halo's order; the
  * rank's pinned buffer, valid from gpu_rank_set_halo to the move). */
