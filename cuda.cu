@@ -2338,36 +2338,29 @@ static bool scan_short(const Cuda *c, int64_t len)
     return (len + SCAN_TILE - 1) / SCAN_TILE <= c->scan_tiles;
 }
 
-/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
- * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
- * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
- * where the keys are taken loops over its entries: few blocks to start. */
-template <bool WINDOWS>
-static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
-                             int ring, bool keyed)
+/* The cell counts of window w's table cleared where the last scan left them (the short scans clear the
+ * counts behind them; after cub's, they are cleared before binning); returns whether the table is
+ * scanned by the two short kernels. */
+static bool bin_clear(Cuda *c, const Plan *pl, int w)
 {
-    int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
+    int64_t len = pl->wcells[w] + 1;
     bool short_scan = scan_short(c, len);
     c->scans[short_scan]++;
-    /* the short scans clear the counts behind them; after cub's, they are cleared before binning */
     if (!short_scan || c->dirty > 0) {
         int64_t clear = len > c->dirty ? len : c->dirty;
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)clear * sizeof(uint32_t), c->stream));
         c->dirty = 0;
     }
-    if (keyed) { /* one slice */
-        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false>, c->st[in], c->n, c->grid, 0,
-                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count);
-        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
-    } else {
-        if (lev)
-            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count);
-        else
-            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count);
-    }
-    phase_mark(c, ring, w, 1);
+    return short_scan;
+}
+
+/* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
+ * two short kernels, bin_clear), then each entry's place. */
+template <bool WINDOWS>
+static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act, const int32_t *lev, int ring,
+                              bool short_scan)
+{
+    int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
     if (short_scan) {
         step_kernel(c, tiles, THREADS, 0, tile_sum_kernel, c->count, len, c->tile_sums);
         step_kernel(c, tiles, THREADS, 0, tile_scan_kernel, c->count, len, c->tile_sums, c->start);
@@ -2384,6 +2377,32 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
     else
         step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, false>, c->grid, w, c->n, lev, c->info, c->keys,
                     c->rank, c->start, sorted, c->order);
+}
+
+/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
+ * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
+ * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
+ * where the keys are taken loops over its entries: few blocks to start. */
+template <bool WINDOWS>
+static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
+                             int ring, bool keyed)
+{
+    int64_t blocks = window_blocks(c, pl, w);
+    bool short_scan = bin_clear(c, pl, w);
+    if (keyed) { /* one slice */
+        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false>, c->st[in], c->n, c->grid, 0,
+                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count);
+        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
+    } else {
+        if (lev)
+            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
+                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+        else
+            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
+                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+    }
+    phase_mark(c, ring, w, 1);
+    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan);
 }
 
 /* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the

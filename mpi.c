@@ -1061,13 +1061,15 @@ static void gpu_slab(Run *r)
 }
 
 /* 1 and 2: the reach, and the copies of the own disks within it of other strips, as halo_exchange
- * sends them, listed and packed on the GPU (mpi_halo.h decides alike there); theirs into the GPU's halo. */
-static void gpu_halo(Run *r)
+ * sends them, listed and packed on the GPU (mpi_halo.h decides alike there), which bins the own disks
+ * for the step (largest velocity component vm) while they travel; theirs into the GPU's halo. */
+static void gpu_halo(Run *r, double vm)
 {
     char *whole = sim_calloc((size_t)mpi_np, 1);
     int any_whole = halo_reach(r, whole);
     const HaloView h = halo_view(r, whole, any_whole);
-    const double *out = gpu_rank_halo_out(r->gpu, &h, r->scount, &r->nsend);
+    gpu_slab(r);
+    const double *out = gpu_rank_halo_out(r->gpu, &h, vm, r->scount, &r->nsend);
     free(whole);
     double t0 = sim_clock();
     int64_t got;
@@ -1076,7 +1078,6 @@ static void gpu_halo(Run *r)
     r->halo_secs += sim_clock() - t0;
     gpu_rank_set_halo(r->gpu, in, got);
     r->halo = got;
-    gpu_slab(r);
 }
 
 /* A round's keys of the disks sent as copies (out, in r->send's order) to the ranks that hold them,
@@ -1164,7 +1165,7 @@ static double run_steps_gpu(Run *r, RunStats *st)
         double ts = MPI_Wtime(), w0 = waited;
         if (c) clock_start(c);
         r->speed = vm * 1.41422; /* |v| <= sqrt(2) max(|vx|, |vy|) */
-        gpu_halo(r);
+        gpu_halo(r, vm);
         if (c) clock_end(c, PART_HALO);
         (void)gpu_rank_detect(r->gpu, vm);
         if (c) clock_end(c, PART_FIND);

@@ -51,6 +51,11 @@ struct GpuRank {
     StepInfo *info_host;
     double secs[GPU_CALLS]; /* the host's seconds in each call (gpu_rank_times) */
     Plan pl;
+    /* the own disks binned while the halo's records travel (gpu_rank_halo_out): early, for slots of cap
+     * (buffers sized for it), the counts to be scanned by the short kernels where early_short */
+    bool early, early_short;
+    int64_t early_cap, early_len; /* and the length of the table it counted into */
+    cudaEvent_t halo_ready; /* the halo's records are on the host */
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
 };
@@ -294,6 +299,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 4 * sizeof(unsigned long long)));
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
+    CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
     events_alloc(c, 4096);
     rank_reserve(g, 1024);
     rank_sync(g);
@@ -319,6 +325,7 @@ void gpu_rank_close(GpuRank *g)
     cudaFreeHost(g->keys_host);
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
     cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
+    cudaEventDestroy(g->halo_ready);
     cudaStreamDestroy(c->stream);
     free(g);
 }
@@ -433,7 +440,28 @@ static void view_reserve(GpuRank *g, int np)
     g->view_np = np;
 }
 
-const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, int *scount, int64_t *nsend)
+/* The gate of a step (its grid for largest velocity component vmax) and the own disks binned on it,
+ * before the halo arrives: the device's work while the halo's records travel (gpu_rank_detect bins the
+ * copies after them, unless the slots' buffers grew meanwhile). */
+static void bin_early(GpuRank *g, double vmax)
+{
+    Cuda *c = &g->c;
+    Plan *pl = &g->pl;
+    plan_step(g, pl, vmax);
+    c->n = g->own;
+    CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
+    step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1, c->grid,
+                (Grid *)NULL, 0, 0.0);
+    g->early_short = bin_clear(c, pl, 0);
+    if (g->own > 0)
+        step_kernel(c, blocks_for(g->own), THREADS, 0, bin_kernel<false, false>, c->st[c->cur], g->own, c->grid, 0,
+                    (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi, c->keys, c->rank, c->count);
+    g->early = true;
+    g->early_cap = g->cap;
+    g->early_len = pl->wcells[0] + 1;
+}
+
+const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int *scount, int64_t *nsend)
 {
     CallClock clock_(g, GPU_HALO_OUT);
     Cuda *c = &g->c;
@@ -469,15 +497,18 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, int *scount, int6
     send_reserve(g, n);
     rec_host_reserve(g, n);
     g->nsend = *nsend = n;
-    if (n == 0) return g->rec_host;
-    rec_reserve(g, n);
-    rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, c->stream>>>(
-        c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur], d, g->cand, g->halo_count, g->halo_count + np + 2, g->send,
-        g->rec);
-    CUDA_LAUNCHED();
-    CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
-                               c->stream));
-    rank_sync(g);
+    if (n > 0) {
+        rec_reserve(g, n);
+        rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, c->stream>>>(
+            c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur], d, g->cand, g->halo_count, g->halo_count + np + 2,
+            g->send, g->rec);
+        CUDA_LAUNCHED();
+        CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+                                   c->stream));
+        CUDA_CHECK(cudaEventRecord(g->halo_ready, c->stream));
+    }
+    bin_early(g, vmax);
+    if (n > 0) CUDA_CHECK(cudaEventSynchronize(g->halo_ready)); /* not for the binning */
     return g->rec_host;
 }
 
@@ -505,13 +536,29 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
     plan_step(g, pl, vmax); /* what the gate fits, from the same speed */
     c->n = n;
     pl->went[0] = n;
-    CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
+    bool early = g->early && g->early_cap == g->cap; /* else the buffers grew since: all binned again */
+    if (g->early && !early && c->dirty < g->early_len) c->dirty = g->early_len; /* counts to clear first */
+    g->early = false;
     int in = c->cur;
     for (;;) {
-        step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
-                    c->grid, (Grid *)NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
-        if (n > 0) {
+        if (!early) {
+            CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
+            step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
+                        c->grid, (Grid *)NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
+        }
+        if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */
+            int64_t own = g->own;
+            DevState st = c->st[in];
+            st.pos += own, st.vel += own, st.id += own;
+            if (g->halo > 0)
+                step_kernel(c, blocks_for(g->halo), THREADS, 0, bin_kernel<false, false>, st, g->halo, c->grid, 0,
+                            (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + own, c->keys + own,
+                            c->rank + own, c->count);
+            scan_place_launch<false>(c, pl, 0, NULL, NULL, 0, g->early_short);
+        } else if (n > 0) {
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
+        }
+        if (n > 0) {
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
                         c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where);
             DevState *d = &c->st[1 - in];
@@ -532,6 +579,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
         /* a list too short: longer, and the step's search again (the state it started from is intact) */
         cudaFree(c->ev[0]), cudaFree(c->ev[1]);
         events_alloc(c, found + found / 4 + 4096);
+        early = false;
     }
     g->list = 0;
     g->round = 0;
