@@ -56,6 +56,8 @@ $(BASE_F32): %_f32.o: %.c $(HEADERS) Makefile
 
 OMP_SRC = omp.c omp_broad.c omp_paths.c omp_exact.c omp_team.c
 OMP_H = omp_step.h omp_lanes.h omp_team.h
+# cuda.cu and the device code it includes, phase by phase
+CUDA_SRC = cuda.cu cuda_state.cuh cuda_bin.cuh cuda_detect.cuh cuda_choose.cuh cuda_move.cuh mpi_cuda.h
 
 seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
 	$(CC) $(CFLAGS) -DSIM_FLOAT seq.c $(BASE_F32) -o $@ $(LDLIBS)
@@ -63,7 +65,7 @@ seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile
 omp_f32: $(OMP_SRC) $(BASE_F32) $(HEADERS) $(OMP_H) Makefile
 	$(CC) $(CFLAGS) $(OMPFLAGS) -DSIM_FLOAT $(OMP_SRC) $(BASE_F32) -o $@ $(LDLIBS)
 
-cuda_f32: cuda.cu $(BASE_F32) $(HEADERS) Makefile
+cuda_f32: $(CUDA_SRC) $(BASE_F32) $(HEADERS) Makefile
 	$(NVCC) $(NVCCFLAGS) -DSIM_FLOAT -Xcompiler -ffp-contract=off cuda.cu $(BASE_F32) -o $@ $(LDLIBS)
 
 seq: seq.c $(BASE) $(HEADERS) Makefile
@@ -81,12 +83,12 @@ mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h mpi_halo.h Makefile
 # mpi with a GPU for each rank: mpi.c's steps built with MPI_CUDA, cuda.cu's kernels through
 # mpi_cuda.cu (nvcc), linked by mpicc with the CUDA runtime
 CUDA_LIBDIR ?= $(abspath $(dir $(shell command -v $(NVCC) 2>/dev/null))../lib64)
-mpi_cuda: $(MPI_SRC) mpi_cuda.cu cuda.cu mpi_cuda.h mpi_halo.h $(HEADERS) $(OMP_H) mpi.h Makefile
+mpi_cuda: $(MPI_SRC) mpi_cuda.cu $(CUDA_SRC) mpi_halo.h $(HEADERS) $(OMP_H) mpi.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off -c mpi_cuda.cu -o mpi_cuda_gpu.o
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) -DMPI_CUDA $(MPI_SRC) mpi_cuda_gpu.o -o $@ $(LDLIBS) \
 		-L$(CUDA_LIBDIR) -Wl,-rpath,$(CUDA_LIBDIR) -lcudart -lstdc++
 
-cuda: cuda.cu $(BASE) $(HEADERS) Makefile
+cuda: $(CUDA_SRC) $(BASE) $(HEADERS) Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off cuda.cu $(BASE) -o $@ $(LDLIBS)
 
 # seq with address and undefined-behaviour checks, for the hard cases

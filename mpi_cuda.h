@@ -20,7 +20,7 @@ extern "C" {
 enum { D_ID, D_X, D_Y, D_VX, D_VY, D_PC, D_WC, D_WI, D_LEN };
 
 /* A disk's smallest live event key in a round of the choice, from its owner to the ranks that hold a
- * copy: cuda's (hi, lo) (cuda.cu, PairEvent), and whether the disk is decided. */
+ * copy: cuda's (hi, lo) (cuda_state.cuh, PairEvent), and whether the disk is decided. */
 typedef struct {
     uint64_t hi, lo, decided;
 } GpuKey;

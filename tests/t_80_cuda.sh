@@ -1,7 +1,7 @@
 # cuda against seq, byte for byte, on generated scenes that stress the broad phase: slow and fast disks
 # (one time slice and many), dense, dilute, overlapping starts, walls, the assignment's random scenes,
 # mixed scenes (a few fast disks among slow ones), tiny radii, speeds far beyond the box, a few disks,
-# speeds spread over all the speed levels (cuda.cu, disk_level) with many slices.
+# speeds spread over all the speed levels (cuda_state.cuh, disk_level) with many slices.
 # Each scene runs in print and perf mode, in double (cuda against seq) and in single precision
 # (cuda_f32 against seq_f32: its broad phase has its own rounding margins). Without a GPU every case
 # is a SKIP.
@@ -143,7 +143,7 @@ for name in $(pick "slow fast walls random spread mixed_gas" "slow spread"); do
     done
 done
 
-# Steps of one slice: a move keys the disks' cells for the next step of its batch (cuda.cu, MoveBin) on
+# Steps of one slice: a move keys the disks' cells for the next step of its batch (cuda_move.cuh, MoveBin) on
 # cells fitted to SIM_CUDA_BIN_AHEAD times its speed, and a step whose speed outgrew them bins anew. At 1
 # (no room) the speeds of these scenes, which grow as collisions spread them, send steps both ways:
 # --stats counts the steps each way, and both must have been taken. Then the same in graphs, through
@@ -169,7 +169,7 @@ for name in $(pick "slow dense overlap" "slow dense"); do
     same_bytes "$label, no keys ahead" "$expected" env SIM_CUDA_BIN_AHEAD=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
 done
 
-# Time windows (cuda.cu, window_start): a step's slices are cut into windows whose choice is made one
+# Time windows (cuda_state.cuh, window_start): a step's slices are cut into windows whose choice is made one
 # after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
 # to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's
 # slices: 1 gives the most windows, 3 windows of 3, 6, 12... slices. --stats must list the windows,
@@ -236,7 +236,7 @@ for name in $(pick "slow fast walls random" "fast walls"); do
     done
 done
 
-# The periodic box (--periodic, SPEC.md 7): the cells and the differences between disks wrap (cuda.cu,
+# The periodic box (--periodic, SPEC.md 7): the cells and the differences between disks wrap (cuda_detect.cuh,
 # edge_runs), one cell a side or at least three; steps of one slice and of several (one speed level),
 # time windows, sub-steps, random placement, a crystal near close packing, single precision.
 periodic_scenes() {

@@ -20,7 +20,8 @@
 #                            the gas at 1e7 (50 steps), two runs each and one with one time window a step
 #                            (SIM_CUDA_WINDOW=0); omp on the random scene at N = 1e5 on 1 and 16 threads
 #                            (./bench.sh targets); BASE_SRC=FILE also times an earlier tree's cuda.cu (say
-#                            from `git show REV:cuda.cu`), built against this tree's objects, beside each run;
+#                            from `git show REV:cuda.cu`; its cuda_*.cuh beside it), built against this tree's
+#                            objects, beside each run;
 #                            OMP_TOO=0 leaves omp out
 #   ./bench.sh gpu-goals   each of cuda's goals with its figure, one line `# goal: ...` each: the step
 #                            loop on the gas of 1e7 and (GOALS_BIG=1) of 1e8, the dense gas of 1e7, the
@@ -109,7 +110,7 @@ do_memcheck() {
                     && echo "memcheck $f${w:+ windows} output == seq" || echo "memcheck $f${w:+ windows} output DIFFERS"
             done
         done
-        # a gas of one slice a step, whose moves key the cells of the next step (cuda.cu, MoveBin)
+        # a gas of one slice a step, whose moves key the cells of the next step (cuda_move.cuh, MoveBin)
         tools/gen 3000 --fraction 0.2 --speed 0.5 --steps 12 --seed 15 > "$DATA/san_gas.in"
         "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_gas.log" \
             ./cuda "$DATA/san_gas.in" --quiet > "$DATA/gas.out" && echo "memcheck san_gas: clean" \
@@ -288,7 +289,7 @@ do_targets() {
         done
         [ -n "${BASE:-}" ] && same "$f" cuda_base | sed 's/^/# /' >> "$CSV"
         ./cuda "$DATA/$f.in" --stats 2>&1 > /dev/null | grep -E 'phase|round|window|refused' | sed "s/^/# $f: /" >> "$CSV"
-        # the same in one time window a step (the choice waits for no window: cuda.cu, window_start)
+        # the same in one time window a step (the choice waits for no window: cuda_state.cuh, window_start)
         SIM_CUDA_WINDOW=0 NAME=cuda_one_window time_one "$f" "$n" ./cuda "$DATA/$f.in" --stats
     done
     if [ "${OMP_TOO:-1}" = 1 ]; then

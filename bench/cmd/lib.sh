@@ -29,9 +29,13 @@ build_revision() {
 # build_source FILE OUT LOG: an earlier cuda.cu (say from `git show REV:cuda.cu`) built as OUT against this
 # tree's objects, with the Makefile's flags: a copy of the tree without git history cannot build a
 # revision (build_revision). The earlier file must use this tree's io.h (a Backend handed to io_main).
-# The build's output goes to LOG. Non-zero status when it fails.
+# The cuda_*.cuh files it includes must lie beside it (`git archive REV cuda.cu 'cuda_*.cuh'`), or this
+# tree's would be built in unseen. The build's output goes to LOG. Non-zero status when it fails.
 build_source() {
-    local objects
+    local objects h
+    for h in $(sed -n 's/^#include "\(cuda_[a-z_]*\.cuh\)".*/\1/p' "$1"); do
+        [ -f "$(dirname "$1")/$h" ] || { echo "build_source: $1 includes $h, which is not beside it" > "$3"; return 1; }
+    done
     objects=$(make_var BASE)
     mkdir -p "$(dirname "$2")"
     # shellcheck disable=SC2086

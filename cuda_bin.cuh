@@ -1,0 +1,394 @@
+/* cuda_bin.cuh: a step's gate and binning: the grid fitted to the step's disks, each disk's slices binned by
+ * cell, counted, scanned and placed in cell order.
+ * Part of cuda.cu, which includes it after its constants and the files before it (cuda.cu's list). */
+
+/* ==== bin ================================================================================================ */
+
+/* The first kernel of a step (one thread): fits the step's grid to the largest speed of its disks,
+ * within the plan's slices and cells per side (the host's plan comes from a speed a batch or two old),
+ * and clears the step's counters. */
+static __device__ Grid gate_grid(const GridLimits *lim, double vmax, int K, int64_t gcap, int F, int W, int levels)
+{
+    int k = grid_slices(lim, vmax);
+    Grid gr = grid_fit(lim, vmax, k < K ? k : K, gcap);
+    int windows = gr.K > 1 ? W : 1;
+    for (int w = 0; w <= WMAX; w++) gr.wb[w] = w <= windows ? window_start(w, F, windows, gr.K) : gr.K;
+    /* the plan's levels: its windows keep their slices, and its cells hold their rows */
+    gr.levels = gr.K > 1 ? levels : 1;
+    gr.vlev = vmax;
+    gr.cells = (int64_t)window_rows(0, gr.wb[1], gr.levels) * gr.ncell;
+    gr.keyed = 0;
+    return gr;
+}
+
+/* ahead: the grid the step's move is to key the disks on for the next step (ahead_slack > 0), in one
+ * slice, fitted to ahead_slack times the step's largest speed (its own grid would leave no room for the
+ * speed to grow); keyed: the move before did, and the step takes that grid if its cells are at least as
+ * wide as the step's speed needs (their number per side no larger), else it bins anew (bin_place_launch). */
+__global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
+                            unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid,
+                            Grid *ahead, int keyed, double ahead_slack)
+{
+    after_previous();
+    /* after a refusal, an empty grid: the steps launched behind the refused one then bin, place and
+     * search nothing (their state buffers may hold anything, even memory never written, whose disks
+     * could all fall into one cell); the counters are cleared all the same */
+    double vmax = __longlong_as_double((long long)ctl->vmax);
+    Grid gr = gate_grid(&lim, vmax, K, gcap, F, W, levels);
+    info->ahead[0] = info->ahead[1] = 0;
+    if (keyed && !ctl->refused) {
+        if (gr.K == 1 && ahead->g <= gr.g) gr = *ahead;
+        info->ahead[gr.keyed ? 0 : 1] = 1;
+    }
+    if (ahead_slack > 0) {
+        Grid next = gate_grid(&lim, vmax * ahead_slack, 1, gcap, F, W, levels);
+        next.keyed = 1;
+        *ahead = next;
+    }
+    if (ctl->refused) {
+        gr.cells = 0;
+        for (int w = 0; w <= WMAX; w++) gr.wb[w] = 0;
+    }
+    *grid = gr;
+    info->vmax = 0;
+    for (int w = 0; w < WMAX; w++) {
+        info->found[w] = info->active[w] = 0;
+        for (int l = 0; l < LEVELS; l++) info->level[w][l] = 0;
+    }
+    info->active[0] = ctl->refused ? 0 : lim.n;
+    info->events = 0;
+    info->tests = 0;
+    info->outside = 0;
+    for (int r = 0; r < WMAX * (MAX_ROUNDS + 1); r++) counts[r] = 0;
+    info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
+}
+
+/* The last kernel of a step (one warp): the step's state is now the current one. A thread per round
+ * and window: one thread's read-add-write chain took 15 us, a twentieth of a step at N = 32000. (Done
+ * by the move's last block instead, it cost the gas of 1e7 6%: its 39000 blocks each counted themselves
+ * on one address.) */
+__global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
+{
+    after_previous();
+    static_assert(MAX_ROUNDS <= 32 && WMAX <= 32, "a thread each");
+    if (ctl->refused) return;
+    int t = threadIdx.x;
+    if (t < MAX_ROUNDS) {
+        unsigned long long sum = 0;
+        for (int w = 0; w < WMAX; w++) sum += t == 0 ? info->found[w] : counts[w * (MAX_ROUNDS + 1) + t];
+        ctl->left[t] += sum;
+    }
+    if (t < WMAX) {
+        ctl->wfound[t] += info->found[t];
+        ctl->wactive[t] += info->active[t];
+    }
+    if (t == 0) {
+        ctl->vmax = info->vmax;
+        ctl->steps++;
+        ctl->tests += info->tests;
+        ctl->events += info->events;
+        ctl->faster += info->faster;
+        ctl->ahead[0] += info->ahead[0];
+        ctl->ahead[1] += info->ahead[1];
+    }
+}
+
+/* The cell key of a disk at pos with velocity vel, at the fraction f of the step, in row `row` (info: where
+ * a slab's key outside its rows is counted, or NULL). */
+static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, real2 vel, double f, int64_t row,
+                                                    const StepInfo *info)
+{
+    double mx = (double)pos.x + (double)vel.x * f, my = (double)pos.y + (double)vel.y * f;
+    if (gr.periodic) { /* into [0, L): the cells wrap with the box */
+        double L = (double)gr.Lw;
+        mx = mx - L * floor(mx / L);
+        my = my - L * floor(my / L);
+    }
+    int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
+    if (gr.slab) { /* column first: the column's place in the slab is the row */
+        int64_t col = cx - gr.xoff;
+        if (col < 0) col += gr.g;
+        if (col >= gr.rows - 1) { /* never (the caller's bounds): counted, and kept in the table */
+            if (info) atomicAdd(&((StepInfo *)info)->outside, 1ull);
+            col = gr.rows - 2;
+        }
+        cx = cy, cy = col;
+    }
+    return (uint32_t)(row * gr.ncell + cy * gr.g + cx);
+}
+
+/* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
+ * middle; a disk of level l (disk_level) has an entry for each slice of its level, which starts at a
+ * slice k that is a multiple of 2^l.
+ * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
+ * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
+ * disk's wall time get no entry (key KEY_OUT): disks flying through a wall would otherwise pile up in
+ * the border cells. slice_of(t) <= slice_of(tw) for t < tw, so the slice test is exact. Midpoints are
+ * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
+ * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
+ * changes where disks sit in memory and nothing else (every decision compares values). */
+template <bool WINDOWS, bool LEVELS_LISTED>
+__global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
+                           const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
+                           uint32_t *rank, uint32_t *count)
+{
+    after_previous();
+    const Grid gr = *grid;
+    if (gr.keyed) return; /* by the move before: count_kernel counts them */
+    /* !LEVELS_LISTED: the compiler drops the lists' decoding (one-slice steps: 44 registers against 52,
+     * 5 blocks a multiprocessor against 4) */
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
+    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
+        const WindowEntry x = window_entry(d, e);
+        const int64_t s = x.s, k = x.k;
+        const int l = x.l;
+        real2 vel = st.vel[s];
+        if (k > 0) { /* the wall event as init_kernel keyed it: the time wall_time gives, or none by t = 1 */
+            uint64_t wall = wall_hi[s];
+            if (wall != NO_EVENT && (k >> l) > (slice_of(key_time(wall), gr.K) >> l)) {
+                keys[e] = KEY_OUT;
+                continue;
+            }
+        }
+        uint32_t key = cell_key(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
+        keys[e] = key;
+        rank[e] = atomicAdd(&count[key], 1u);
+    }
+}
+
+/* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. */
+static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
+                                                 uint64_t *best_lo, int32_t *partner)
+{
+    wall_hi[s] = w;
+    best_hi[s] = w;
+    best_lo[s] = NO_EVENT;
+    partner[s] = -1;
+}
+
+/* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.
+ * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.) */
+__global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
+                                    uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
+                                    const Control *ctl, uint32_t *where)
+{
+    after_previous();
+    int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= n) return;
+    /* After a refusal the empty grid places nothing, so order may hold an older step's entries (< n
+     * K): kept in bounds here, and nothing is written, since out can then be the last committed
+     * state (each step with K > 1 launched behind the refused one moves the state to the other buffer
+     * in the host's reckoning, so an odd number of them before a K = 1 step leaves it one off). */
+    uint32_t s = order[p];
+    if (s >= n) s = 0;
+    real2 pos = in.pos[s], vel = in.vel[s];
+    int32_t id = in.id[s];
+    if (refused(ctl)) return;
+    out.pos[p] = pos;
+    out.vel[p] = vel;
+    out.id[p] = id;
+    slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
+    if (where) where[s] = (uint32_t)p; /* a GPU rank's: where each slot went (mpi_cuda.cu) */
+}
+
+/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
+ * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
+ * disk itself); the disks, or their copies, are then gathered with coalesced writes. */
+template <bool WINDOWS, bool LEVELS_LISTED>
+__global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *lev, const StepInfo *info,
+                             const uint32_t *keys, const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
+                             uint32_t *order)
+{
+    after_previous();
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, LEVELS_LISTED ? lev : NULL, info);
+    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
+        uint32_t key = keys[e];
+        if (key == KEY_OUT) continue;
+        int64_t p = (int64_t)start[key] + rank[e];
+        if (keys_sorted) keys_sorted[p] = key;
+        order[p] = (uint32_t)e;
+    }
+}
+
+/* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells. */
+__global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count)
+{
+    after_previous();
+    if (!grid->keyed) return;
+    ENTRY_LOOP(false, e, n) rank[e] = atomicAdd(&count[keys[e]], 1u);
+}
+
+/* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with
+ * programmatic launches, step_kernel), in place of cub's: the tile sums, then each tile's sum from those
+ * before it; the second clears the counts behind it for the next binning, which then needs no clearing
+ * of its own. Random scene, N = 32000: 1.74e8 against 1.72e8 particle-steps/s with cub's scan and the
+ * clearing (bench/gpu_h100_variants.log 10c). */
+#define SCAN_ITEMS 8
+#define SCAN_TILE (THREADS * SCAN_ITEMS)
+#ifndef SCAN_TILES
+#define SCAN_TILES 1024 /* the longest table scanned so: 2M cells (each block adds up to SCAN_TILES sums) */
+#endif
+
+__global__ void tile_sum_kernel(const uint32_t *count, int64_t len, uint32_t *sums)
+{
+    after_previous();
+    typedef cub::BlockReduce<uint32_t, THREADS> Reduce;
+    __shared__ typename Reduce::TempStorage tmp;
+    int64_t base = (int64_t)blockIdx.x * SCAN_TILE;
+    uint32_t sum = 0;
+    for (int i = 0; i < SCAN_ITEMS; i++) {
+        int64_t j = base + i * THREADS + threadIdx.x;
+        if (j < len) sum += count[j];
+    }
+    sum = Reduce(tmp).Sum(sum);
+    if (threadIdx.x == 0) sums[blockIdx.x] = sum;
+}
+
+__global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *sums, uint32_t *start)
+{
+    after_previous();
+    typedef cub::BlockLoad<uint32_t, THREADS, SCAN_ITEMS, cub::BLOCK_LOAD_TRANSPOSE> Load;
+    typedef cub::BlockStore<uint32_t, THREADS, SCAN_ITEMS, cub::BLOCK_STORE_TRANSPOSE> Store;
+    typedef cub::BlockReduce<uint32_t, THREADS> Reduce;
+    typedef cub::BlockScan<uint32_t, THREADS> Scan;
+    __shared__ union {
+        typename Load::TempStorage load;
+        typename Store::TempStorage store;
+        typename Reduce::TempStorage reduce;
+        typename Scan::TempStorage scan;
+    } tmp;
+    __shared__ uint32_t before;
+    int64_t base = (int64_t)blockIdx.x * SCAN_TILE;
+    int valid = len - base < SCAN_TILE ? (int)(len - base) : SCAN_TILE;
+    uint32_t sum = 0;
+    for (uint32_t i = threadIdx.x; i < blockIdx.x; i += THREADS) sum += sums[i];
+    sum = Reduce(tmp.reduce).Sum(sum);
+    if (threadIdx.x == 0) before = sum;
+    __syncthreads();
+    uint32_t items[SCAN_ITEMS];
+    Load(tmp.load).Load(count + base, items, valid, 0u);
+    __syncthreads();
+    Scan(tmp.scan).ExclusiveSum(items, items);
+    for (int i = 0; i < SCAN_ITEMS; i++) items[i] += before;
+    __syncthreads();
+    Store(tmp.store).Store(start + base, items, valid);
+    for (int i = 0; i < SCAN_ITEMS; i++) { /* read above by this block alone */
+        int64_t j = base + i * THREADS + threadIdx.x;
+        if (j < len) count[j] = 0;
+    }
+}
+
+/* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
+typedef struct {
+    real2 *pos, *vel;
+    int32_t *id, *slot;
+    uint64_t *wall;
+    float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
+} Entries;
+
+/* The entries of window w's cells (window_rows rows of ncell cells), once placed. */
+static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, const uint32_t *start)
+{
+    return start[(int64_t)window_rows(grid->wb[w], grid->wb[w + 1], grid->levels) * grid->ncell];
+}
+
+/* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
+__global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const int32_t *lev,
+                                      const StepInfo *info, const uint32_t *order, const uint32_t *start,
+                                      const Grid *grid, const uint64_t *wall_hi, Entries en)
+{
+    after_previous();
+    const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
+    const int K = grid->K;
+    GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
+        const WindowEntry x = window_entry(d, order[p]);
+        const int64_t s = x.s;
+        real2 pos = st.pos[s], vel = st.vel[s];
+        en.pos[p] = pos;
+        en.vel[p] = vel;
+        en.id[p] = st.id[s];
+        en.slot[p] = (int32_t)s;
+        en.wall[p] = wall_hi[s];
+        /* the midpoint as bin_kernel computes it, and the velocity */
+        double f = slice_mid(x.k, x.l, K);
+        en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
+                                (float)vel.x, (float)vel.y);
+    }
+}
+
+/* Window w's disks by speed level (levels > 1, WindowDisks): disk s, of level l, gets a place in level
+ * l's list where live. Every thread of the block calls this: the block counts its disks of each
+ * level in shared memory, then takes their places with one atomic per level. The lists' order changes
+ * from run to run, and with it where entries sit in memory, nothing else. */
+static __device__ __forceinline__ void level_lists(int32_t *lev, int64_t n, unsigned long long *count, int levels,
+                                                   bool live, int64_t s, int l)
+{
+    __shared__ unsigned int block_count[LEVELS];
+    __shared__ unsigned long long block_base[LEVELS];
+    if (threadIdx.x < LEVELS) block_count[threadIdx.x] = 0;
+    __syncthreads();
+    unsigned int r = live ? atomicAdd(&block_count[l], 1u) : 0;
+    __syncthreads();
+    if (threadIdx.x < (unsigned)levels && block_count[threadIdx.x] > 0)
+        block_base[threadIdx.x] = atomicAdd(&count[threadIdx.x], (unsigned long long)block_count[threadIdx.x]);
+    __syncthreads();
+    if (live) lev[(int64_t)l * n + (int64_t)(block_base[l] + r)] = (int32_t)s;
+}
+
+/* K > 1, the first window: every disk free, its wall event computed, and seen by this window's choice
+ * if it falls in it; with speed levels, the disk's level (level_of) and its place in the lists. */
+__global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par, uint64_t *wall_hi,
+                            uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
+                            uint8_t *level_of, int32_t *lev, StepInfo *info)
+{
+    after_previous();
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    const int levels = grid->levels;
+    int l = 0;
+    if (s < n) {
+        real2 pos = st.pos[s], vel = st.vel[s];
+        uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par);
+        slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
+        uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);
+        wall_win[s] = seen;
+        best_hi[s] = seen;
+        if (levels > 1) {
+            l = disk_level((double)vel.x, (double)vel.y, grid->vlev, levels);
+            level_of[s] = (uint8_t)l;
+        }
+    }
+    if (levels > 1) level_lists(lev, n, info->level[0], levels, s < n, s, l); /* block-uniform */
+}
+
+/* A later window w: the disks that no earlier window took (by a pair event, or by a wall event in an
+ * earlier window's slices, which no remaining event can precede) are listed in act; the choice state of
+ * each restarts with the wall event as this window sees it. The list's order changes from run to run,
+ * and with it where entries sit in memory, nothing else. */
+__global__ void activate_kernel(int64_t n, const Grid *grid, int w, const int32_t *prev, int32_t *act,
+                                StepInfo *info, const int32_t *partner, const uint64_t *wall_hi,
+                                uint64_t *wall_win, uint64_t *best_hi, uint64_t *best_lo,
+                                const uint8_t *level_of, int32_t *lev)
+{
+    after_previous();
+    const int K = grid->K, k0 = grid->wb[w], end = grid->wb[w + 1], levels = grid->levels;
+    if (k0 >= end) return; /* an empty window: so are the later ones */
+    int64_t np = w == 1 ? n : (int64_t)info->active[w - 1];
+    /* block-uniform turns (level_lists) */
+    for (int64_t i0 = (int64_t)blockIdx.x * blockDim.x; i0 < np; i0 += (int64_t)gridDim.x * blockDim.x) {
+        int64_t i = i0 + threadIdx.x, s = 0;
+        bool live = i < np;
+        if (live) {
+            s = w == 1 ? i : prev[i];
+            uint64_t wall = wall_hi[s];
+            live = partner[s] < 0 && !(wall != NO_EVENT && slice_of(key_time(wall), K) < k0);
+            if (live) {
+                act[list_append(&info->active[w])] = (int32_t)s;
+                uint64_t seen = window_wall(wall, K, end);
+                wall_win[s] = seen;
+                best_hi[s] = seen;
+                best_lo[s] = NO_EVENT;
+            }
+        }
+        if (levels > 1) level_lists(lev, n, info->level[w], levels, live, s, live ? level_of[s] : 0);
+    }
+}

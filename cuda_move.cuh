@@ -1,0 +1,212 @@
+/* cuda_move.cuh: the move: each disk from the old buffers into the new.
+ * Part of cuda.cu, which includes it after its constants and the files before it (cuda.cu's list). */
+
+/* ==== move =============================================================================================== */
+
+/* A GPU rank's step (mpi_cuda.cu): its slots hold its own disks and copies of other ranks' disks (the
+ * halo), which the move leaves where they are; the collision counts travel with the own disks. */
+typedef struct {
+    const uint32_t *order;        /* cell place -> slot before the gather: copies are the slots own and up */
+    int64_t own;
+    const int32_t *pc_in, *wc_in; /* by slot before the gather */
+    /* the own disks whose x stays in [c0, c1) (no bound below where first, above where last) go to the
+     * front of the new state, with their counts in pc_out, wc_out (count[0] of them); the others
+     * (count[1]) as records of mpi_cuda.h into rec, up to cap */
+    double c0, c1;
+    int first, last;
+    int32_t *pc_out, *wc_out;
+    double *rec;
+    int64_t cap;
+    unsigned long long *count;
+} RankMove;
+
+/* A disk as a record of mpi_cuda.h (D_LEN doubles), for another rank or the host. */
+static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 vel, int32_t id, int32_t pc,
+                                                    int32_t wc)
+{
+    d[D_ID] = id, d[D_X] = pos.x, d[D_Y] = pos.y, d[D_VX] = vel.x, d[D_VY] = vel.y, d[D_PC] = pc, d[D_WC] = wc;
+    d[D_WI] = 0;
+}
+
+/* A GPU rank's own disk after its move: true where it stays in the strip (the caller keeps it), else
+ * packed for another rank. */
+static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos, real2 vel, int32_t id, int32_t pc,
+                                                  int32_t wc)
+{
+    double x = (double)pos.x;
+    if ((rm.first || x >= rm.c0) && (rm.last || x < rm.c1)) return true;
+    unsigned long long k = list_append(&rm.count[1]);
+    /* beyond cap the host makes room and moves the step again */
+    if ((int64_t)k < rm.cap) write_record(rm.rec + k * D_LEN, pos, vel, id, pc, wc);
+    return false;
+}
+
+/* One slice a step: the move also keys its disks' cells for the next step, each slot being its entry, on
+ * the grid the gate fitted ahead (gate_kernel); the next step only counts them (count_kernel), and spares
+ * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
+ * -> 4.749e9 (bench/gpu_h100_goals.log, 71b5eb2's section). Counting in the move as well, with an atomic a
+ * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). */
+typedef struct {
+    const Grid *grid;
+    uint32_t *keys;
+} MoveBin;
+
+/* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
+ * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
+ * overflowed the list decided on part of them only: it is refused here, before anything is written.
+ * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. BIN (not with RANK): the
+ * disks keyed for the next step (MoveBin). */
+template <bool RANK, bool BIN>
+__global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
+                            const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
+                            StepInfo *info, int64_t cap, Control *ctl, RankMove rm, MoveBin mb)
+{
+    static_assert(!(RANK && BIN), "a GPU rank bins its disks with its halo");
+    after_previous();
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    real2 pos = {0, 0}, vel = {0, 0};
+    int32_t id = 0, o = -1;
+    uint64_t wall = NO_EVENT;
+    uint32_t from = 0;
+    if (s < n) { /* loaded before the checks below, so that their loads overlap */
+        pos = in.pos[s];
+        vel = in.vel[s];
+        id = in.id[s];
+        o = partner[s];
+        wall = wall_hi[s];
+        if (RANK) from = rm.order[s];
+    }
+    if (refused(ctl)) return;
+    unsigned long long most = 0;
+    for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
+    if (most > (unsigned long long)cap) {
+        if (blockIdx.x == 0 && threadIdx.x == 0) {
+            ctl->overflow = most;
+            ctl->refused = 1;
+        }
+        return;
+    }
+    real vabs = 0;
+    unsigned long long accepted = 0;
+    int dp = 0, dw = 0; /* collisions with a disk, with a wall */
+    bool stays = false; /* RANK: an own disk kept at the front of out (below, with pos, vel, id, pc1, wc1) */
+    int32_t pc1 = 0, wc1 = 0;
+    if (s < n && (!RANK || from < rm.own)) { /* a rank's copies stay as they are */
+        real lo = par.lo, hi = par.hi;
+        real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
+        if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
+        if (o < 0) {
+            x = x + vx;
+            y = y + vy;
+        } else if (o == s) {
+            real t1 = key_time(wall);
+            wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
+            finish_step(&x, &y, vx, vy, t1, lo, hi);
+            dw = 1;
+            accepted = 1;
+        } else {
+            /* both partners compute the contact with the lower original index as i, then each
+             * finishes its own side: the arithmetic of pair_collide */
+            real t1 = key_time(best_hi[s]);
+            real2 pos2 = in.pos[o], vel2 = in.vel[o];
+            real x2 = pos2.x, y2 = pos2.y, vx2 = vel2.x, vy2 = vel2.y;
+            int mine_first = id < in.id[o];
+            real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
+            real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
+            real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
+            real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
+            if (par.periodic)
+                (void)pair_contact_wrap(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1, par.L, par.half);
+            else
+                (void)pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
+            x = mine_first ? xi : xj, y = mine_first ? yi : yj;
+            vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
+            if (par.periodic)
+                fly_rest(&x, &y, vx, vy, t1);
+            else
+                finish_step(&x, &y, vx, vy, t1, lo, hi);
+            dp = 1;
+            accepted = mine_first;
+        }
+        if (!RANK) {
+            if (dp) pc[id]++;
+            if (dw) wc[id]++;
+        }
+        real2 pos1, vel1;
+        pos1.x = par.periodic ? wrap_coord(x, par.L) : clamp_coord(x, lo, hi);
+        pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
+        vel1.x = vx;
+        vel1.y = vy;
+        if (RANK) {
+            pc1 = rm.pc_in[from] + dp, wc1 = rm.wc_in[from] + dw;
+            stays = rank_stays(rm, pos1, vel1, id, pc1, wc1);
+            pos = pos1, vel = vel1;
+        } else {
+            out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
+        }
+        if (BIN) /* as bin_kernel keys the entry of slot s in a step of one slice */
+            mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
+        real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+        vabs = ax < ay ? ay : ax;
+    }
+    if (RANK) {
+        /* the block's kept disks in thread order after one atomic on the count: with one a warp, all on
+         * one address, the moves of the 1e8 gas on 2 GPUs took 0.0675 s over 20 steps, against 0.0462
+         * (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log) */
+        typedef cub::BlockScan<int, THREADS> ScanK;
+        __shared__ typename ScanK::TempStorage tmp_k;
+        __shared__ unsigned long long kept_base;
+        int at, total;
+        ScanK(tmp_k).ExclusiveSum(stays ? 1 : 0, at, total);
+        if (threadIdx.x == 0 && total > 0) kept_base = atomicAdd(&rm.count[0], (unsigned long long)total);
+        __syncthreads();
+        if (stays) {
+            unsigned long long k = kept_base + (unsigned long long)at;
+            out.pos[k] = pos;
+            out.vel[k] = vel;
+            out.id[k] = id;
+            rm.pc_out[k] = pc1;
+            rm.wc_out[k] = wc1;
+        }
+    }
+    typedef cub::BlockReduce<real, THREADS> ReduceR;
+    typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;
+    __shared__ typename ReduceR::TempStorage tmp_r;
+    __shared__ typename ReduceU::TempStorage tmp_u;
+    real m = ReduceR(tmp_r).Reduce(vabs, cuda::maximum<>());
+    unsigned long long a = ReduceU(tmp_u).Sum(accepted);
+    if (threadIdx.x == 0) {
+        atomicMax(&info->vmax, (unsigned long long)__double_as_longlong((double)m));
+        if (a) atomicAdd(&info->events, a);
+    }
+}
+
+/* Print mode: the state back in original index order, for the copy to the host. */
+__global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real *vx, real *vy,
+                                 const Control *ctl)
+{
+    if (refused(ctl)) return;
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (s >= n) return;
+    int32_t i = st.id[s];
+    real2 pos = st.pos[s], vel = st.vel[s];
+    x[i] = pos.x;
+    y[i] = pos.y;
+    vx[i] = vel.x;
+    vy[i] = vel.y;
+}
+
+/* The input's state, in original order, into the first state buffer (slot s holds disk s). */
+__global__ void pair_up_kernel(DevState st, int64_t n, const real *x, const real *y, const real *vx, const real *vy)
+{
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    real2 pos, vel;
+    pos.x = x[i];
+    pos.y = y[i];
+    vel.x = vx[i];
+    vel.y = vy[i];
+    st.pos[i] = pos;
+    st.vel[i] = vel;
+    st.id[i] = (int32_t)i;
+}
