@@ -249,6 +249,10 @@ typedef struct {
     int64_t moves;    /* times the balance moved the cuts */
     StepClock *clock; /* --stats: the steps' phases */
     GpuRank *gpu;     /* mpi_cuda: the rank's GPU, which holds its disks during the steps */
+    int locals;       /* mpi_cuda: the ranks on this rank's node */
+    int peer;         /* mpi_cuda: the halos and keys between the GPUs directly (gpu_peer_start) */
+    GpuPeer *pout, *pin; /* the peer path's word to and from each rank, a step's halo */
+    int *pfrom;
 } Run;
 
 /* --stats: a step's phases timed on every rank, outside MPI calls and inside them. A rank waits for
@@ -1054,6 +1058,63 @@ static double *gpu_halo_room(void *g, int64_t n)
     return gpu_rank_halo_in((GpuRank *)g, n);
 }
 
+/* The peer path's halo: each neighbour told where in this rank's region its copies lie (gpu_rank_halo_out
+ * packed them there, rank by rank), and where its own lie in theirs; the copies then come over the
+ * GPUs' link, in the neighbours' order, as exchange_near would have put them. */
+static int64_t gpu_halo_peer(Run *r)
+{
+    int n = r->nhi - r->nlo + 1, k = 0;
+    const char *near = r->par.periodic ? r->near : NULL;
+    MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
+    GpuPeer mine;
+    gpu_rank_export(r->gpu, &mine);
+    int64_t off = 0, got = 0;
+    for (int q = 0; q < r->nlo; q++) off += r->scount[q];
+    memset(r->rcount, 0, (size_t)mpi_np * sizeof *r->rcount);
+    for (int q = r->nlo; q <= r->nhi; q++) {
+        req[q - r->nlo] = req[n + q - r->nlo] = MPI_REQUEST_NULL;
+        if (q != mpi_me && (!near || near[q])) {
+            r->pout[q] = mine;
+            r->pout[q].count = r->scount[q], r->pout[q].offset = off;
+            MPI_Isend(&r->pout[q], sizeof mine, MPI_BYTE, q, TAG_HALO, MPI_COMM_WORLD, &req[q - r->nlo]);
+            MPI_Irecv(&r->pin[q], sizeof mine, MPI_BYTE, q, TAG_HALO, MPI_COMM_WORLD, &req[n + q - r->nlo]);
+            bytes_sent += (uint64_t)r->scount[q] * D_LEN * sizeof(double);
+        }
+        off += r->scount[q];
+    }
+    MPI_Waitall(2 * n, req, MPI_STATUSES_IGNORE);
+    free(req);
+    for (int q = r->nlo; q <= r->nhi; q++) {
+        if (q == mpi_me || (near && !near[q])) continue;
+        r->rcount[q] = (int)r->pin[q].count;
+        got += r->pin[q].count;
+        r->pfrom[k] = q, r->pin[k] = r->pin[q]; /* k <= q: in place, in order */
+        k++;
+    }
+    gpu_rank_set_halo_peer(r->gpu, r->pfrom, r->pin, k);
+    return got;
+}
+
+/* The peer path for the run where every rank is on one node and each maps every other's GPU memory
+ * (SIM_MPI_CUDA_HOST set on any rank: the host path, as across nodes, for testing it). */
+static void gpu_peer_start(Run *r)
+{
+    int ok = r->locals == mpi_np && mpi_np > 1 && !getenv("SIM_MPI_CUDA_HOST");
+    MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    if (!ok) return;
+    r->pout = sim_calloc((size_t)mpi_np, sizeof *r->pout);
+    r->pin = sim_calloc((size_t)mpi_np, sizeof *r->pin);
+    r->pfrom = sim_calloc((size_t)mpi_np, sizeof *r->pfrom);
+    GpuPeer mine;
+    gpu_rank_export(r->gpu, &mine);
+    MPI_Allgather(&mine, sizeof mine, MPI_BYTE, r->pin, sizeof mine, MPI_BYTE, MPI_COMM_WORLD);
+    for (int q = 0; q < mpi_np; q++)
+        if (q != mpi_me) ok &= gpu_rank_map(r->gpu, q, mpi_np, &r->pin[q]);
+    MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    r->peer = ok;
+    gpu_rank_peer(r->gpu, ok);
+}
+
 /* The strip the own disks and the copies lie in at this step's midpoints (binned there, moved half a
  * step, less than the reach): the grid's table holds its cells only, unless the rank holds the whole
  * torus. */
@@ -1075,6 +1136,11 @@ static void gpu_halo(Run *r, double vm)
     const double *out = gpu_rank_halo_out(r->gpu, &h, vm, r->scount, &r->nsend);
     free(whole);
     double t0 = sim_clock();
+    if (r->peer) {
+        r->halo = gpu_halo_peer(r);
+        r->halo_secs += sim_clock() - t0;
+        return;
+    }
     int64_t got;
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
                                &got, r->rcount, gpu_halo_room, r->gpu);
@@ -1125,7 +1191,10 @@ static void gpu_choose(Run *r)
         if (round > 2 * all + 64)
             sim_fail("internal error: the choice's rounds do not end (%lld live)", (long long)all);
         r->rounds++;
-        gpu_keys(r, out, in);
+        if (r->peer) /* every rank's keys are in its region: each returned from its round first */
+            for (int q = r->nlo; q <= r->nhi; q++) bytes_sent += (uint64_t)r->scount[q] * sizeof(GpuKey);
+        else
+            gpu_keys(r, out, in);
         gpu_rank_accept(r->gpu);
     }
 }
@@ -1159,6 +1228,7 @@ static double run_steps_gpu(Run *r, RunStats *st)
     r->reach = reach_of(r);
     gpu_slab(r);
     gpu_rank_ready(r->gpu, vm);
+    gpu_peer_start(r);
     /* the step loop as cuda times it: from the state on the device to the last step's end */
     MPI_Barrier(MPI_COMM_WORLD);
     double t0 = MPI_Wtime(), waited0 = waited;
@@ -1233,7 +1303,8 @@ static const Backend mpi_backend = {
     "  --output FILE  write the output into FILE, every rank its own lines (mpirun passes the\n"
     "               ranks' standard output through itself, at some 100 MB/s)\n"
     "run as: mpirun -np P mpi_cuda INPUT [options]: each rank on a GPU of its node (its rank among\n"
-    "the node's ranks, modulo the GPUs)\n",
+    "the node's ranks, modulo the GPUs); ranks all on one node pass halos and keys from GPU to GPU,\n"
+    "else (or where SIM_MPI_CUDA_HOST is set) through host memory\n",
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_OUTPUT | SIM_FEATURE_PERIODIC | SIM_FEATURE_CHECKPOINT,
     mpi_run, NULL, mpi_parallel,
 };
@@ -1291,6 +1362,9 @@ int main(int argc, char **argv)
     Run r;
     memset(&r, 0, sizeof r);
     r.opt = &opt;
+#ifdef MPI_CUDA
+    r.locals = locals;
+#endif
     r.nt = opt.threads > 0 ? opt.threads : 1;
     team_start(r.nt); /* a rank's threads on cores of their own where its mask has several */
     if (opt.checkpoint && mpi_me == 0) io_checkpoint_probe(opt.checkpoint);
@@ -1361,6 +1435,8 @@ int main(int argc, char **argv)
     memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
     gpu_times[GPU_CALLS] = r.halo_secs;
     MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    gpu_rank_unmap(r.gpu);
+    MPI_Barrier(MPI_COMM_WORLD); /* no rank frees its region while another has it mapped */
     gpu_rank_close(r.gpu);
 #else
     st.seconds = run_steps(&r, &st);
@@ -1417,7 +1493,7 @@ int main(int argc, char **argv)
                     "included), the slowest rank's (rank 0's):", sim_program);
             for (int k = 0; k < GPU_CALLS + 1; k++)
                 fprintf(stderr, "%s %s %.4f (%.4f)", k ? "," : "", name[k], gpu_most[k], gpu_times[k]);
-            fprintf(stderr, "\n");
+            fprintf(stderr, "; halos and keys %s\n", r.peer ? "GPU to GPU" : "through host memory");
         }
 #endif
         if (opt.stats)
@@ -1428,7 +1504,7 @@ int main(int argc, char **argv)
     }
     broad_free(&r.b);
     free(r.send), free(r.scount), free(r.rcount), free(r.node), free(r.adj), free(r.active);
-    free(r.node_of), free(r.hbuf), free(r.near);
+    free(r.node_of), free(r.hbuf), free(r.near), free(r.pout), free(r.pin), free(r.pfrom);
     MPI_Comm_free(&r.speed_comm);
     MPI_Comm_free(&r.keys_comm);
     if (r.clock) free(r.clock->slowest), free(r.clock);

@@ -58,7 +58,27 @@ struct GpuRank {
     cudaEvent_t halo_ready; /* the halo's records are on the host */
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
+    /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
+     * regions it grew out of, freed at the close (another rank may have them mapped until then); the
+     * other ranks' regions as mapped here (np); this step's halo by sending rank */
+    bool peer;
+    char *xreg;
+    int64_t xcap, xgen;
+    cudaIpcMemHandle_t xhandle;
+    void **retired;
+    int nretired;
+    struct PeerMap {
+        char *base;
+        int64_t cap, gen;
+    } *map;
+    int map_np;
+    struct PeerSeg {
+        int q;
+        int64_t offset, count, at; /* in q's region; at: the first copy's place in the halo */
+    } *seg;
+    int nseg, seg_cap;
 };
+static_assert(sizeof(cudaIpcMemHandle_t) == sizeof(((GpuPeer *)0)->handle), "GpuPeer's handle");
 
 /* ---- kernels of the ranks alone: records, edges, keys (the move is cuda's, with RankMove) ------- */
 
@@ -243,6 +263,32 @@ static void hkeys_reserve(GpuRank *g, int64_t halo)
     g->hkeys_cap = cap;
 }
 
+/* The peer path: the region's records and its keys of round parity k. */
+static double *region_records(char *base)
+{
+    return (double *)base;
+}
+static GpuKey *region_keys(char *base, int64_t cap, int k)
+{
+    return (GpuKey *)(base + (size_t)cap * D_LEN * sizeof(double) + (size_t)k * (size_t)cap * sizeof(GpuKey));
+}
+
+/* A region for n records (contents not kept): the one it replaces is retired, as another rank may still
+ * have it mapped, and the new one's handle made. */
+static void region_reserve(GpuRank *g, int64_t n)
+{
+    if (g->xreg && n <= g->xcap) return;
+    int64_t cap = grown(n);
+    if (g->xreg) {
+        g->retired = (void **)sim_realloc(g->retired, (size_t)g->nretired + 1, sizeof *g->retired);
+        g->retired[g->nretired++] = g->xreg;
+    }
+    g->xreg = (char *)dev_alloc((size_t)cap * (D_LEN * sizeof(double) + 2 * sizeof(GpuKey)), "the records between ranks");
+    g->xcap = cap;
+    g->xgen++;
+    CUDA_CHECK(cudaIpcGetMemHandle(&g->xhandle, g->xreg));
+}
+
 static void rank_sync(GpuRank *g)
 {
     CUDA_CHECK(cudaStreamSynchronize(g->c.stream));
@@ -327,6 +373,10 @@ void gpu_rank_close(GpuRank *g)
     cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
     cudaEventDestroy(g->halo_ready);
     cudaStreamDestroy(c->stream);
+    gpu_rank_unmap(g);
+    for (int k = 0; k < g->nretired; k++) cudaFree(g->retired[k]);
+    cudaFree(g->xreg);
+    free(g->retired), free(g->map), free(g->seg);
     free(g);
 }
 
@@ -495,21 +545,24 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
     int64_t n = 0;
     for (int q = 0; q < np; q++) scount[q] = (int)count[q], n += (int64_t)count[q];
     send_reserve(g, n);
-    rec_host_reserve(g, n);
     g->nsend = *nsend = n;
+    if (g->peer) region_reserve(g, n);
+    else rec_host_reserve(g, n);
     if (n > 0) {
-        rec_reserve(g, n);
+        double *rec = g->peer ? region_records(g->xreg) : g->rec;
+        if (!g->peer) rec_reserve(g, n);
         rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, c->stream>>>(
             c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur], d, g->cand, g->halo_count, g->halo_count + np + 2,
-            g->send, g->rec);
+            g->send, rec);
         CUDA_LAUNCHED();
-        CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
-                                   c->stream));
+        if (!g->peer)
+            CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double),
+                                       cudaMemcpyDeviceToHost, c->stream));
         CUDA_CHECK(cudaEventRecord(g->halo_ready, c->stream));
     }
     bin_early(g, vmax);
     if (n > 0) CUDA_CHECK(cudaEventSynchronize(g->halo_ready)); /* not for the binning */
-    return g->rec_host;
+    return g->peer ? NULL : g->rec_host;
 }
 
 double *gpu_rank_halo_in(GpuRank *g, int64_t n)
@@ -524,6 +577,83 @@ void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
     rank_reserve(g, g->own + got);
     hkeys_reserve(g, got);
     put_records(g, in, got, g->own, 0);
+    g->halo = got;
+}
+
+void gpu_rank_export(GpuRank *g, GpuPeer *p)
+{
+    if (!g->xreg) region_reserve(g, g->own / 16 + 4096); /* gpu_rank_ready's guess at the halo */
+    memset(p, 0, sizeof *p);
+    p->cap = g->xcap;
+    p->gen = g->xgen;
+    memcpy(p->handle, &g->xhandle, sizeof p->handle);
+}
+
+int gpu_rank_map(GpuRank *g, int q, int np, const GpuPeer *p)
+{
+    if (np > g->map_np) {
+        g->map = (GpuRank::PeerMap *)sim_realloc(g->map, (size_t)np, sizeof *g->map);
+        memset(g->map + g->map_np, 0, (size_t)(np - g->map_np) * sizeof *g->map);
+        g->map_np = np;
+    }
+    GpuRank::PeerMap *m = &g->map[q];
+    if (m->base && m->gen == p->gen) return 1;
+    if (m->base) CUDA_CHECK(cudaIpcCloseMemHandle(m->base)); /* its owner has grown out of it */
+    m->base = NULL;
+    cudaIpcMemHandle_t h;
+    memcpy(&h, p->handle, sizeof h);
+    void *base = NULL;
+    if (cudaIpcOpenMemHandle(&base, h, cudaIpcMemLazyEnablePeerAccess) != cudaSuccess) {
+        cudaGetLastError();
+        return 0;
+    }
+    m->base = (char *)base, m->cap = p->cap, m->gen = p->gen;
+    return 1;
+}
+
+void gpu_rank_peer(GpuRank *g, int on)
+{
+    g->peer = on;
+    if (!on) gpu_rank_unmap(g);
+}
+
+void gpu_rank_unmap(GpuRank *g)
+{
+    for (int q = 0; q < g->map_np; q++)
+        if (g->map[q].base) cudaIpcCloseMemHandle(g->map[q].base), g->map[q].base = NULL;
+}
+
+void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n)
+{
+    CallClock clock_(g, GPU_HALO_IN);
+    Cuda *c = &g->c;
+    int64_t got = 0;
+    if (n > g->seg_cap) {
+        g->seg = (GpuRank::PeerSeg *)sim_realloc(g->seg, (size_t)n, sizeof *g->seg);
+        g->seg_cap = n;
+    }
+    g->nseg = 0;
+    for (int k = 0; k < n; k++) {
+        if (p[k].count == 0) continue;
+        if (!gpu_rank_map(g, from[k], g->map_np, &p[k]))
+            sim_fail("internal error: rank %d's GPU memory could not be mapped", from[k]);
+        GpuRank::PeerSeg sg = {from[k], p[k].offset, p[k].count, got};
+        g->seg[g->nseg++] = sg;
+        got += p[k].count;
+    }
+    rank_reserve(g, g->own + got);
+    hkeys_reserve(g, got);
+    rec_reserve(g, got);
+    /* the records copied over the devices' link, then put into the slots after the own disks */
+    for (int k = 0; k < g->nseg; k++) {
+        const GpuRank::PeerSeg *sg = &g->seg[k];
+        CUDA_CHECK(cudaMemcpyAsync(g->rec + sg->at * D_LEN, region_records(g->map[sg->q].base) + sg->offset * D_LEN,
+                                   (size_t)sg->count * D_LEN * sizeof(double), cudaMemcpyDeviceToDevice, c->stream));
+    }
+    if (got > 0) {
+        rank_put_kernel<<<blocks_for(got), THREADS, 0, c->stream>>>(g->rec, got, c->st[c->cur], NULL, NULL, g->own);
+        CUDA_LAUNCHED();
+    }
     g->halo = got;
 }
 
@@ -604,18 +734,23 @@ int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out)
         g->len = next;
         step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi);
     }
+    /* the peer path: this round's keys into the region's half of its parity; a neighbour reads them
+     * after the reduction that follows this call on every rank, and before its next one, while this
+     * rank writes the other half */
+    GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
     g->round++;
     step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
     if (g->nsend > 0) {
         step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, g->where, c->best_hi,
-                    c->best_lo, c->partner, g->keys);
-        CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey), cudaMemcpyDeviceToHost,
-                                   c->stream));
+                    c->best_lo, c->partner, keys);
+        if (!g->peer)
+            CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey),
+                                       cudaMemcpyDeviceToHost, c->stream));
     }
     CUDA_CHECK(cudaMemcpyAsync(g->counter_host + 2, g->len, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
                                c->stream));
     rank_sync(g);
-    *out = g->keys_host;
+    *out = g->peer ? NULL : g->keys_host;
     int64_t live = (int64_t)g->counter_host[2];
     return live < c->ev_cap ? live : c->ev_cap;
 }
@@ -630,8 +765,17 @@ void gpu_rank_accept(GpuRank *g)
     CallClock clock_(g, GPU_ACCEPT);
     Cuda *c = &g->c;
     if (g->halo > 0) {
-        CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey), cudaMemcpyHostToDevice,
-                                   c->stream));
+        if (g->peer) {
+            for (int k = 0; k < g->nseg; k++) {
+                const GpuRank::PeerSeg *sg = &g->seg[k];
+                const GpuRank::PeerMap *m = &g->map[sg->q];
+                CUDA_CHECK(cudaMemcpyAsync(g->hkeys + sg->at, region_keys(m->base, m->cap, (g->round - 1) & 1) + sg->offset,
+                                           (size_t)sg->count * sizeof(GpuKey), cudaMemcpyDeviceToDevice, c->stream));
+            }
+        } else {
+            CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey),
+                                       cudaMemcpyHostToDevice, c->stream));
+        }
         step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, g->where,
                     c->best_hi, c->best_lo, c->partner);
     }

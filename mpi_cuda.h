@@ -27,6 +27,16 @@ typedef struct {
 
 typedef struct GpuRank GpuRank;
 
+/* The peer path (ranks of one node whose GPUs map each other's memory): each rank exports one device
+ * region, its halo's records for the other ranks in rank order and, after them, two rounds' keys in
+ * that order (rounds alternate between the two); a rank reads its copies and their keys from their
+ * owners' regions. What a rank tells each neighbour of it as a step's halo goes out: */
+typedef struct {
+    int64_t count, offset; /* the records for that neighbour, and the first one's place in the region */
+    int64_t cap, gen;      /* the region's records (and keys of each round), and how often it grew */
+    char handle[64];       /* its cudaIpcMemHandle_t */
+} GpuPeer;
+
 /* The calls below whose host seconds gpu_rank_times sums (--stats), and their names. */
 enum { GPU_HALO_OUT, GPU_HALO_IN, GPU_DETECT, GPU_ROUND, GPU_ACCEPT, GPU_MOVE, GPU_ADD, GPU_GET, GPU_CALLS };
 #define GPU_CALL_NAMES_AND(...) \
@@ -61,7 +71,7 @@ void gpu_rank_get(GpuRank *g, double *rec);
 /* The copies of the own disks that other ranks get this step (halo_inside, halo_span and halo_takes of
  * h, whose arrays are the host's), listed and packed as records on the GPU: into scount[q] how many go
  * to rank q, into *nsend all of them; returns them in rank order (the rank's pinned buffer, valid until
- * the move). The rounds send the disks' keys in this order. The device then bins the own disks for the
+ * the move), or NULL on the peer path (they stay in the rank's region). The rounds send the disks' keys in this order. The device then bins the own disks for the
  * step (largest velocity component vmax, the slab as gpu_rank_slab last set it) while the records
  * travel: it returns once they are on the host. */
 const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int *scount, int64_t *nsend);
@@ -74,13 +84,30 @@ void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
  * component vmax (of every rank's disks); returns how many. */
 int64_t gpu_rank_detect(GpuRank *g, double vmax);
 /* A round of the choice (first: the first of the step): returns the pair events still live here, and
- * into *out the keys of the disks gpu_rank_halo_out sent, in its order (the rank's buffer). */
+ * into *out the keys of the disks gpu_rank_halo_out sent, in its order (the rank's buffer; on the peer
+ * path NULL: they stay in the region, read by the others' gpu_rank_accept once every rank has returned
+ * from this call). */
 int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out);
 /* Where the copies' keys are received each round, as their owners send them (the halo's order; the
  * rank's pinned buffer, valid from gpu_rank_set_halo to the move). */
 GpuKey *gpu_rank_keys_in(GpuRank *g);
-/* The copies' keys (gpu_rank_keys_in) onto the device, then the round's accept pass. */
+/* The copies' keys (gpu_rank_keys_in; on the peer path, from their owners' regions) onto the device,
+ * then the round's accept pass. */
 void gpu_rank_accept(GpuRank *g);
+/* The peer path: this rank's region as gpu_rank_map takes it (count and offset left 0); the region
+ * exists from gpu_rank_ready on */
+void gpu_rank_export(GpuRank *g, GpuPeer *p);
+/* Rank q's region mapped here as p describes it (the mapping kept while its generation lasts): returns
+ * 0 where it cannot be mapped (the host path must then be taken) */
+int gpu_rank_map(GpuRank *g, int q, int np, const GpuPeer *p);
+/* The peer path on (after every other rank's region mapped) or off for the run */
+void gpu_rank_peer(GpuRank *g, int on);
+/* The peer path's halo: the copies from the n ranks from[] whose p[k] say where their records lie,
+ * after the own disks in this order; the rounds read their keys from the same regions. */
+void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n);
+/* Before gpu_rank_close, on every rank, then a barrier: the other ranks' regions unmapped (a region must
+ * not be freed while mapped elsewhere) */
+void gpu_rank_unmap(GpuRank *g);
 /* The own disks moved; those whose x left [c0, c1) (no bound below for the first strip, above for the
  * last) leave: their records into *leavers (the rank's buffer). The halo is dropped. */
 void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers);

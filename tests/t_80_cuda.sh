@@ -263,6 +263,10 @@ while read -r name cmd; do
         mode=print suf="" envs="" extra=""
         case $run in perf) mode=perf ;; f32) suf=_f32 ;; windows) mode=perf envs="SIM_CUDA_WINDOW=1" ;;
             substeps) extra="--substeps 2" ;; esac
+        if [ ! -x "./cuda$suf" ] || [ ! -x "./seq$suf" ]; then
+            skip "cuda$suf/$name --periodic $run" "./cuda$suf or ./seq$suf not built"
+            continue
+        fi
         sed "5s/.*/$mode/" "$TMP/cuda_$name.in" > "$TMP/cuda_${name}_$run.in"
         # shellcheck disable=SC2086
         ./seq$suf "$TMP/cuda_${name}_$run.in" --quiet --periodic $extra > "$TMP/cuda_${name}_$run.expected"
