@@ -274,7 +274,8 @@ static GpuKey *region_keys(char *base, int64_t cap, int k)
 }
 
 /* A region for n records (contents not kept): the one it replaces is retired, as another rank may still
- * have it mapped, and the new one's handle made. */
+ * have it mapped, and the new one's handle made (xgen stays 0 where the device cannot export one: no
+ * peer path then). */
 static void region_reserve(GpuRank *g, int64_t n)
 {
     if (g->xreg && n <= g->xcap) return;
@@ -285,8 +286,13 @@ static void region_reserve(GpuRank *g, int64_t n)
     }
     g->xreg = (char *)dev_alloc((size_t)cap * (D_LEN * sizeof(double) + 2 * sizeof(GpuKey)), "the records between ranks");
     g->xcap = cap;
+    if (cudaIpcGetMemHandle(&g->xhandle, g->xreg) != cudaSuccess) {
+        cudaGetLastError();
+        if (g->peer) sim_fail("internal error: the GPU's memory for other ranks could not be shared");
+        g->xgen = 0;
+        return;
+    }
     g->xgen++;
-    CUDA_CHECK(cudaIpcGetMemHandle(&g->xhandle, g->xreg));
 }
 
 static void rank_sync(GpuRank *g)
@@ -591,6 +597,7 @@ void gpu_rank_export(GpuRank *g, GpuPeer *p)
 
 int gpu_rank_map(GpuRank *g, int q, int np, const GpuPeer *p)
 {
+    if (p->gen == 0 || g->xgen == 0) return 0; /* its region, or this rank's, cannot be shared */
     if (np > g->map_np) {
         g->map = (GpuRank::PeerMap *)sim_realloc(g->map, (size_t)np, sizeof *g->map);
         memset(g->map + g->map_np, 0, (size_t)(np - g->map_np) * sizeof *g->map);
