@@ -215,7 +215,7 @@ typedef struct {
     int nlo, nhi;     /* this step's neighbours (neighbours()) */
     char *near;       /* the periodic box: by rank, whether a neighbour (nlo .. nhi are all ranks) */
     int whole;        /* the periodic box: this rank holds the whole torus (whole_torus) */
-    double halo_secs; /* GPU ranks, --stats: the host's seconds in the halo's exchange_near */
+    double halo_secs; /* GPU ranks, --stats: the host's seconds in the halo's exchange (records or headers) */
     int most_near;    /* the most neighbours in any step (--stats) */
     double speed;     /* a bound on the fastest speed at this step's start, over all ranks */
     real own_vmax;    /* a bound on the own disks' fastest velocity component */
@@ -1068,6 +1068,7 @@ static int64_t gpu_halo_peer(Run *r)
     MPI_Request *req = sim_calloc(2 * (size_t)n, sizeof *req);
     GpuPeer mine;
     gpu_rank_export(r->gpu, &mine);
+    double t0 = sim_clock();
     int64_t off = 0, got = 0;
     for (int q = 0; q < r->nlo; q++) off += r->scount[q];
     memset(r->rcount, 0, (size_t)mpi_np * sizeof *r->rcount);
@@ -1082,7 +1083,10 @@ static int64_t gpu_halo_peer(Run *r)
         }
         off += r->scount[q];
     }
+    double tw = MPI_Wtime();
     MPI_Waitall(2 * n, req, MPI_STATUSES_IGNORE);
+    waited += MPI_Wtime() - tw;
+    r->halo_secs += sim_clock() - t0;
     free(req);
     for (int q = r->nlo; q <= r->nhi; q++) {
         if (q == mpi_me || (near && !near[q])) continue;
@@ -1096,10 +1100,11 @@ static int64_t gpu_halo_peer(Run *r)
 }
 
 /* The peer path for the run where every rank is on one node and each maps every other's GPU memory
- * (SIM_MPI_CUDA_HOST set on any rank: the host path, as across nodes, for testing it). */
+ * (SIM_MPI_CUDA_HOST=1 on any rank: the host path, as across nodes, for testing it). */
 static void gpu_peer_start(Run *r)
 {
-    int ok = r->locals == mpi_np && mpi_np > 1 && !getenv("SIM_MPI_CUDA_HOST");
+    const char *host = getenv("SIM_MPI_CUDA_HOST");
+    int ok = r->locals == mpi_np && mpi_np > 1 && !(host && *host && strcmp(host, "0"));
     MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
     if (!ok) return;
     r->pout = sim_calloc((size_t)mpi_np, sizeof *r->pout);
@@ -1135,12 +1140,11 @@ static void gpu_halo(Run *r, double vm)
     gpu_slab(r);
     const double *out = gpu_rank_halo_out(r->gpu, &h, vm, r->scount, &r->nsend);
     free(whole);
-    double t0 = sim_clock();
     if (r->peer) {
         r->halo = gpu_halo_peer(r);
-        r->halo_secs += sim_clock() - t0;
         return;
     }
+    double t0 = sim_clock();
     int64_t got;
     double *in = exchange_near(out, r->scount, D_LEN, r->nlo, r->nhi, r->par.periodic ? r->near : NULL, TAG_HALO,
                                &got, r->rcount, gpu_halo_room, r->gpu);
@@ -1304,7 +1308,7 @@ static const Backend mpi_backend = {
     "               ranks' standard output through itself, at some 100 MB/s)\n"
     "run as: mpirun -np P mpi_cuda INPUT [options]: each rank on a GPU of its node (its rank among\n"
     "the node's ranks, modulo the GPUs); ranks all on one node pass halos and keys from GPU to GPU,\n"
-    "else (or where SIM_MPI_CUDA_HOST is set) through host memory\n",
+    "else (or with SIM_MPI_CUDA_HOST=1) through host memory\n",
     SIM_FEATURE_SUBSTEPS | SIM_FEATURE_OUTPUT | SIM_FEATURE_PERIODIC | SIM_FEATURE_CHECKPOINT,
     mpi_run, NULL, mpi_parallel,
 };

@@ -61,7 +61,7 @@ struct GpuRank {
     /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
      * regions it grew out of, freed at the close (another rank may have them mapped until then); the
      * other ranks' regions as mapped here (np); this step's halo by sending rank */
-    bool peer;
+    bool peer, unshared; /* unshared: the device could not export the region (no peer path) */
     char *xreg;
     int64_t xcap, xgen;
     cudaIpcMemHandle_t xhandle;
@@ -249,8 +249,10 @@ static void send_reserve(GpuRank *g, int64_t nsend)
     if (nsend <= g->send_cap) return;
     int64_t cap = grown(nsend);
     REGROW(g->send, 0, cap * 4, "the halo");
-    REGROW(g->keys, 0, cap * sizeof(GpuKey), "the halo");
-    pinned_regrow((void **)&g->keys_host, (size_t)cap * sizeof(GpuKey));
+    if (!g->peer) { /* the peer path's keys go out through the region */
+        REGROW(g->keys, 0, cap * sizeof(GpuKey), "the halo");
+        pinned_regrow((void **)&g->keys_host, (size_t)cap * sizeof(GpuKey));
+    }
     g->send_cap = cap;
 }
 
@@ -259,7 +261,7 @@ static void hkeys_reserve(GpuRank *g, int64_t halo)
     if (halo <= g->hkeys_cap) return;
     int64_t cap = grown(halo);
     REGROW(g->hkeys, 0, cap * sizeof(GpuKey), "the halo");
-    pinned_regrow((void **)&g->hkeys_host, (size_t)cap * sizeof(GpuKey));
+    if (!g->peer) pinned_regrow((void **)&g->hkeys_host, (size_t)cap * sizeof(GpuKey)); /* as received */
     g->hkeys_cap = cap;
 }
 
@@ -274,25 +276,27 @@ static GpuKey *region_keys(char *base, int64_t cap, int k)
 }
 
 /* A region for n records (contents not kept): the one it replaces is retired, as another rank may still
- * have it mapped, and the new one's handle made (xgen stays 0 where the device cannot export one: no
- * peer path then). */
+ * have it mapped, and the new one's handle made. SIM_MPI_CUDA_REGION_SLACK=K (tests): K records more
+ * than needed, where K is small a region that grows step after step. */
 static void region_reserve(GpuRank *g, int64_t n)
 {
     if (g->xreg && n <= g->xcap) return;
-    int64_t cap = grown(n);
+    const char *hook = getenv("SIM_MPI_CUDA_REGION_SLACK");
+    int64_t cap = hook ? n + atoll(hook) : grown(n);
+    if (cap < 1) cap = 1;
     if (g->xreg) {
         g->retired = (void **)sim_realloc(g->retired, (size_t)g->nretired + 1, sizeof *g->retired);
         g->retired[g->nretired++] = g->xreg;
     }
-    g->xreg = (char *)dev_alloc((size_t)cap * (D_LEN * sizeof(double) + 2 * sizeof(GpuKey)), "the records between ranks");
+    size_t entry = D_LEN * sizeof(double) + 2 * sizeof(GpuKey);
+    g->xreg = (char *)dev_alloc((size_t)cap * entry, "the records between ranks");
     g->xcap = cap;
+    g->xgen++;
     if (cudaIpcGetMemHandle(&g->xhandle, g->xreg) != cudaSuccess) {
         cudaGetLastError();
         if (g->peer) sim_fail("internal error: the GPU's memory for other ranks could not be shared");
-        g->xgen = 0;
-        return;
+        g->unshared = true;
     }
-    g->xgen++;
 }
 
 static void rank_sync(GpuRank *g)
@@ -588,16 +592,17 @@ void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got)
 
 void gpu_rank_export(GpuRank *g, GpuPeer *p)
 {
-    if (!g->xreg) region_reserve(g, g->own / 16 + 4096); /* gpu_rank_ready's guess at the halo */
+    if (!g->xreg) /* gpu_rank_ready's guess at the halo, unless a test asks for a region that grows */
+        region_reserve(g, getenv("SIM_MPI_CUDA_REGION_SLACK") ? 0 : g->own / 16 + 4096);
     memset(p, 0, sizeof *p);
     p->cap = g->xcap;
-    p->gen = g->xgen;
+    p->gen = g->unshared ? 0 : g->xgen;
     memcpy(p->handle, &g->xhandle, sizeof p->handle);
 }
 
 int gpu_rank_map(GpuRank *g, int q, int np, const GpuPeer *p)
 {
-    if (p->gen == 0 || g->xgen == 0) return 0; /* its region, or this rank's, cannot be shared */
+    if (p->gen == 0 || g->unshared) return 0; /* its region, or this rank's, cannot be shared */
     if (np > g->map_np) {
         g->map = (GpuRank::PeerMap *)sim_realloc(g->map, (size_t)np, sizeof *g->map);
         memset(g->map + g->map_np, 0, (size_t)(np - g->map_np) * sizeof *g->map);
@@ -776,8 +781,9 @@ void gpu_rank_accept(GpuRank *g)
             for (int k = 0; k < g->nseg; k++) {
                 const GpuRank::PeerSeg *sg = &g->seg[k];
                 const GpuRank::PeerMap *m = &g->map[sg->q];
-                CUDA_CHECK(cudaMemcpyAsync(g->hkeys + sg->at, region_keys(m->base, m->cap, (g->round - 1) & 1) + sg->offset,
-                                           (size_t)sg->count * sizeof(GpuKey), cudaMemcpyDeviceToDevice, c->stream));
+                const GpuKey *from = region_keys(m->base, m->cap, (g->round - 1) & 1) + sg->offset;
+                CUDA_CHECK(cudaMemcpyAsync(g->hkeys + sg->at, from, (size_t)sg->count * sizeof(GpuKey),
+                                           cudaMemcpyDeviceToDevice, c->stream));
             }
         } else {
             CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey),

@@ -71,9 +71,10 @@ void gpu_rank_get(GpuRank *g, double *rec);
 /* The copies of the own disks that other ranks get this step (halo_inside, halo_span and halo_takes of
  * h, whose arrays are the host's), listed and packed as records on the GPU: into scount[q] how many go
  * to rank q, into *nsend all of them; returns them in rank order (the rank's pinned buffer, valid until
- * the move), or NULL on the peer path (they stay in the rank's region). The rounds send the disks' keys in this order. The device then bins the own disks for the
- * step (largest velocity component vmax, the slab as gpu_rank_slab last set it) while the records
- * travel: it returns once they are on the host. */
+ * the move), or NULL on the peer path (they stay in the rank's region). The rounds send the disks' keys
+ * in this order. The device then bins the own disks for the step (largest velocity component vmax, the
+ * slab as gpu_rank_slab last set it) while the records travel: it returns once they are on the host (or
+ * in the region). */
 const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int *scount, int64_t *nsend);
 /* Room for n received records of the halo (the rank's pinned buffer, valid until the next call):
  * gpu_rank_set_halo takes them from there to the device with no copy on the host. */

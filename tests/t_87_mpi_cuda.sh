@@ -5,7 +5,8 @@
 # - the omp and mpi tests' generated scenes (tests/omp_scenes.txt): slow, fast, dense, overlapping,
 #   deep rounds of the choice, a few fast disks among slow ones crossing the strips;
 # - random placement (--seed), --substeps 2, --dump17, --output FILE, a gas crowded in one corner;
-# - halos and keys GPU to GPU (ranks of one node, as above) and through host memory (SIM_MPI_CUDA_HOST);
+# - halos and keys GPU to GPU (ranks of one node, as above) and through host memory (SIM_MPI_CUDA_HOST=1);
+#   the regions the ranks share grown step after step (SIM_MPI_CUDA_REGION_SLACK=1);
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -101,24 +102,39 @@ else
     ./seq "$G/gas.in" --quiet > "$G/gas.ref"
     gpu_ranks "gas of 20000" "$G/gas.ref" "$(pick "1 2 3 4" "4")" "$G/gas.in"
 
-    # the two paths of halos and keys: GPU to GPU where the ranks share a node (every run above), and
-    # through host memory, as between nodes (SIM_MPI_CUDA_HOST)
+    # the two paths of halos and keys: GPU to GPU where the ranks share a node (every run above, unless
+    # SIM_MPI_CUDA_HOST=1 was set for the whole file), and through host memory, as between nodes
     for path in "GPU to GPU" "through host memory"; do
-        [ "$path" = "GPU to GPU" ] || export SIM_MPI_CUDA_HOST=1
-        if run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null && cmp -s "$G/out" "$G/gas.ref" &&
-            grep -q "halos and keys $path\$" "$G/err"; then
+        (if [ "$path" = "GPU to GPU" ]; then unset SIM_MPI_CUDA_HOST; else export SIM_MPI_CUDA_HOST=1; fi
+            run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null)
+        rc=$?
+        said=$(grep -o "halos and keys [a-zA-Z ]*$" "$G/err")
+        if [ "$rc" = 0 ] && cmp -s "$G/out" "$G/gas.ref" && [ "$said" = "halos and keys $path" ]; then
             pass "mpi_cuda halos and keys $path: said under --stats, seq's bytes at 3 ranks"
+        elif [ "$rc" = 0 ] && cmp -s "$G/out" "$G/gas.ref" && [ "$path" = "GPU to GPU" ]; then
+            skip "mpi_cuda halos and keys GPU to GPU" \
+                "these GPUs cannot map each other's memory (${said:-nothing said})"
         else
-            fail "mpi_cuda halos and keys $path" "$(grep "halos and keys" "$G/err" | head -c 300)"
+            fail "mpi_cuda halos and keys $path" "exit $rc; ${said:-nothing said}; $(head -c 200 "$G/err")"
         fi
     done
+    caller_host=${SIM_MPI_CUDA_HOST-unset}
+    export SIM_MPI_CUDA_HOST=1
     gpu_ranks "through host memory: mixed scene" "$G/mixed.ref" "$(pick "2 4" "2")" "$G/mixed.in"
     for f in inputs/periodic/*.in; do
         all_suite || break
         b=$(basename "$f" .in)
         gpu_ranks "through host memory: periodic/$b" "outputs/periodic/$b.out" "2 3" "$f" --periodic
     done
-    unset SIM_MPI_CUDA_HOST
+    if [ "$caller_host" = unset ]; then unset SIM_MPI_CUDA_HOST; else export SIM_MPI_CUDA_HOST=$caller_host; fi
+    # the ranks' regions grown step after step (a record of slack each time), each growth mapped anew
+    export SIM_MPI_CUDA_REGION_SLACK=1
+    gpu_ranks "regions grown step after step: gas of 20000" "$G/gas.ref" "$(pick "2 3 4" "4")" "$G/gas.in"
+    gpu_ranks "regions grown step after step: mixed scene" "$G/mixed.ref" "3" "$G/mixed.in"
+    pin=$(ls inputs/periodic/*.in | head -1)
+    gpu_ranks "regions grown step after step: periodic/$(basename "$pin" .in)" \
+        "outputs/periodic/$(basename "$pin" .in).out" "2" "$pin" --periodic
+    unset SIM_MPI_CUDA_REGION_SLACK
 
     # --checkpoint: seq's file; resumed across backends
     tools/gen 500 --fraction 0.3 --steps 40 --mode print --seed 7 > "$G/ck.in"
