@@ -127,6 +127,13 @@ static int whole_torus(int q, double reach, double L)
     return (mpi_cut[q + 1] - mpi_cut[q]) + 3 * reach >= L;
 }
 
+/* Whether rank q of a step's lo .. hi is a halo's partner: another rank, a neighbour (near[q], or every
+ * one where near is NULL). */
+static int halo_partner(int q, const char *near)
+{
+    return q != mpi_me && (!near || near[q]);
+}
+
 /* Sends count[q] records of `width` doubles (packed in rank order in out) to each rank q of
  * lo .. hi but this one (count is 0 elsewhere) that is a neighbour (near[q], or every one where near
  * is NULL), every one of them a message even if empty, and returns theirs in rank order (*got
@@ -144,7 +151,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     for (int q = 0; q < lo; q++) off += count[q];
     for (int q = lo; q <= hi; q++) {
         req[q - lo] = MPI_REQUEST_NULL;
-        if (q != mpi_me && (!near || near[q])) {
+        if (halo_partner(q, near)) {
             MPI_Isend(out + off * width, count[q], t, q, tag, MPI_COMM_WORLD, &req[q - lo]);
             bytes_sent += (uint64_t)count[q] * (uint64_t)width * sizeof(double);
         }
@@ -153,7 +160,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     double t0 = MPI_Wtime();
     memset(rcount, 0, (size_t)mpi_np * sizeof *rcount);
     for (int q = lo; q <= hi; q++) { /* the sizes first, then one buffer for all */
-        if (q == mpi_me || (near && !near[q])) continue;
+        if (!halo_partner(q, near)) continue;
         MPI_Status st;
         MPI_Probe(q, tag, MPI_COMM_WORLD, &st);
         MPI_Get_count(&st, t, &rcount[q]);
@@ -163,7 +170,7 @@ static double *exchange_near(const double *out, const int *count, int width, int
     off = 0;
     for (int q = lo; q <= hi; q++) {
         req[n + q - lo] = MPI_REQUEST_NULL;
-        if (q == mpi_me || (near && !near[q])) continue;
+        if (!halo_partner(q, near)) continue;
         MPI_Irecv(in + off * width, rcount[q], t, q, tag, MPI_COMM_WORLD, &req[n + q - lo]);
         off += rcount[q];
     }
@@ -1074,7 +1081,7 @@ static int64_t gpu_halo_peer(Run *r)
     memset(r->rcount, 0, (size_t)mpi_np * sizeof *r->rcount);
     for (int q = r->nlo; q <= r->nhi; q++) {
         req[q - r->nlo] = req[n + q - r->nlo] = MPI_REQUEST_NULL;
-        if (q != mpi_me && (!near || near[q])) {
+        if (halo_partner(q, near)) {
             r->pout[q] = mine;
             r->pout[q].count = r->scount[q], r->pout[q].offset = off;
             MPI_Isend(&r->pout[q], sizeof mine, MPI_BYTE, q, TAG_HALO, MPI_COMM_WORLD, &req[q - r->nlo]);
@@ -1089,7 +1096,7 @@ static int64_t gpu_halo_peer(Run *r)
     r->halo_secs += sim_clock() - t0;
     free(req);
     for (int q = r->nlo; q <= r->nhi; q++) {
-        if (q == mpi_me || (near && !near[q])) continue;
+        if (!halo_partner(q, near)) continue;
         r->rcount[q] = (int)r->pin[q].count;
         got += r->pin[q].count;
         r->pfrom[k] = q, r->pin[k] = r->pin[q]; /* k <= q: in place, in order */

@@ -95,8 +95,8 @@ GpuKey *gpu_rank_keys_in(GpuRank *g);
 /* The copies' keys (gpu_rank_keys_in; on the peer path, from their owners' regions) onto the device,
  * then the round's accept pass. */
 void gpu_rank_accept(GpuRank *g);
-/* The peer path: this rank's region as gpu_rank_map takes it (count and offset left 0); the region
- * exists from gpu_rank_ready on */
+/* The peer path: this rank's region as gpu_rank_map takes it (count and offset left 0), made at the
+ * first call */
 void gpu_rank_export(GpuRank *g, GpuPeer *p);
 /* Rank q's region mapped here as p describes it (the mapping kept while its generation lasts): returns
  * 0 where it cannot be mapped (the host path must then be taken) */
