@@ -15,7 +15,12 @@
  * the most finished. There the block deals its candidate pairs out evenly instead, one per thread per
  * round. */
 #ifndef DETECT_MIN_BLOCKS
-#define DETECT_MIN_BLOCKS 5 /* 48 registers: at 6 (40) the loops spill, random scene at N = 32000 23% slower */
+#define DETECT_MIN_BLOCKS 5 /* the looping search's blocks a multiprocessor, times LOOP_BLOCKS (detect_box) */
+#endif
+#ifndef DETECT_MIN_BLOCKS_ONE
+#define DETECT_MIN_BLOCKS_ONE 6 /* K = 1: 40 registers, a few spilled, against 48 at 5: gas of 1e7 on one H200,
+                                   7.05e9 -> 7.21e9 particle-steps/s, dense gas 5.54e9 -> 5.68e9 (at 7, more
+                                   spilled, slower; bench/gpu_h100_variants.log 13c) */
 #endif
 #ifndef DETECT_MIN_BLOCKS_MID
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
@@ -314,7 +319,7 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p
  * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
  * gas of 1e7's spilled). */
 template <bool TILES, bool MID, bool PERIODIC>
-__global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS)
+__global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS_ONE)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
                   uint64_t *best_hi)
