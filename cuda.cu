@@ -265,6 +265,17 @@ static double host_vmax(const Sim *sim, int64_t n)
     return m;
 }
 
+/* The moves' keying of the next step's cells (MoveBin): the ahead grid, and the speed it allows over the
+ * step's. SIM_CUDA_BIN_AHEAD=S: cells fitted to S times the speed (0: moves do not key; the tests take 1,
+ * where steps often bin anew). A GPU rank's too (mpi_cuda.cu). */
+static void ahead_open(Cuda *c)
+{
+    const char *bin_ahead = getenv("SIM_CUDA_BIN_AHEAD");
+    c->ahead_slack = bin_ahead ? atof(bin_ahead) : BIN_AHEAD;
+    if (!(c->ahead_slack >= 1)) c->ahead_slack = 0;
+    c->ahead = (Grid *)dev_alloc(sizeof(Grid), "counters");
+}
+
 /* vmax: the largest velocity component of sim (host_vmax) */
 static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, int timed, int64_t ev_cap,
                       int checkpoints)
@@ -309,11 +320,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
     c->scan_alternate = c->scan_tiles < 0;
     if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
-    /* SIM_CUDA_BIN_AHEAD=S: moves key the disks' cells for the next step of their batch on cells fitted to
-     * S times the speed (0: they do not; the tests take 1, where steps often bin anew) */
-    const char *bin_ahead = getenv("SIM_CUDA_BIN_AHEAD");
-    c->ahead_slack = bin_ahead ? atof(bin_ahead) : BIN_AHEAD;
-    if (!(c->ahead_slack >= 1)) c->ahead_slack = 0;
+    ahead_open(c);
     c->checkpoints = checkpoints;
     if (timed)
         for (int s = 0; s < RING; s++)
@@ -334,7 +341,6 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
-    c->ahead = (Grid *)dev_alloc(sizeof(Grid), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&c->ctl_host, 2 * sizeof(Control)));
     /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
      * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
@@ -782,15 +788,15 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
     bool short_scan = bin_clear(c, pl, w);
     if (keyed) { /* one slice */
         step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false>, c->st[in], c->n, c->grid, 0,
-                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count);
+                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
         step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
     } else {
         if (lev)
             step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+                        c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
         else
             step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count);
+                        c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
     }
     phase_mark(c, ring, w, 1);
     scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan);

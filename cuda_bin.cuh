@@ -21,10 +21,29 @@ static __device__ Grid gate_grid(const GridLimits *lim, double vmax, int K, int6
     return gr;
 }
 
+/* Whether the disks keyed on grid a may be searched on it in a step whose own grid is gr, fitted to the
+ * limits lim: its cells at least as wide as the step's speed needs (their number per side no larger),
+ * its table no longer than the step's, and, where a keeps only a slab's columns (a GPU rank's, whose
+ * strip may have moved or widened since), those columns holding all of lim's, as grid_fit takes them. */
+static __device__ bool ahead_fits(const Grid &a, const Grid &gr, const GridLimits &lim)
+{
+    if (gr.K != 1 || a.g > gr.g || a.ncell > gr.ncell || a.periodic != gr.periodic) return false;
+    if (!a.slab) return true;
+    if (!lim.slab) return false;
+    double x0 = lim.x0, x1 = lim.x1;
+    if (lim.periodic) x0 -= lim.L * floor(x0 / lim.L), x1 -= lim.L * floor(x1 / lim.L);
+    int64_t c0 = cell_of(x0, a.inv_cs, a.g), span = cell_of(x1, a.inv_cs, a.g) - c0, off = c0 - a.xoff;
+    if (lim.periodic) {
+        if (span < 0) span += a.g;
+        if (off < 0) off += a.g;
+    }
+    return off >= 0 && span >= 0 && off + span <= a.rows - 2;
+}
+
 /* ahead: the grid the step's move is to key the disks on for the next step (ahead_slack > 0), in one
  * slice, fitted to ahead_slack times the step's largest speed (its own grid would leave no room for the
- * speed to grow); keyed: the move before did, and the step takes that grid if its cells are at least as
- * wide as the step's speed needs (their number per side no larger), else it bins anew (bin_place_launch). */
+ * speed to grow); keyed: the move before did, and the step takes that grid where it fits (ahead_fits),
+ * else it bins anew (bin_place_launch). */
 __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *counts, GridLimits lim,
                             unsigned long long plan_vmax, int K, int64_t gcap, int F, int W, int levels, Grid *grid,
                             Grid *ahead, int keyed, double ahead_slack)
@@ -37,7 +56,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     Grid gr = gate_grid(&lim, vmax, K, gcap, F, W, levels);
     info->ahead[0] = info->ahead[1] = 0;
     if (keyed && !ctl->refused) {
-        if (gr.K == 1 && ahead->g <= gr.g) gr = *ahead;
+        if (ahead_fits(*ahead, gr, lim)) gr = *ahead;
         info->ahead[gr.keyed ? 0 : 1] = 1;
     }
     if (ahead_slack > 0) {
@@ -130,11 +149,12 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
 template <bool WINDOWS, bool LEVELS_LISTED>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
                            const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
-                           uint32_t *rank, uint32_t *count)
+                           uint32_t *rank, uint32_t *count, int keyed_before)
 {
     after_previous();
     const Grid gr = *grid;
-    if (gr.keyed) return; /* by the move before: count_kernel counts them */
+    if (gr.keyed && keyed_before) return; /* by the move before: count_kernel counts them (a GPU rank's
+                                              arrivals and copies, keyed by none, are binned: 0) */
     /* !LEVELS_LISTED: the compiler drops the lists' decoding (one-slice steps: 44 registers against 52,
      * 5 blocks a multiprocessor against 4) */
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);

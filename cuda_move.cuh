@@ -45,7 +45,8 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos,
  * the grid the gate fitted ahead (gate_kernel); the next step only counts them (count_kernel), and spares
  * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
  * -> 4.749e9 (bench/gpu_h100_goals.log, 71b5eb2's section). Counting in the move as well, with an atomic a
- * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). */
+ * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). A GPU rank's move keys the
+ * own disks it keeps, in their new slots (mpi_cuda.cu, bin_early). */
 typedef struct {
     const Grid *grid;
     uint32_t *keys;
@@ -54,14 +55,13 @@ typedef struct {
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
  * overflowed the list decided on part of them only: it is refused here, before anything is written.
- * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. BIN (not with RANK): the
- * disks keyed for the next step (MoveBin). */
+ * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. BIN: the disks keyed for the
+ * next step (MoveBin). */
 template <bool RANK, bool BIN>
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
                             StepInfo *info, int64_t cap, Control *ctl, RankMove rm, MoveBin mb)
 {
-    static_assert(!(RANK && BIN), "a GPU rank bins its disks with its halo");
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
@@ -144,7 +144,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         } else {
             out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
         }
-        if (BIN) /* as bin_kernel keys the entry of slot s in a step of one slice */
+        if (BIN && !RANK) /* as bin_kernel keys the entry of slot s in a step of one slice */
             mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
         real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
         vabs = ax < ay ? ay : ax;
@@ -167,6 +167,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             out.id[k] = id;
             rm.pc_out[k] = pc1;
             rm.wc_out[k] = wc1;
+            if (BIN) mb.keys[k] = cell_key(*mb.grid, pos, vel, slice_mid(0, 0, 1), 0, info);
         }
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;

@@ -1446,6 +1446,9 @@ int main(int argc, char **argv)
     memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
     gpu_times[GPU_CALLS] = r.halo_secs;
     MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    uint64_t keyed[2], keyed_sum[2];
+    gpu_rank_keyed(r.gpu, keyed);
+    MPI_Reduce(keyed, keyed_sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     gpu_rank_unmap(r.gpu);
     MPI_Barrier(MPI_COMM_WORLD); /* no rank frees its region while another has it mapped */
     gpu_rank_close(r.gpu);
@@ -1505,6 +1508,9 @@ int main(int argc, char **argv)
             for (int k = 0; k < GPU_CALLS + 1; k++)
                 fprintf(stderr, "%s %s %.4f (%.4f)", k ? "," : "", name[k], gpu_most[k], gpu_times[k]);
             fprintf(stderr, "; halos and keys %s\n", r.peer ? "GPU to GPU" : "through host memory");
+            fprintf(stderr, "%s: rank-steps whose own disks the move before keyed for their cells: %llu, binned "
+                    "anew though keyed (the grid ahead did not fit): %llu\n", sim_program,
+                    (unsigned long long)keyed_sum[0], (unsigned long long)keyed_sum[1]);
         }
 #endif
         if (opt.stats)

@@ -56,6 +56,11 @@ struct GpuRank {
     bool early, early_short;
     int64_t early_cap, early_len; /* and the length of the table it counted into */
     cudaEvent_t halo_ready; /* the halo's records are on the host */
+    /* the own disks the last move kept, slots [0, keyed), keyed on the grid it was given ahead (c.ahead,
+     * MoveBin) while c.grown was keyed_grown (a growth since reallocated the keys); the steps that took
+     * those keys and those that binned anew (--stats) */
+    int64_t keyed, keyed_grown;
+    unsigned long long keyed_steps[2];
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
     /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
@@ -318,6 +323,11 @@ const double *gpu_rank_times(const GpuRank *g)
     return g->secs;
 }
 
+void gpu_rank_keyed(const GpuRank *g, uint64_t keyed[2])
+{
+    keyed[0] = g->keyed_steps[0], keyed[1] = g->keyed_steps[1];
+}
+
 GpuRank *gpu_rank_open(const Params *par, int local)
 {
     int devices = 0;
@@ -350,6 +360,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     c->info = (StepInfo *)dev_alloc(sizeof(StepInfo), "counters");
     c->ctl = (Control *)dev_alloc(sizeof(Control), "counters");
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
+    ahead_open(c);
     CUDA_CHECK(cudaMemsetAsync(c->ctl, 0, sizeof(Control), c->stream));
     g->counter = (unsigned long long *)dev_alloc(4 * sizeof(unsigned long long), "counters");
     CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 4 * sizeof(unsigned long long)));
@@ -373,7 +384,7 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
     cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
-    cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid);
+    cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid), cudaFree(c->ahead);
     cudaFree(g->where), cudaFree(g->cand), cudaFree(g->send);
     cudaFree(g->view_cut), cudaFree(g->view_flags), cudaFree(g->halo_count);
     cudaFreeHost(g->view_host), cudaFreeHost(g->halo_count_host);
@@ -500,22 +511,40 @@ static void view_reserve(GpuRank *g, int np)
     g->view_np = np;
 }
 
-/* The gate of a step (its grid for largest velocity component vmax) and the own disks binned on it,
- * before the halo arrives: the device's work while the halo's records travel (gpu_rank_detect bins the
- * copies after them, unless the slots' buffers grew meanwhile). */
+/* Slots first to first + n of st binned on the step's grid (keyed_before: unless the gate took the keys
+ * the move before gave them, bin_kernel), into the cell counts. */
+static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int keyed_before)
+{
+    Cuda *c = &g->c;
+    if (n <= 0) return;
+    st.pos += first, st.vel += first, st.id += first;
+    step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false>, st, n, c->grid, 0, (const int32_t *)NULL,
+                (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first, c->rank + first, c->count,
+                keyed_before);
+}
+
+/* The gate of a step (its grid for largest velocity component vmax, and the grid ahead its move keys
+ * the disks it keeps on) and the own disks binned on it, before the halo arrives: the device's work while
+ * the halo's records travel (gpu_rank_detect bins the copies after them, unless the slots' buffers grew
+ * meanwhile). The disks the move before kept and keyed are only counted where the gate takes their grid
+ * (ahead_fits: the strip's cells may have moved); the disks that arrived since are binned. */
 static void bin_early(GpuRank *g, double vmax)
 {
     Cuda *c = &g->c;
     Plan *pl = &g->pl;
     plan_step(g, pl, vmax);
     c->n = g->own;
+    int64_t keyed = c->grown == g->keyed_grown && g->keyed <= g->own ? g->keyed : 0;
     CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1, c->grid,
-                (Grid *)NULL, 0, 0.0);
+                c->ahead, (int)(keyed > 0), c->ahead_slack);
     g->early_short = bin_clear(c, pl, 0);
-    if (g->own > 0)
-        step_kernel(c, blocks_for(g->own), THREADS, 0, bin_kernel<false, false>, c->st[c->cur], g->own, c->grid, 0,
-                    (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi, c->keys, c->rank, c->count);
+    if (keyed > 0) {
+        bin_slots(g, c->st[c->cur], 0, keyed, 1);
+        step_kernel(c, blocks_for(keyed), THREADS, 0, count_kernel, c->grid, keyed, c->keys, c->rank, c->count);
+    }
+    bin_slots(g, c->st[c->cur], keyed, g->own - keyed, 0);
+    g->keyed = 0;
     g->early = true;
     g->early_cap = g->cap;
     g->early_len = pl->wcells[0] + 1;
@@ -689,13 +718,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
                         c->grid, (Grid *)NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         }
         if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */
-            int64_t own = g->own;
-            DevState st = c->st[in];
-            st.pos += own, st.vel += own, st.id += own;
-            if (g->halo > 0)
-                step_kernel(c, blocks_for(g->halo), THREADS, 0, bin_kernel<false, false>, st, g->halo, c->grid, 0,
-                            (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + own, c->keys + own,
-                            c->rank + own, c->count);
+            bin_slots(g, c->st[in], g->own, g->halo, 0);
             scan_place_launch<false>(c, pl, 0, NULL, NULL, 0, g->early_short);
         } else if (n > 0) {
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
@@ -717,7 +740,11 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
             sim_fail("internal error: %llu disks outside the slab of the grid (%g to %g)", g->info_host->outside,
                      c->lim.x0, c->lim.x1);
         int64_t found = (int64_t)g->info_host->found[0];
-        if (found <= c->ev_cap) break;
+        if (found <= c->ev_cap) {
+            g->keyed_steps[0] += g->info_host->ahead[0];
+            g->keyed_steps[1] += g->info_host->ahead[1];
+            break;
+        }
         /* a list too short: longer, and the step's search again (the state it started from is intact) */
         cudaFree(c->ev[0]), cudaFree(c->ev[1]);
         events_alloc(c, found + found / 4 + 4096);
@@ -816,10 +843,10 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMov
         CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 2 * sizeof(unsigned long long), c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
-        MoveBin none = {};
-        step_kernel(c, blocks_for(n), THREADS, 0, move_kernel<true, false>, c->st[in], c->st[out], n, c->par,
-                    c->partner, c->wall_hi, c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl,
-                    rm, none);
+        MoveBin mb = {c->ahead, c->keys}; /* the kept disks keyed on the grid bin_early's gate fitted ahead */
+        auto move = c->ahead_slack > 0 ? move_kernel<true, true> : move_kernel<true, false>;
+        step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[out], n, c->par, c->partner, c->wall_hi,
+                    c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl, rm, mb);
         CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 2 * sizeof(unsigned long long),
                                    cudaMemcpyDeviceToHost, c->stream));
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
@@ -828,6 +855,10 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMov
         rec_reserve(g, (int64_t)g->counter_host[1]); /* more leavers than room: the move again */
     }
     int64_t kept = (int64_t)g->counter_host[0], left = (int64_t)g->counter_host[1];
+    if (g->info_host->outside) /* a kept disk's key outside the grid ahead: never (gpu_slab's reach) */
+        sim_fail("internal error: %llu disks keyed outside the slab of the grid ahead", g->info_host->outside);
+    g->keyed = c->ahead_slack > 0 ? kept : 0;
+    g->keyed_grown = c->grown;
     rec_host_reserve(g, left);
     if (left > 0) {
         CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)left * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,

@@ -57,6 +57,9 @@ void gpu_rank_close(GpuRank *g);
 /* The seconds the host has spent in each call so far, by GPU_HALO_OUT .. GPU_GET (the waits for the device
  * included: each call returns with the device done) */
 const double *gpu_rank_times(const GpuRank *g);
+/* Steps so far whose own disks kept by the move before were keyed by it for the step's cells and only
+ * counted (into keyed[0]), and those binned anew, the grid ahead not fitting the step's (keyed[1]) */
+void gpu_rank_keyed(const GpuRank *g, uint64_t keyed[2]);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
 /* The disks of the steps to come lie within x0 <= x <= x1 (around the box where periodic), if `on`: the

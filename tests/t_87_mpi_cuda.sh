@@ -7,6 +7,8 @@
 # - random placement (--seed), --substeps 2, --dump17, --output FILE, a gas crowded in one corner;
 # - halos and keys GPU to GPU (ranks of one node, as above) and through host memory (SIM_MPI_CUDA_HOST=1);
 #   the regions the ranks share grown step after step (SIM_MPI_CUDA_REGION_SLACK=1);
+# - the moves keying the kept disks' cells for the next step: taken (--stats), and with the grid ahead
+#   at the step's own speed or with no keying (SIM_CUDA_BIN_AHEAD=1, 0);
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -118,6 +120,27 @@ else
             fail "mpi_cuda halos and keys $path" "exit $rc; ${said:-nothing said}; $(head -c 200 "$G/err")"
         fi
     done
+    # the own disks a move keeps keyed by it for the next step's cells: counted only, where the grid it
+    # keyed them on fits the step's (in most steps of a gas); with that grid fitted to the step's own
+    # speed (SIM_CUDA_BIN_AHEAD=1) it fits less often, and with no keying (0) every step bins them
+    (unset SIM_CUDA_BIN_AHEAD; run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null)
+    keyed=$(sed -nE 's/.*the move before keyed for their cells: ([0-9]+),.*/\1/p' "$G/err")
+    if cmp -s "$G/out" "$G/gas.ref" && [ "${keyed:-0}" -gt 0 ]; then
+        pass "mpi_cuda moves key the next step's cells: $keyed rank-steps took them (--stats), seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda moves keying the next step's cells" "${keyed:-nothing said}; $(head -c 200 "$G/err")"
+    fi
+    caller_ahead=${SIM_CUDA_BIN_AHEAD-unset}
+    for s in 1 0; do
+        export SIM_CUDA_BIN_AHEAD=$s
+        gpu_ranks "SIM_CUDA_BIN_AHEAD=$s: gas of 20000" "$G/gas.ref" "$(pick "2 3 4" "2")" "$G/gas.in"
+        gpu_ranks "SIM_CUDA_BIN_AHEAD=$s: mixed scene" "$G/mixed.ref" "3" "$G/mixed.in"
+    done
+    export SIM_CUDA_BIN_AHEAD=1
+    pin=$(ls inputs/periodic/*.in | head -1)
+    gpu_ranks "SIM_CUDA_BIN_AHEAD=1: periodic/$(basename "$pin" .in)" "outputs/periodic/$(basename "$pin" .in).out" \
+        "3" "$pin" --periodic
+    if [ "$caller_ahead" = unset ]; then unset SIM_CUDA_BIN_AHEAD; else export SIM_CUDA_BIN_AHEAD=$caller_ahead; fi
     caller_host=${SIM_MPI_CUDA_HOST-unset}
     export SIM_MPI_CUDA_HOST=1
     gpu_ranks "through host memory: mixed scene" "$G/mixed.ref" "$(pick "2 4" "2")" "$G/mixed.in"

@@ -144,7 +144,8 @@ run() {
     case $prog in
         omp | cuda) ;;
         *) sed -n -e 's/^mpi[_a-z]*: the steps. phases/# the last run'"'"'s phases/p' \
-               -e 's/^mpi_cuda: the host.s seconds in each GPU call/# the last run'"'"'s host seconds in each GPU call/p' "$err" ;;
+               -e 's/^mpi_cuda: the host.s seconds in each GPU call/# the last run'"'"'s host seconds in each GPU call/p' \
+               -e 's/^mpi_cuda: rank-steps whose/# the last run'"'"'s rank-steps whose/p' "$err" ;;
     esac
 }
 
