@@ -30,14 +30,9 @@ static __device__ bool ahead_fits(const Grid &a, const Grid &gr, const GridLimit
     if (gr.K != 1 || a.g > gr.g || a.ncell > gr.ncell || a.periodic != gr.periodic) return false;
     if (!a.slab) return true;
     if (!lim.slab) return false;
-    double x0 = lim.x0, x1 = lim.x1;
-    if (lim.periodic) x0 -= lim.L * floor(x0 / lim.L), x1 -= lim.L * floor(x1 / lim.L);
-    int64_t c0 = cell_of(x0, a.inv_cs, a.g), span = cell_of(x1, a.inv_cs, a.g) - c0, off = c0 - a.xoff;
-    if (lim.periodic) {
-        if (span < 0) span += a.g;
-        if (off < 0) off += a.g;
-    }
-    return off >= 0 && span >= 0 && off + span <= a.rows - 2;
+    int64_t span, off = slab_columns(&lim, a.inv_cs, a.g, &span) - a.xoff;
+    if (off < 0 && lim.periodic) off += a.g;
+    return off >= 0 && off + span <= a.rows - 2;
 }
 
 /* ahead: the grid the step's move is to key the disks on for the next step (ahead_slack > 0), in one

@@ -198,6 +198,18 @@ static __host__ __device__ __forceinline__ int64_t cell_of(double c, double inv_
     return (int64_t)q;
 }
 
+/* The columns of lim's x0 and x1 on a grid of g cells a side (inv_cs: g / L), as bin_kernel's cell_of
+ * finds them: returns x0's, and into *span how many more to x1's (around the box where periodic). */
+static __host__ __device__ int64_t slab_columns(const GridLimits *lim, double inv_cs, int64_t g, int64_t *span)
+{
+    double a = lim->x0, b = lim->x1, L = lim->L;
+    if (lim->periodic) a -= L * floor(a / L), b -= L * floor(b / L);
+    int64_t ca = cell_of(a, inv_cs, g);
+    *span = cell_of(b, inv_cs, g) - ca;
+    if (*span < 0) *span += g; /* periodic: around the box */
+    return ca;
+}
+
 /* The binning of a step in K slices whose largest velocity component is at most vmax, with at most gcap
  * cells per side. A pair with an event at t in slice k is, at t, at most 2r apart per axis (plus
  * rounding, covered by the margin), and each midpoint of slice k is within |v| / (2K) of the disk at t,
@@ -230,12 +242,9 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     gr.inv_cs = (double)gr.g / L;
     gr.ncell = (uint32_t)(gr.g * gr.g);
     gr.slab = 0, gr.xoff = 0, gr.rows = gr.g;
-    if (lim->slab && gr.g >= 4) { /* the columns of x0 and x1 as bin_kernel's cell_of finds them */
-        double a = lim->x0, b = lim->x1;
-        if (lim->periodic) a -= L * floor(a / L), b -= L * floor(b / L);
-        int64_t ca = cell_of(a, gr.inv_cs, gr.g), span = cell_of(b, gr.inv_cs, gr.g) - ca;
-        if (span < 0) span += gr.g; /* periodic: around the box */
-        if (span + 2 < gr.g) {       /* else the whole table, as without a slab */
+    if (lim->slab && gr.g >= 4) {
+        int64_t span, ca = slab_columns(lim, gr.inv_cs, gr.g, &span);
+        if (span + 2 < gr.g) { /* else the whole table, as without a slab */
             gr.slab = 1, gr.xoff = ca, gr.rows = span + 2;
             gr.ncell = (uint32_t)(gr.rows * gr.g);
         }
