@@ -845,7 +845,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         phase_mark(c, ring, 0, 0);
         bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
         step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL);
+                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL, (int64_t)0);
         in = 1 - in;
         DevState *d = &c->st[in];
         Entries en;

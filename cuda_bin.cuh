@@ -182,10 +182,14 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
 }
 
 /* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.
- * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.) */
+ * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.)
+ * where: a GPU rank's (mpi_cuda.cu), where each slot its halo sent went (their ids marked with ID_SENT,
+ * cleared here) and each slot from where_from up (its copies): those alone, a write a disk costing 4% of
+ * the gather. */
+#define ID_SENT 0x80000000u /* disk indices are below 2^31 (SIM_MAX_N) */
 __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *order, int64_t n, Params par,
                                     uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
-                                    const Control *ctl, uint32_t *where)
+                                    const Control *ctl, uint32_t *where, int64_t where_from)
 {
     after_previous();
     int64_t p = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
@@ -201,9 +205,10 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     if (refused(ctl)) return;
     out.pos[p] = pos;
     out.vel[p] = vel;
-    out.id[p] = id;
+    bool sent = ((uint32_t)id & ID_SENT) != 0;
+    out.id[p] = (int32_t)((uint32_t)id & ~ID_SENT);
     slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
-    if (where) where[s] = (uint32_t)p; /* a GPU rank's: where each slot went (mpi_cuda.cu) */
+    if (where && (sent || s >= where_from)) where[s] = (uint32_t)p;
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte

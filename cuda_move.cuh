@@ -4,19 +4,20 @@
 /* ==== move =============================================================================================== */
 
 /* A GPU rank's step (mpi_cuda.cu): its slots hold its own disks and copies of other ranks' disks (the
- * halo), which the move leaves where they are; the collision counts travel with the own disks. */
+ * halo), which the move leaves where they are (their partner PARTNER_COPY, rank_mark_copies_kernel). */
+#define PARTNER_COPY (-2)
 typedef struct {
-    const uint32_t *order;        /* cell place -> slot before the gather: copies are the slots own and up */
-    int64_t own;
-    const int32_t *pc_in, *wc_in; /* by slot before the gather */
     /* the own disks whose x stays in [c0, c1) (no bound below where first, above where last) go to the
-     * front of the new state, with their counts in pc_out, wc_out (count[0] of them); the others
-     * (count[1]) as records of mpi_cuda.h into rec, up to cap */
-    double c0, c1;
-    int first, last;
-    int32_t *pc_out, *wc_out;
+     * front of the new state (count[0] of them); the others (count[1]) as records of mpi_cuda.h into rec,
+     * up to cap. The kept ones not within (h0, h1), which the next step's halo may take, are listed into
+     * hcand (count[2] of them, up to hcap). again: the move once more, its leavers having overflowed rec
+     * (the counts by disk index then have this step's collisions already). */
+    double c0, c1, h0, h1;
+    int first, last, again;
     double *rec;
     int64_t cap;
+    int32_t *hcand;
+    int64_t hcap;
     unsigned long long *count;
 } RankMove;
 
@@ -30,14 +31,14 @@ static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 
 
 /* A GPU rank's own disk after its move: true where it stays in the strip (the caller keeps it), else
  * packed for another rank. */
-static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos, real2 vel, int32_t id, int32_t pc,
-                                                  int32_t wc)
+static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos, real2 vel, int32_t id,
+                                                  const int32_t *pc, const int32_t *wc)
 {
     double x = (double)pos.x;
     if ((rm.first || x >= rm.c0) && (rm.last || x < rm.c1)) return true;
     unsigned long long k = list_append(&rm.count[1]);
     /* beyond cap the host makes room and moves the step again */
-    if ((int64_t)k < rm.cap) write_record(rm.rec + k * D_LEN, pos, vel, id, pc, wc);
+    if ((int64_t)k < rm.cap) write_record(rm.rec + k * D_LEN, pos, vel, id, pc[id], wc[id]);
     return false;
 }
 
@@ -55,7 +56,7 @@ typedef struct {
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
  * overflowed the list decided on part of them only: it is refused here, before anything is written.
- * RANK: a GPU rank's step (RankMove), else pc and wc are in original order. BIN: the disks keyed for the
+ * pc and wc count collisions by disk index (RANK: a GPU rank's step, RankMove's). BIN: the disks keyed for the
  * next step (MoveBin). */
 template <bool RANK, bool BIN>
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
@@ -67,14 +68,12 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     real2 pos = {0, 0}, vel = {0, 0};
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
-    uint32_t from = 0;
     if (s < n) { /* loaded before the checks below, so that their loads overlap */
         pos = in.pos[s];
         vel = in.vel[s];
         id = in.id[s];
         o = partner[s];
         wall = wall_hi[s];
-        if (RANK) from = rm.order[s];
     }
     if (refused(ctl)) return;
     unsigned long long most = 0;
@@ -89,9 +88,8 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     real vabs = 0;
     unsigned long long accepted = 0;
     int dp = 0, dw = 0; /* collisions with a disk, with a wall */
-    bool stays = false; /* RANK: an own disk kept at the front of out (below, with pos, vel, id, pc1, wc1) */
-    int32_t pc1 = 0, wc1 = 0;
-    if (s < n && (!RANK || from < rm.own)) { /* a rank's copies stay as they are */
+    bool stays = false; /* RANK: an own disk kept at the front of out (below, with pos, vel, id) */
+    if (s < n && (!RANK || o != PARTNER_COPY)) { /* a rank's copies stay as they are */
         real lo = par.lo, hi = par.hi;
         real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
         if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
@@ -128,7 +126,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             dp = 1;
             accepted = mine_first;
         }
-        if (!RANK) {
+        if (!RANK || !rm.again) {
             if (dp) pc[id]++;
             if (dw) wc[id]++;
         }
@@ -138,8 +136,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         vel1.x = vx;
         vel1.y = vy;
         if (RANK) {
-            pc1 = rm.pc_in[from] + dp, wc1 = rm.wc_in[from] + dw;
-            stays = rank_stays(rm, pos1, vel1, id, pc1, wc1);
+            stays = rank_stays(rm, pos1, vel1, id, pc, wc);
             pos = pos1, vel = vel1;
         } else {
             out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
@@ -152,12 +149,13 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     if (RANK) {
         /* the block's kept disks in thread order after one atomic on the count: with one a warp, all on
          * one address, the moves of the 1e8 gas on 2 GPUs took 0.0675 s over 20 steps, against 0.0462
-         * (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log) */
+         * (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log). A block that keeps all its disks, as
+         * nearly all do, skips the scan. */
         typedef cub::BlockScan<int, THREADS> ScanK;
         __shared__ typename ScanK::TempStorage tmp_k;
         __shared__ unsigned long long kept_base;
-        int at, total;
-        ScanK(tmp_k).ExclusiveSum(stays ? 1 : 0, at, total);
+        int at = threadIdx.x, total = __syncthreads_count(stays);
+        if (total < THREADS) ScanK(tmp_k).ExclusiveSum(stays ? 1 : 0, at); /* the same for the whole block */
         if (threadIdx.x == 0 && total > 0) kept_base = atomicAdd(&rm.count[0], (unsigned long long)total);
         __syncthreads();
         if (stays) {
@@ -165,9 +163,12 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             out.pos[k] = pos;
             out.vel[k] = vel;
             out.id[k] = id;
-            rm.pc_out[k] = pc1;
-            rm.wc_out[k] = wc1;
             if (BIN) mb.keys[k] = cell_key(*mb.grid, pos, vel, slice_mid(0, 0, 1), 0, info);
+            double x = (double)pos.x;
+            if (!(x > rm.h0 && x < rm.h1)) { /* beyond hcap the next step's halo looks at every own disk */
+                unsigned long long h = list_append(&rm.count[2]);
+                if ((int64_t)h < rm.hcap) rm.hcand[h] = (int32_t)k;
+            }
         }
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;

@@ -418,10 +418,15 @@ static int halo_targets(const HaloView *h, double x, int *q)
     return n;
 }
 
-/* The reach: two disks close in by at most twice the fastest speed. */
+/* The reach at the fastest speed `speed`: two disks close in by at most twice that. */
+static double reach_at(const Run *r, double speed)
+{
+    return (2 * (double)r->par.r + 2 * speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+}
+
 static double reach_of(const Run *r)
 {
-    return (2 * (double)r->par.r + 2 * r->speed) * (1 + 1e-6) + 1e-9 * (double)r->par.L;
+    return reach_at(r, r->speed);
 }
 
 /* 1: the reach and this step's neighbours (whole: by rank, whether its strip holds the whole torus);
@@ -1219,6 +1224,14 @@ static void gpu_migrate(Run *r, int64_t moving, const double *rec)
     free(in);
 }
 
+/* A bound on the next step's reach, from this step's largest velocity component vm: a collision raises
+ * a disk's speed to at most sqrt(2) times the faster one's, so the next step's largest component is at
+ * most 2 vm (the margin covers the rounding). */
+static double reach_next(const Run *r, double vm)
+{
+    return reach_at(r, 2 * vm * (1 + 1e-6) * 1.41422) * (1 + 1e-6);
+}
+
 /* run_steps on the GPU: the own disks go to it first and come back for each output and at the end. The
  * fastest velocity component over all ranks is known exactly at each step's start (one reduction a
  * step), and bounds the speeds by sqrt(2) times it. */
@@ -1251,21 +1264,25 @@ static double run_steps_gpu(Run *r, RunStats *st)
         r->speed = vm * 1.41422; /* |v| <= sqrt(2) max(|vx|, |vy|) */
         gpu_halo(r, vm);
         if (c) clock_end(c, PART_HALO);
-        (void)gpu_rank_detect(r->gpu, vm);
+        gpu_rank_detect(r->gpu, vm);
         if (c) clock_end(c, PART_FIND);
         gpu_choose(r);
         if (c) clock_end(c, PART_CHOOSE);
         GpuMoved m;
         const double *leavers;
-        gpu_rank_move(r->gpu, mpi_cut[mpi_me], mpi_cut[mpi_me + 1], mpi_me == 0, mpi_me == mpi_np - 1, &m, &leavers);
+        gpu_rank_move(r->gpu, mpi_cut[mpi_me], mpi_cut[mpi_me + 1], mpi_me == 0, mpi_me == mpi_np - 1,
+                      reach_next(r, vm), &m, &leavers);
         r->events += m.events;
         tests += m.tests;
         if (c) clock_end(c, PART_MOVE);
         r->busy += MPI_Wtime() - ts - (waited - w0);
+        /* the largest component over all ranks, reduced while the leavers travel */
+        double vmine = m.vmax;
+        MPI_Request vreq;
+        MPI_Iallreduce(&vmine, &vm, 1, MPI_DOUBLE, MPI_MAX, r->speed_comm, &vreq);
         gpu_migrate(r, m.leavers, leavers);
-        vm = m.vmax;
         double tw = MPI_Wtime();
-        MPI_Allreduce(MPI_IN_PLACE, &vm, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        MPI_Wait(&vreq, MPI_STATUS_IGNORE);
         waited += MPI_Wtime() - tw;
         if (c) {
             clock_end(c, PART_MIGRATE);
@@ -1446,9 +1463,9 @@ int main(int argc, char **argv)
     memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
     gpu_times[GPU_CALLS] = r.halo_secs;
     MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
-    uint64_t keyed[2], keyed_sum[2];
-    gpu_rank_keyed(r.gpu, keyed);
-    MPI_Reduce(keyed, keyed_sum, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    uint64_t reused[5], reused_sum[5];
+    gpu_rank_reused(r.gpu, reused);
+    MPI_Reduce(reused, reused_sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     gpu_rank_unmap(r.gpu);
     MPI_Barrier(MPI_COMM_WORLD); /* no rank frees its region while another has it mapped */
     gpu_rank_close(r.gpu);
@@ -1510,7 +1527,11 @@ int main(int argc, char **argv)
             fprintf(stderr, "; halos and keys %s\n", r.peer ? "GPU to GPU" : "through host memory");
             fprintf(stderr, "%s: rank-steps whose own disks the move before keyed for their cells: %llu, binned "
                     "anew though keyed (the grid ahead did not fit): %llu\n", sim_program,
-                    (unsigned long long)keyed_sum[0], (unsigned long long)keyed_sum[1]);
+                    (unsigned long long)reused_sum[0], (unsigned long long)reused_sum[1]);
+            fprintf(stderr, "%s: rank-steps whose halo looked only at the own disks the move before listed near "
+                    "the cuts: %llu, at every own disk: %llu; moves done twice (more leavers than room): %llu\n",
+                    sim_program, (unsigned long long)reused_sum[2], (unsigned long long)reused_sum[3],
+                    (unsigned long long)reused_sum[4]);
         }
 #endif
         if (opt.stats)

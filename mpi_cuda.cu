@@ -15,7 +15,8 @@
  *            start, as cuda moves both partners from the old buffer); the own disks still in the strip
  *            are packed to the front, the others (leavers) into records for their new ranks.
  * Event keys compare by value (t, kind, i, j), so the order of the slots and of the copies does not
- * matter: the bytes are seq's. Collision counts travel with the own disks (cuda keeps them by index).
+ * matter: the bytes are seq's. Collision counts are kept by disk index, as cuda keeps them, on every
+ * rank for all N disks (8 bytes a disk a GPU), and travel in the records of disks that change ranks.
  */
 #define CUDA_LIBRARY
 #include "cuda.cu"
@@ -26,10 +27,19 @@
 struct GpuRank {
     Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
     int64_t own, halo, cap; /* slots: own disks at [0, own), copies after them; buffers for cap */
-    int32_t *pc[2], *wc[2]; /* the own disks' collision counts by slot, pc[pcur] with the state */
-    int pcur;
-    uint32_t *where;        /* slot before the gather -> its cell place */
+    /* the own disks' collision counts by disk index, N of them: a move adds to them in place, as cuda's
+     * does, where counts by slot had to follow the slots (20 bytes a disk more in the move) */
+    int32_t *pc, *wc;
+    uint32_t *where;        /* slot before the gather -> its cell place: the halo's sent slots and the copies */
     int32_t *cand;          /* gpu_rank_halo_out's own slots with a copy to send (cap) */
+    /* the own slots that the last move kept within its reach (hreach) of the cuts hc0, hc1 (hcand, hn of
+     * them, where hvalid), and the first slot added since: the next halo looks at those alone, where its
+     * cuts are the same and its reach no longer (a step of 1e7 disks on one rank spent 42 us reading every
+     * own disk's x) */
+    int32_t *hcand;
+    int64_t hcap, hn, hkept;
+    double hc0, hc1, hreach;
+    bool hvalid;
     double *view_cut;       /* the HaloView's arrays on the device, for np ranks: cut (np + 1), then */
     char *view_flags;       /* near and whole (np each); their pinned host stage, and the counts by */
     double *view_host;      /* rank (np, then the candidates and the errors, then np places), */
@@ -42,12 +52,13 @@ struct GpuRank {
     int64_t hkeys_cap;
     double *rec, *rec_host; /* records in and out of the device (D_LEN doubles each): the halo's and the
                                leavers' whole, the own disks' CHUNK at a time through stage */
-    double *stage;          /* pinned, CHUNK records */
+    double *stage;          /* pinned, CHUNK records; stage_busy: a copy from it may still run */
+    bool stage_busy;
     GpuKey *hkeys_host;     /* pinned: the copies' keys as received (halo) */
     double *halo_host;      /* pinned: the halo's records as received (gpu_rank_halo_in) */
     int64_t halo_host_cap;
     int64_t rec_cap, rec_host_cap;
-    unsigned long long *counter, *counter_host; /* appends: [0], [1]; the rounds' lists: [2], [3] */
+    unsigned long long *counter, *counter_host; /* the move's appends: [0] to [2]; the rounds' lists: [3], [4] */
     StepInfo *info_host;
     double secs[GPU_CALLS]; /* the host's seconds in each call (gpu_rank_times) */
     Plan pl;
@@ -55,12 +66,18 @@ struct GpuRank {
      * (buffers sized for it), the counts to be scanned by the short kernels where early_short */
     bool early, early_short;
     int64_t early_cap, early_len; /* and the length of the table it counted into */
-    cudaEvent_t halo_ready; /* the halo's records are on the host */
+    cudaEvent_t halo_counted; /* the halo's counts are on the host */
+    cudaEvent_t halo_ready;   /* the halo's records are on the host (or in the region), packed on side */
+    cudaStream_t side;
     /* the own disks the last move kept, slots [0, keyed), keyed on the grid it was given ahead (c.ahead,
      * MoveBin) while c.grown was keyed_grown (a growth since reallocated the keys); the steps that took
      * those keys and those that binned anew (--stats) */
     int64_t keyed, keyed_grown;
     unsigned long long keyed_steps[2];
+    unsigned long long halo_listed[2]; /* halos that looked at the move's list, and at every own disk */
+    unsigned long long moved_again;    /* moves done twice, their leavers overflowing the room */
+    int64_t left_last;                 /* the leavers of the last move */
+    int64_t leavers_room; /* SIM_MPI_CUDA_LEAVERS_ROOM=K (tests): a move's first pass takes K leavers at most */
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
     /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
@@ -96,8 +113,9 @@ __global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32
     pos.x = (real)d[D_X], pos.y = (real)d[D_Y], vel.x = (real)d[D_VX], vel.y = (real)d[D_VY];
     st.pos[at + i] = pos;
     st.vel[at + i] = vel;
-    st.id[at + i] = (int32_t)d[D_ID];
-    if (pc) pc[at + i] = (int32_t)d[D_PC], wc[at + i] = (int32_t)d[D_WC];
+    int32_t id = (int32_t)d[D_ID];
+    st.id[at + i] = id;
+    if (pc) pc[id] = (int32_t)d[D_PC], wc[id] = (int32_t)d[D_WC];
 }
 
 /* Slots slot[i] (first + i where slot is NULL), i < n, as records. */
@@ -107,17 +125,19 @@ __global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
     int64_t s = slot ? slot[i] : first + i;
-    write_record(rec + i * D_LEN, st.pos[s], st.vel[s], st.id[s], pc[s], wc[s]);
+    int32_t id = st.id[s];
+    write_record(rec + i * D_LEN, st.pos[s], st.vel[s], id, pc[id], wc[id]);
 }
 
 /* The own disks that go to other ranks (h's arrays on the device): how many to each rank into count[0 ..
  * np), their slots listed in cand (count[np] of them); count[np + 1] counts disks whose span reaches
- * beyond the neighbours, which never happens. */
-__global__ void rank_halo_count_kernel(DevState st, int64_t own, HaloView h, int32_t *cand,
-                                       unsigned long long *count)
+ * beyond the neighbours, which never happens. The slots looked at: list[0 .. nlist), then first to own. */
+__global__ void rank_halo_count_kernel(DevState st, const int32_t *list, int64_t nlist, int64_t first, int64_t own,
+                                       HaloView h, int32_t *cand, unsigned long long *count)
 {
-    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (s >= own) return;
+    int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= nlist + own - first) return;
+    int64_t s = i < nlist ? list[i] : first + i - nlist;
     double x = (double)st.pos[s].x;
     if (halo_inside(&h, x)) return;
     int lo, hi, n = 0;
@@ -138,7 +158,8 @@ __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int3
 {
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= (int64_t)count[h.np]) return;
-    int32_t s = cand[i];
+    int32_t s = cand[i], id = st.id[s];
+    st.id[s] = (int32_t)((uint32_t)id | ID_SENT); /* for the gather (where) */
     real2 pos = st.pos[s];
     double x = (double)pos.x;
     int lo, hi;
@@ -148,7 +169,7 @@ __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int3
         unsigned long long at = atomicAdd(&fill[k], 1ull);
         for (int q = 0; q < k; q++) at += count[q];
         send[at] = s;
-        write_record(rec + at * D_LEN, pos, st.vel[s], st.id[s], pc[s], wc[s]);
+        write_record(rec + at * D_LEN, pos, st.vel[s], id, pc[id], wc[id]);
     }
 }
 
@@ -174,6 +195,14 @@ __global__ void rank_keys_in_kernel(const GpuKey *keys, int64_t halo, int64_t ow
     best_hi[p] = key.hi;
     best_lo[p] = key.lo;
     if (key.decided && partner[p] < 0) partner[p] = (int32_t)p;
+}
+
+/* After the rounds: the copies' places (where after the own slots) marked for the move, which leaves
+ * them be (their partners are of no use after the rounds). */
+__global__ void rank_mark_copies_kernel(const uint32_t *where_halo, int64_t halo, int32_t *partner)
+{
+    int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (k < halo) partner[where_halo[k]] = PARTNER_COPY;
 }
 
 /* ---- buffers ------------------------------------------------------------------------------------------- */
@@ -221,9 +250,6 @@ static void rank_reserve(GpuRank *g, int64_t n)
         REGROW(c->st[b].pos, keep * sizeof(real2), cap * sizeof(real2), "the state");
         REGROW(c->st[b].vel, keep * sizeof(real2), cap * sizeof(real2), "the state");
         REGROW(c->st[b].id, keep * 4, cap * 4, "the state");
-        keep = b == g->pcur ? (size_t)g->own : 0;
-        REGROW(g->pc[b], keep * 4, cap * 4, "the state");
-        REGROW(g->wc[b], keep * 4, cap * 4, "the state");
     }
     REGROW(c->wall_hi, 0, cap * 8, "the event keys");
     REGROW(c->best_hi, 0, cap * 8, "the event keys");
@@ -307,6 +333,7 @@ static void region_reserve(GpuRank *g, int64_t n)
 static void rank_sync(GpuRank *g)
 {
     CUDA_CHECK(cudaStreamSynchronize(g->c.stream));
+    g->stage_busy = false;
 }
 
 /* ---- the calls ------------------------------------------------------------------------------------------ */
@@ -323,9 +350,11 @@ const double *gpu_rank_times(const GpuRank *g)
     return g->secs;
 }
 
-void gpu_rank_keyed(const GpuRank *g, uint64_t keyed[2])
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[5])
 {
-    keyed[0] = g->keyed_steps[0], keyed[1] = g->keyed_steps[1];
+    reused[0] = g->keyed_steps[0], reused[1] = g->keyed_steps[1];
+    reused[2] = g->halo_listed[0], reused[3] = g->halo_listed[1];
+    reused[4] = g->moved_again;
 }
 
 GpuRank *gpu_rank_open(const Params *par, int local)
@@ -362,11 +391,18 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
     ahead_open(c);
     CUDA_CHECK(cudaMemsetAsync(c->ctl, 0, sizeof(Control), c->stream));
-    g->counter = (unsigned long long *)dev_alloc(4 * sizeof(unsigned long long), "counters");
-    CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 4 * sizeof(unsigned long long)));
+    g->counter = (unsigned long long *)dev_alloc(5 * sizeof(unsigned long long), "counters");
+    CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 5 * sizeof(unsigned long long)));
+    size_t ids = (size_t)(par->n > 0 ? par->n : 1) * sizeof(int32_t);
+    g->pc = (int32_t *)dev_alloc(ids, "the collision counts");
+    const char *room = getenv("SIM_MPI_CUDA_LEAVERS_ROOM");
+    g->leavers_room = room && *room ? atoll(room) : -1;
+    g->wc = (int32_t *)dev_alloc(ids, "the collision counts");
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
+    CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_counted, cudaEventDisableTiming));
+    CUDA_CHECK(cudaStreamCreateWithFlags(&g->side, cudaStreamNonBlocking));
     events_alloc(c, 4096);
     rank_reserve(g, 1024);
     rank_sync(g);
@@ -379,8 +415,9 @@ void gpu_rank_close(GpuRank *g)
     rank_sync(g);
     for (int b = 0; b < 2; b++) {
         state_free(&c->st[b]);
-        cudaFree(g->pc[b]), cudaFree(g->wc[b]), cudaFree(c->ev[b]);
+        cudaFree(c->ev[b]);
     }
+    cudaFree(g->pc), cudaFree(g->wc), cudaFree(g->hcand);
     cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
     cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
@@ -392,7 +429,9 @@ void gpu_rank_close(GpuRank *g)
     cudaFreeHost(g->keys_host);
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
     cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
-    cudaEventDestroy(g->halo_ready);
+    cudaEventDestroy(g->halo_ready), cudaEventDestroy(g->halo_counted);
+    cudaStreamSynchronize(g->side);
+    cudaStreamDestroy(g->side);
     cudaStreamDestroy(c->stream);
     gpu_rank_unmap(g);
     for (int k = 0; k < g->nretired; k++) cudaFree(g->retired[k]);
@@ -412,15 +451,18 @@ static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, in
         int64_t m = n - k < CHUNK ? n - k : CHUNK;
         size_t bytes = (size_t)m * D_LEN * sizeof(double);
         const double *from = rec + k * D_LEN;
-        if (!pinned) memcpy(g->stage, from, bytes), from = g->stage;
+        if (!pinned) {
+            if (g->stage_busy) rank_sync(g); /* its last copy to the device done */
+            memcpy(g->stage, from, bytes), from = g->stage;
+            g->stage_busy = true;
+        }
         CUDA_CHECK(cudaMemcpyAsync(g->rec, from, bytes, cudaMemcpyHostToDevice, c->stream));
-        rank_put_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(g->rec, m, c->st[c->cur],
-                                                                  own ? g->pc[g->pcur] : NULL,
-                                                                  own ? g->wc[g->pcur] : NULL, at + k);
+        rank_put_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(g->rec, m, c->st[c->cur], own ? g->pc : NULL,
+                                                                  own ? g->wc : NULL, at + k);
         CUDA_LAUNCHED();
-        if (!pinned) rank_sync(g); /* the stage is rewritten next (the halo's buffer only next step, after
-                                      the detection's sync) */
     }
+    /* no wait for the last chunk: the migration's arrivals (one chunk) then go while the host goes on
+     * (the halo's buffer is rewritten only next step, after the detection's wait) */
 }
 
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n)
@@ -488,8 +530,7 @@ void gpu_rank_get(GpuRank *g, double *rec)
     for (int64_t k = 0; k < g->own; k += CHUNK) {
         int64_t m = g->own - k < CHUNK ? g->own - k : CHUNK;
         size_t bytes = (size_t)m * D_LEN * sizeof(double);
-        rank_pack_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur],
-                                                                    NULL, k, m, g->rec);
+        rank_pack_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(c->st[c->cur], g->pc, g->wc, NULL, k, m, g->rec);
         CUDA_LAUNCHED();
         CUDA_CHECK(cudaMemcpyAsync(g->stage, g->rec, bytes, cudaMemcpyDeviceToHost, c->stream));
         rank_sync(g);
@@ -512,15 +553,22 @@ static void view_reserve(GpuRank *g, int np)
 }
 
 /* Slots first to first + n of st binned on the step's grid (keyed_before: unless the gate took the keys
- * the move before gave them, bin_kernel), into the cell counts. */
+ * the move before gave them, bin_kernel), into the cell counts. keyed_before: few blocks, looping, as
+ * cuda's bin_place_launch, since they mostly return at once: a block a thread's slot, each returning,
+ * took 49 us of a 1.7 ms step of 1e7 disks on one rank (one H200, Nsight Compute). */
 static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int keyed_before)
 {
     Cuda *c = &g->c;
     if (n <= 0) return;
     st.pos += first, st.vel += first, st.id += first;
-    step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false>, st, n, c->grid, 0, (const int32_t *)NULL,
-                (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first, c->rank + first, c->count,
-                keyed_before);
+    if (keyed_before)
+        step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false>, st, n, c->grid, 0,
+                    (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
+                    c->rank + first, c->count, 1);
+    else
+        step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false>, st, n, c->grid, 0, (const int32_t *)NULL,
+                    (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first, c->rank + first, c->count,
+                    0);
 }
 
 /* The gate of a step (its grid for largest velocity component vmax, and the grid ahead its move keys
@@ -569,14 +617,24 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
     CUDA_CHECK(cudaMemsetAsync(g->halo_count, 0, (2 * (size_t)np + 2) * sizeof(unsigned long long), c->stream));
     HaloView d = *h;
     d.cut = g->view_cut, d.near = g->view_flags, d.whole = g->view_flags + np;
-    if (g->own > 0) {
-        rank_halo_count_kernel<<<blocks_for(g->own), THREADS, 0, c->stream>>>(c->st[c->cur], g->own, d, g->cand,
-                                                                               g->halo_count);
+    /* the slots to look at: the last move's list and the disks added since, where it fits this halo */
+    bool listed = g->hvalid && !h->any_whole && h->cut[h->me] == g->hc0 && h->cut[h->me + 1] == g->hc1 &&
+                  h->reach <= g->hreach && g->hkept <= g->own;
+    g->hvalid = false;
+    int64_t nlist = listed ? g->hn : 0, from = listed ? g->hkept : 0, look = nlist + g->own - from;
+    g->halo_listed[listed ? 0 : 1]++;
+    if (look > 0) {
+        rank_halo_count_kernel<<<blocks_for(look), THREADS, 0, c->stream>>>(c->st[c->cur], g->hcand, nlist, from,
+                                                                            g->own, d, g->cand, g->halo_count);
         CUDA_LAUNCHED();
     }
     CUDA_CHECK(cudaMemcpyAsync(g->halo_count_host, g->halo_count, ((size_t)np + 2) * sizeof(unsigned long long),
                                cudaMemcpyDeviceToHost, c->stream));
-    rank_sync(g);
+    CUDA_CHECK(cudaEventRecord(g->halo_counted, c->stream));
+    /* the own disks binned behind the count, while the host waits for it; the copies are packed on the
+     * side stream meanwhile (they read the state that the binning only reads, and their own lists) */
+    bin_early(g, vmax);
+    CUDA_CHECK(cudaEventSynchronize(g->halo_counted));
     const unsigned long long *count = g->halo_count_host;
     if (count[np + 1])
         sim_fail("internal error: %llu disks within reach of strips beyond the neighbours %d to %d", count[np + 1],
@@ -590,17 +648,18 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
     if (n > 0) {
         double *rec = g->peer ? region_records(g->xreg) : g->rec;
         if (!g->peer) rec_reserve(g, n);
-        rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, c->stream>>>(
-            c->st[c->cur], g->pc[g->pcur], g->wc[g->pcur], d, g->cand, g->halo_count, g->halo_count + np + 2,
+        CUDA_CHECK(cudaStreamWaitEvent(g->side, g->halo_counted, 0));
+        rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, g->side>>>(
+            c->st[c->cur], g->pc, g->wc, d, g->cand, g->halo_count, g->halo_count + np + 2,
             g->send, rec);
         CUDA_LAUNCHED();
         if (!g->peer)
             CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double),
-                                       cudaMemcpyDeviceToHost, c->stream));
-        CUDA_CHECK(cudaEventRecord(g->halo_ready, c->stream));
+                                       cudaMemcpyDeviceToHost, g->side));
+        CUDA_CHECK(cudaEventRecord(g->halo_ready, g->side));
+        CUDA_CHECK(cudaEventSynchronize(g->halo_ready)); /* not for the binning: what follows on the
+                                                            step's stream is launched after it */
     }
-    bin_early(g, vmax);
-    if (n > 0) CUDA_CHECK(cudaEventSynchronize(g->halo_ready)); /* not for the binning */
     return g->peer ? NULL : g->rec_host;
 }
 
@@ -698,7 +757,43 @@ void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n
     g->halo = got;
 }
 
-int64_t gpu_rank_detect(GpuRank *g, double vmax)
+/* A round's passes up to the keys that go out, and the copy of its list's length to the host (the
+ * caller waits): the first round (first) over the search's list, the others over the live events the
+ * last one left. */
+static void round_launch(GpuRank *g, int first)
+{
+    Cuda *c = &g->c;
+    int64_t blocks = g->pl.choose_blocks[0];
+    if (!first) {
+        unsigned long long *next = &g->counter[3 + (g->round & 1)];
+        CUDA_CHECK(cudaMemsetAsync(next, 0, sizeof *next, c->stream));
+        step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[g->list], g->len, c->ev_cap, c->ev[1 - g->list], next,
+                    c->partner, c->wall_hi, c->best_hi, c->best_lo);
+        g->list = 1 - g->list;
+        g->len = next;
+        step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi);
+    }
+    /* the peer path: this round's keys into the region's half of its parity; a neighbour reads them
+     * after the reduction that follows gpu_rank_round on every rank, and before its next one, while this
+     * rank writes the other half */
+    GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
+    if (g->nsend > 0) {
+        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, g->where, c->best_hi,
+                    c->best_lo, c->partner, keys);
+        if (!g->peer)
+            CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey),
+                                       cudaMemcpyDeviceToHost, c->stream));
+    }
+    CUDA_CHECK(cudaMemcpyAsync(g->counter_host + 3, g->len, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
+                               c->stream));
+}
+
+/* The search is followed at once by the first round's passes, on a list of any length (their blocks
+ * loop), so that the device does not wait for the host between them: the first round then only
+ * returns what they found. Where the list was too short, it is made longer and both are launched again
+ * (the state the step started from is intact). */
+void gpu_rank_detect(GpuRank *g, double vmax)
 {
     CallClock clock_(g, GPU_DETECT);
     Cuda *c = &g->c;
@@ -725,7 +820,7 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
         }
         if (n > 0) {
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where);
+                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
             DevState *d = &c->st[1 - in];
             Entries en;
             en.pos = d->pos, en.vel = d->vel, en.id = d->id;
@@ -735,6 +830,11 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
             detect_launch(c, pl, 0, en);
         }
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
+        g->list = 0;
+        g->round = 0;
+        g->len = &c->info->found[0];
+        pl->choose_blocks[0] = 8 * (int64_t)c->sms;
+        round_launch(g, 1);
         rank_sync(g);
         if (g->info_host->outside)
             sim_fail("internal error: %llu disks outside the slab of the grid (%g to %g)", g->info_host->outside,
@@ -743,54 +843,28 @@ int64_t gpu_rank_detect(GpuRank *g, double vmax)
         if (found <= c->ev_cap) {
             g->keyed_steps[0] += g->info_host->ahead[0];
             g->keyed_steps[1] += g->info_host->ahead[1];
+            double b = (2.0 * (double)found + 4096) / THREADS, most = 8.0 * c->sms;
+            pl->choose_blocks[0] = b < most ? (int64_t)b : (int64_t)most;
             break;
         }
-        /* a list too short: longer, and the step's search again (the state it started from is intact) */
+        /* a list too short: longer, and the step's search again */
         cudaFree(c->ev[0]), cudaFree(c->ev[1]);
         events_alloc(c, found + found / 4 + 4096);
         early = false;
     }
-    g->list = 0;
-    g->round = 0;
-    g->len = &c->info->found[0];
-    int64_t found = (int64_t)g->info_host->found[0];
-    double b = (2.0 * (double)found + 4096) / THREADS, most = 8.0 * c->sms;
-    pl->choose_blocks[0] = b < most ? (int64_t)b : (int64_t)most;
-    return found;
 }
 
 int64_t gpu_rank_round(GpuRank *g, int first, const GpuKey **out)
 {
     CallClock clock_(g, GPU_ROUND);
     Cuda *c = &g->c;
-    int64_t blocks = g->pl.choose_blocks[0];
-    if (!first) {
-        unsigned long long *next = &g->counter[2 + (g->round & 1)];
-        CUDA_CHECK(cudaMemsetAsync(next, 0, sizeof *next, c->stream));
-        step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[g->list], g->len, c->ev_cap, c->ev[1 - g->list], next,
-                    c->partner, c->wall_hi, c->best_hi, c->best_lo);
-        g->list = 1 - g->list;
-        g->len = next;
-        step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi);
+    if (!first) { /* the first's passes ran behind the search (gpu_rank_detect) */
+        round_launch(g, 0);
+        rank_sync(g);
     }
-    /* the peer path: this round's keys into the region's half of its parity; a neighbour reads them
-     * after the reduction that follows this call on every rank, and before its next one, while this
-     * rank writes the other half */
-    GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
     g->round++;
-    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
-    if (g->nsend > 0) {
-        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, g->where, c->best_hi,
-                    c->best_lo, c->partner, keys);
-        if (!g->peer)
-            CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey),
-                                       cudaMemcpyDeviceToHost, c->stream));
-    }
-    CUDA_CHECK(cudaMemcpyAsync(g->counter_host + 2, g->len, sizeof(unsigned long long), cudaMemcpyDeviceToHost,
-                               c->stream));
-    rank_sync(g);
     *out = g->peer ? NULL : g->keys_host;
-    int64_t live = (int64_t)g->counter_host[2];
+    int64_t live = (int64_t)g->counter_host[3];
     return live < c->ev_cap ? live : c->ev_cap;
 }
 
@@ -825,49 +899,74 @@ void gpu_rank_accept(GpuRank *g)
      * is received into again */
 }
 
-void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers)
+void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double reach, GpuMoved *m,
+                   const double **leavers)
 {
     CallClock clock_(g, GPU_MOVE);
     Cuda *c = &g->c;
     int64_t n = g->own + g->halo;
-    int in = 1 - c->cur, out = c->cur, p = g->pcur; /* in: the gathered state; out: the one it came from */
+    int in = 1 - c->cur, out = c->cur; /* in: the gathered state; out: the one it came from */
     memset(m, 0, sizeof *m);
     *leavers = g->rec_host;
+    g->hvalid = false;
     if (n == 0) {
         g->halo = 0;
         return;
     }
-    for (;;) { /* the own disks kept into st[out] and pc[1 - p]; its inputs stay as they are */
-        RankMove rm = {c->order, g->own, g->pc[p], g->wc[p], c0, c1, first, last, g->pc[1 - p], g->wc[1 - p],
-                       g->rec, g->rec_cap, g->counter};
-        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 2 * sizeof(unsigned long long), c->stream));
+    if (g->halo > 0) {
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_mark_copies_kernel, (const uint32_t *)g->where + g->own,
+                    g->halo, c->partner);
+    }
+    int64_t hcap = g->own / 64 + 4096; /* a strip's edges: beyond them, every own disk looked at */
+    if (hcap > g->hcap) {
+        cudaFree(g->hcand);
+        g->hcap = grown(hcap);
+        g->hcand = (int32_t *)dev_alloc((size_t)g->hcap * sizeof(int32_t), "the halo");
+    }
+    int64_t guess = 0;
+    for (int again = 0;; again = 1) { /* the own disks kept into st[out]; the state it moves stays as it is */
+        int64_t room = !again && g->leavers_room >= 0 && g->leavers_room < g->rec_cap ? g->leavers_room : g->rec_cap;
+        RankMove rm = {c0, c1, c0 + reach, c1 - reach, first, last, again, g->rec, room, g->hcand, g->hcap,
+                       g->counter};
+        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 3 * sizeof(unsigned long long), c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
         MoveBin mb = {c->ahead, c->keys}; /* the kept disks keyed on the grid bin_early's gate fitted ahead */
         auto move = c->ahead_slack > 0 ? move_kernel<true, true> : move_kernel<true, false>;
         step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[out], n, c->par, c->partner, c->wall_hi,
-                    c->best_hi, (int32_t *)NULL, (int32_t *)NULL, c->info, c->ev_cap, c->ctl, rm, mb);
-        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 2 * sizeof(unsigned long long),
+                    c->best_hi, g->pc, g->wc, c->info, c->ev_cap, c->ctl, rm, mb);
+        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 3 * sizeof(unsigned long long),
                                    cudaMemcpyDeviceToHost, c->stream));
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
+        /* the leavers' records as many as twice the last step's, before the wait: mostly all of them */
+        guess = 2 * g->left_last + 1024;
+        guess = guess < room ? guess : room;
+        rec_host_reserve(g, guess);
+        CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)guess * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
+                                   c->stream));
         rank_sync(g);
-        if ((int64_t)g->counter_host[1] <= g->rec_cap) break;
+        if ((int64_t)g->counter_host[1] <= room) break;
         rec_reserve(g, (int64_t)g->counter_host[1]); /* more leavers than room: the move again */
+        g->moved_again++;
     }
     int64_t kept = (int64_t)g->counter_host[0], left = (int64_t)g->counter_host[1];
     if (g->info_host->outside) /* a kept disk's key outside the grid ahead: never (gpu_slab's reach) */
         sim_fail("internal error: %llu disks keyed outside the slab of the grid ahead", g->info_host->outside);
     g->keyed = c->ahead_slack > 0 ? kept : 0;
     g->keyed_grown = c->grown;
-    rec_host_reserve(g, left);
-    if (left > 0) {
+    g->hn = (int64_t)g->counter_host[2];
+    g->hvalid = g->hn <= g->hcap;
+    g->hkept = kept;
+    g->hc0 = c0, g->hc1 = c1, g->hreach = reach;
+    g->left_last = left;
+    if (left > guess) {
+        rec_host_reserve(g, left);
         CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)left * D_LEN * sizeof(double), cudaMemcpyDeviceToHost,
                                    c->stream));
         rank_sync(g);
     }
     *leavers = g->rec_host;
     c->cur = out;
-    g->pcur = 1 - p;
     g->own = kept;
     g->halo = 0;
     m->leavers = left;

@@ -58,8 +58,11 @@ void gpu_rank_close(GpuRank *g);
  * included: each call returns with the device done) */
 const double *gpu_rank_times(const GpuRank *g);
 /* Steps so far whose own disks kept by the move before were keyed by it for the step's cells and only
- * counted (into keyed[0]), and those binned anew, the grid ahead not fitting the step's (keyed[1]) */
-void gpu_rank_keyed(const GpuRank *g, uint64_t keyed[2]);
+ * counted (into reused[0]), and those binned anew, the grid ahead not fitting the step's (reused[1]);
+ * halos that looked only at the own disks the move before listed near the cuts (reused[2]), and those
+ * that looked at every own disk (reused[3]); moves done twice, their leavers having overflowed the
+ * device's room for their records (reused[4]) */
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[5]);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
 /* The disks of the steps to come lie within x0 <= x <= x1 (around the box where periodic), if `on`: the
@@ -85,8 +88,8 @@ double *gpu_rank_halo_in(GpuRank *g, int64_t n);
 /* The copies received (got records) put after the own disks: the halo, in this order (gpu_rank_accept). */
 void gpu_rank_set_halo(GpuRank *g, const double *in, int64_t got);
 /* One step's pair events over the own disks and the halo, on the box's grid for largest velocity
- * component vmax (of every rank's disks); returns how many. */
-int64_t gpu_rank_detect(GpuRank *g, double vmax);
+ * component vmax (of every rank's disks), and the first round's passes behind them */
+void gpu_rank_detect(GpuRank *g, double vmax);
 /* A round of the choice (first: the first of the step): returns the pair events still live here, and
  * into *out the keys of the disks gpu_rank_halo_out sent, in its order (the rank's buffer; on the peer
  * path NULL: they stay in the region, read by the others' gpu_rank_accept once every rank has returned
@@ -113,8 +116,11 @@ void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n
  * not be freed while mapped elsewhere) */
 void gpu_rank_unmap(GpuRank *g);
 /* The own disks moved; those whose x left [c0, c1) (no bound below for the first strip, above for the
- * last) leave: their records into *leavers (the rank's buffer). The halo is dropped. */
-void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, GpuMoved *m, const double **leavers);
+ * last) leave: their records into *leavers (the rank's buffer). The halo is dropped. The own disks kept
+ * within reach (a bound on the next step's) of c0 or c1 are listed for the next halo, which looks at
+ * those alone where its cuts are c0 and c1 and its reach no longer. */
+void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double reach, GpuMoved *m,
+                   const double **leavers);
 
 #ifdef __cplusplus
 }

@@ -8,7 +8,9 @@
 # - halos and keys GPU to GPU (ranks of one node, as above) and through host memory (SIM_MPI_CUDA_HOST=1);
 #   the regions the ranks share grown step after step (SIM_MPI_CUDA_REGION_SLACK=1);
 # - the moves keying the kept disks' cells for the next step: taken (--stats), and with the grid ahead
-#   at the step's own speed or with no keying (SIM_CUDA_BIN_AHEAD=1, 0);
+#   at the step's own speed or with no keying (SIM_CUDA_BIN_AHEAD=1, 0); the halos taken from the moves'
+#   lists of own disks near the cuts (--stats); moves done twice, their leavers overflowing the device's
+#   room (SIM_MPI_CUDA_LEAVERS_ROOM=0), their collisions counted once;
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -129,6 +131,21 @@ else
         pass "mpi_cuda moves key the next step's cells: $keyed rank-steps took them (--stats), seq's bytes at 3 ranks"
     else
         fail "mpi_cuda moves keying the next step's cells" "${keyed:-nothing said}; $(head -c 200 "$G/err")"
+    fi
+    # the same run: the halos that looked only at the own disks the move before listed near the cuts
+    listed=$(sed -nE 's/.*listed near the cuts: ([0-9]+), at every own disk: ([0-9]+);.*/\1 \2/p' "$G/err")
+    if cmp -s "$G/out" "$G/gas.ref" && [ "${listed%% *}" -gt 0 ] 2> /dev/null; then
+        pass "mpi_cuda halos from the moves' lists near the cuts: ${listed% *} rank-steps (and ${listed#* } over every own disk), seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda halos from the moves' lists" "${listed:-nothing said}; $(head -c 200 "$G/err")"
+    fi
+    # a move whose leavers overflow the device's room moves again, its collisions counted once
+    (export SIM_MPI_CUDA_LEAVERS_ROOM=0; run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null)
+    again=$(sed -nE 's/.*moves done twice \(more leavers than room\): ([0-9]+).*/\1/p' "$G/err")
+    if cmp -s "$G/out" "$G/gas.ref" && [ "${again:-0}" -gt 0 ]; then
+        pass "mpi_cuda moves done twice (SIM_MPI_CUDA_LEAVERS_ROOM=0): $again, seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda moves done twice" "${again:-nothing said}; $(head -c 200 "$G/err")"
     fi
     caller_ahead=${SIM_CUDA_BIN_AHEAD-unset}
     for s in 1 0; do
