@@ -402,7 +402,11 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_counted, cudaEventDisableTiming));
-    CUDA_CHECK(cudaStreamCreateWithFlags(&g->side, cudaStreamNonBlocking));
+    /* the side stream first: the halo's pack, launched behind the own disks' binning, runs before the
+     * binning's waiting blocks, so that the halo travels while it bins */
+    int least = 0, greatest = 0;
+    CUDA_CHECK(cudaDeviceGetStreamPriorityRange(&least, &greatest));
+    CUDA_CHECK(cudaStreamCreateWithPriority(&g->side, cudaStreamNonBlocking, greatest));
     events_alloc(c, 4096);
     rank_reserve(g, 1024);
     rank_sync(g);
