@@ -158,7 +158,7 @@ __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int3
 {
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= (int64_t)count[h.np]) return;
-    int32_t s = cand[i], id = st.id[s];
+    int32_t s = cand[i], id = st.id[s]; /* cand holds a slot once (rank_halo_count_kernel looks at each once) */
     st.id[s] = (int32_t)((uint32_t)id | ID_SENT); /* for the gather (where) */
     real2 pos = st.pos[s];
     double x = (double)pos.x;
