@@ -528,6 +528,14 @@ static int rounds_for(double found, double decay)
     return r;
 }
 
+/* Blocks of a grid-wide round's passes over a list of `found` pair events (INFINITY: a length not yet
+ * known): the passes loop over the list's length on the device, so fewer blocks only take more turns. */
+static int64_t choose_blocks_for(const Cuda *c, double found)
+{
+    double b = (2 * found + 4096) / THREADS, most = 8.0 * c->sms;
+    return b < most ? (int64_t)b : (int64_t)most;
+}
+
 static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double *found, int F)
 {
     Plan pl;
@@ -561,9 +569,7 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
         int kw = window_start(w + 1, pl.F, pl.W, pl.K) - window_start(w, pl.F, pl.W, pl.K);
         pl.went[w] = c->n * kw;
         pl.rounds[w] = rounds[w];
-        /* the rounds loop over the list's length on the device: fewer blocks only take more turns */
-        double b = (2 * found[w] + 4096) / THREADS, most = 8.0 * c->sms;
-        pl.choose_blocks[w] = b < most ? (int64_t)b : (int64_t)most;
+        pl.choose_blocks[w] = choose_blocks_for(c, found[w]);
     }
     return pl;
 }

@@ -395,9 +395,9 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 5 * sizeof(unsigned long long)));
     size_t ids = (size_t)(par->n > 0 ? par->n : 1) * sizeof(int32_t);
     g->pc = (int32_t *)dev_alloc(ids, "the collision counts");
+    g->wc = (int32_t *)dev_alloc(ids, "the collision counts");
     const char *room = getenv("SIM_MPI_CUDA_LEAVERS_ROOM");
     g->leavers_room = room && *room ? atoll(room) : -1;
-    g->wc = (int32_t *)dev_alloc(ids, "the collision counts");
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
@@ -417,6 +417,7 @@ void gpu_rank_close(GpuRank *g)
 {
     Cuda *c = &g->c;
     rank_sync(g);
+    CUDA_CHECK(cudaStreamSynchronize(g->side));
     for (int b = 0; b < 2; b++) {
         state_free(&c->st[b]);
         cudaFree(c->ev[b]);
@@ -434,7 +435,6 @@ void gpu_rank_close(GpuRank *g)
     cudaFreeHost(g->rec_host), cudaFreeHost(g->counter_host), cudaFreeHost(g->info_host);
     cudaFreeHost(g->stage), cudaFreeHost(g->hkeys_host), cudaFreeHost(g->halo_host);
     cudaEventDestroy(g->halo_ready), cudaEventDestroy(g->halo_counted);
-    cudaStreamSynchronize(g->side);
     cudaStreamDestroy(g->side);
     cudaStreamDestroy(c->stream);
     gpu_rank_unmap(g);
@@ -575,6 +575,17 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
                     0);
 }
 
+/* A step's gate (gate_kernel) at its plan's speed, for one slice: ahead, keyed and ahead_slack as it
+ * takes them. */
+static void rank_gate(GpuRank *g, Grid *ahead, int keyed, double ahead_slack)
+{
+    Cuda *c = &g->c;
+    const Plan *pl = &g->pl;
+    CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
+    step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1, c->grid,
+                ahead, keyed, ahead_slack);
+}
+
 /* The gate of a step (its grid for largest velocity component vmax, and the grid ahead its move keys
  * the disks it keeps on) and the own disks binned on it, before the halo arrives: the device's work while
  * the halo's records travel (gpu_rank_detect bins the copies after them, unless the slots' buffers grew
@@ -587,9 +598,7 @@ static void bin_early(GpuRank *g, double vmax)
     plan_step(g, pl, vmax);
     c->n = g->own;
     int64_t keyed = c->grown == g->keyed_grown && g->keyed <= g->own ? g->keyed : 0;
-    CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
-    step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1, c->grid,
-                c->ahead, (int)(keyed > 0), c->ahead_slack);
+    rank_gate(g, c->ahead, (int)(keyed > 0), c->ahead_slack);
     g->early_short = bin_clear(c, pl, 0);
     if (keyed > 0) {
         bin_slots(g, c->st[c->cur], 0, keyed, 1);
@@ -811,11 +820,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
     g->early = false;
     int in = c->cur;
     for (;;) {
-        if (!early) {
-            CUDA_CHECK(cudaMemcpyAsync(&c->ctl->vmax, &pl->vmax, sizeof pl->vmax, cudaMemcpyHostToDevice, c->stream));
-            step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, 1, pl->gcap, 0, 1, 1,
-                        c->grid, (Grid *)NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
-        }
+        if (!early) rank_gate(g, NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */
             bin_slots(g, c->st[in], g->own, g->halo, 0);
             scan_place_launch<false>(c, pl, 0, NULL, NULL, 0, g->early_short);
@@ -837,7 +842,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         g->list = 0;
         g->round = 0;
         g->len = &c->info->found[0];
-        pl->choose_blocks[0] = 8 * (int64_t)c->sms;
+        pl->choose_blocks[0] = choose_blocks_for(c, INFINITY);
         round_launch(g, 1);
         rank_sync(g);
         if (g->info_host->outside)
@@ -847,8 +852,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         if (found <= c->ev_cap) {
             g->keyed_steps[0] += g->info_host->ahead[0];
             g->keyed_steps[1] += g->info_host->ahead[1];
-            double b = (2.0 * (double)found + 4096) / THREADS, most = 8.0 * c->sms;
-            pl->choose_blocks[0] = b < most ? (int64_t)b : (int64_t)most;
+            pl->choose_blocks[0] = choose_blocks_for(c, (double)found);
             break;
         }
         /* a list too short: longer, and the step's search again */
@@ -923,9 +927,8 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
     }
     int64_t hcap = g->own / 64 + 4096; /* a strip's edges: beyond them, every own disk looked at */
     if (hcap > g->hcap) {
-        cudaFree(g->hcand);
         g->hcap = grown(hcap);
-        g->hcand = (int32_t *)dev_alloc((size_t)g->hcap * sizeof(int32_t), "the halo");
+        REGROW(g->hcand, 0, (size_t)g->hcap * sizeof(int32_t), "the halo");
     }
     int64_t guess = 0;
     for (int again = 0;; again = 1) { /* the own disks kept into st[out]; the state it moves stays as it is */

@@ -55,7 +55,8 @@ typedef struct {
 GpuRank *gpu_rank_open(const Params *par, int local);
 void gpu_rank_close(GpuRank *g);
 /* The seconds the host has spent in each call so far, by GPU_HALO_OUT .. GPU_GET (the waits for the device
- * included: each call returns with the device done) */
+ * included: a call that reads the device's results waits for its work; the halo's and the disks' puts
+ * and the accept pass return once launched) */
 const double *gpu_rank_times(const GpuRank *g);
 /* Steps so far whose own disks kept by the move before were keyed by it for the step's cells and only
  * counted (into reused[0]), and those binned anew, the grid ahead not fitting the step's (reused[1]);
