@@ -487,7 +487,6 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             for (unsigned i = threadIdx.x; i < kept; i += THREADS)
                 if ((int64_t)(be.base + i) < cap) ev[be.base + i] = be.e[i];
         }
-        /* the shared records are rewritten by the next tile; with one tile, warps done leave at once */
-        if (TILES) __syncthreads();
+        __syncthreads(); /* TILES (one tile returned above): the shared records are rewritten by the next tile */
     }
 }
