@@ -1186,13 +1186,23 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     int window = first_window(par->n);
     const char *window_hook = getenv("SIM_CUDA_WINDOW");
     if (window_hook && atoi(window_hook) >= 0) window = atoi(window_hook);
-    /* the first plan's buffers before the clock starts, as cuda_open's; a scene of several slices a
-     * step finds up to some n / 2 pair events a step (a gas some n / 15), so its event list starts so */
+    /* the first plan's buffers before the clock starts, as cuda_open's. A scene of several slices a
+     * step finds up to two pair events a disk in a step (the assignment's random scene: 1.7 at N = 1e5,
+     * 0.8 at 1e6 and 4e6; a gas of one slice some 1 / 15), and a list too short costs a step run again
+     * (random scene, 10 steps, one H200: N = 1e6 4.09e8 particle-steps/s against 3.61e8-3.66e8 with
+     * room for n / 2, bench/gpu_h100_variants.log 17): its list starts with room for 2 n, where an
+     * eighth of the free memory holds both copies, and for n / 2 at least (the entries may take half). */
     Plan first = plan_for(&c, known * plan_scale[0], rounds, found, window);
-    if (first.K > 1 && !(hook && atoll(hook) > 0) && c.ev_cap < par->n / 2 + 4096) {
-        cudaFree(c.ev[0]);
-        cudaFree(c.ev[1]);
-        events_alloc(&c, par->n / 2 + 4096);
+    if (first.K > 1 && !(hook && atoll(hook) > 0)) {
+        size_t free_b = 0, total_b = 0;
+        CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
+        int64_t want = 2 * par->n + 4096, spare = (int64_t)((double)free_b / 8 / (2 * sizeof(PairEvent)));
+        if (want > spare) want = spare > par->n / 2 + 4096 ? spare : par->n / 2 + 4096;
+        if (c.ev_cap < want) {
+            cudaFree(c.ev[0]);
+            cudaFree(c.ev[1]);
+            events_alloc(&c, want);
+        }
     }
     buffers_grow(&c, &first);
     CUDA_CHECK(cudaDeviceSynchronize());
