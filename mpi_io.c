@@ -466,6 +466,7 @@ static void scatter(const Params *par, const Sim *all, Local *l)
     int *count = sim_calloc((size_t)np, sizeof *count), *displ = sim_calloc((size_t)np, sizeof *displ);
     int *dest = NULL;
     Disk *d = NULL;
+    Sources src = {all->x, all->y, all->vx, all->vy, NULL, 0, NULL, NULL, NULL}; /* rank 0's */
     if (mpi_me == 0) {
         dest = sim_realloc(NULL, SCATTER_DISKS, sizeof *dest);
         d = sim_realloc(NULL, SCATTER_DISKS, sizeof *d);
@@ -479,11 +480,7 @@ static void scatter(const Params *par, const Sim *all, Local *l)
             memset(count, 0, (size_t)np * sizeof *count);
             for (int64_t k = 0; k < m; k++) count[dest[k] = mpi_owner(all->x[first + k])]++;
             for (int q = 1; q < np; q++) displ[q] = displ[q - 1] + count[q - 1];
-            for (int64_t k = 0; k < m; k++) {
-                int64_t i = first + k;
-                Disk e = {all->x[i], all->y[i], all->vx[i], all->vy[i], i, 0, 0, 0};
-                d[displ[dest[k]]++] = e;
-            }
+            for (int64_t k = 0; k < m; k++) pack_source(&src, first + k, &d[displ[dest[k]]++]);
             for (int q = 0; q < np; q++) displ[q] -= count[q];
         }
         int got;
