@@ -116,6 +116,9 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define RING (2 * BATCH)    /* steps in flight at most: two batches */
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
 #define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
+#ifndef SLOT_STEPS
+#define SLOT_STEPS 1        /* steps of one slice after a batch's first search the disks in their slots */
+#endif
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
 #endif
@@ -296,14 +299,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     (void)cudaDeviceSetLimit(cudaLimitStackSize, 64);
     cudaGetLastError();
     /* the pair search's runs in shared memory beyond its static arrays (past 48 KB in all) */
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)RUN_BYTES));
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)RUN_BYTES));
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)RUN_BYTES));
-    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, true>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                    (int)RUN_BYTES));
+    const cudaFuncAttribute smem = cudaFuncAttributeMaxDynamicSharedMemorySize;
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, false, false>, smem, (int)RUN_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, false, false>, smem, (int)RUN_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<false, true, true, false>, smem, (int)RUN_BYTES));
+    CUDA_CHECK(cudaFuncSetAttribute(detect_kernel<true, true, true, false>, smem, (int)RUN_BYTES));
     c->timed = timed;
     /* SIM_CUDA_GRAPH=0 (or a build with -DGRAPHS=0): every batch kernel by kernel (the tests run both
      * ways; --stats always does) */
@@ -815,15 +815,18 @@ static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
 {
     int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
     const uint32_t *keys = c->keys_sorted, *start = c->start;
-    if (pl->K == 1)
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC>, en, keys, start, c->grid, w,
+    if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, true>, en, c->keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else if (pl->K == 1)
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, false>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC>, en, keys, start, c->grid, w,
-                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC, false>, en, keys, start, c->grid,
+                    w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC>, en, keys, start, c->grid, w,
-                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC, false>, en, keys, start,
+                    c->grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
 }
 
 static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
@@ -845,18 +848,25 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
     bool ahead = pl->K == 1 && c->ahead_slack > 0, keyed = ahead && !first, key_ahead = ahead && !last;
+    /* a step the move before keyed searches the disks where that move left them, through the cell
+     * order (SLOT_STEPS), and that move started their event keys: no gather */
+    bool slots = SLOT_STEPS && keyed;
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
                 pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
         bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
-        step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                    c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL, (int64_t)0);
-        in = 1 - in;
+        if (!slots) {
+            step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
+                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL,
+                        (int64_t)0);
+            in = 1 - in;
+        }
         DevState *d = &c->st[in];
         Entries en;
         en.pos = d->pos, en.vel = d->vel, en.id = d->id;
-        en.slot = NULL;
+        en.slot = slots ? (int32_t *)c->order : NULL;
+        en.rank = c->rank;
         en.wall = c->wall_hi;
         en.mid = NULL;
         phase_mark(c, ring, 0, 3);
@@ -886,7 +896,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
     }
     RankMove none = {};
-    MoveBin mb = {c->ahead, c->keys}; /* read by move_kernel<false, true> alone */
+    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true> alone */
+    if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.best_lo = c->best_lo, mb.partner = c->partner;
+    mb.ids_alike = slots;
     auto move = key_ahead ? move_kernel<false, true> : move_kernel<false, false>;
     step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
                 c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);

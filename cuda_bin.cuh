@@ -304,6 +304,7 @@ typedef struct {
     int32_t *id, *slot;
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
+    const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */

@@ -107,14 +107,17 @@ typedef struct {
 } BlockEvents;
 
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
- * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. */
-template <bool PERIODIC>
+ * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. SLOTS: the
+ * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
+ * the probe's slot. */
+template <bool PERIODIC, bool SLOTS>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
                                                  int64_t cap, unsigned long long *found, uint64_t *best_hi)
 {
-    real2 pos2 = __ldg(&en.pos[q]), vel2 = __ldg(&en.vel[q]);
-    int32_t id2 = __ldg(&en.id[q]);
+    const uint32_t d = SLOTS ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
+    real2 pos2 = __ldg(&en.pos[d]), vel2 = __ldg(&en.vel[d]);
+    int32_t id2 = __ldg(&en.id[d]);
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
@@ -125,9 +128,10 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
     e.hi = time_key(t) | 1;
-    if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[q]))) return; /* a wall event comes first */
+    if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[d]))) return; /* a wall event comes first */
     bool first = pr.id < id2;
-    int32_t s = en.slot ? en.slot[p] : (int32_t)p, s2 = en.slot ? en.slot[q] : (int32_t)q;
+    int32_t s = SLOTS || !en.slot ? (int32_t)p : en.slot[p];
+    int32_t s2 = SLOTS || !en.slot ? (int32_t)d : en.slot[q];
     e.a = first ? s : s2;
     e.b = first ? s2 : s;
     e.lo = first ? ((uint64_t)pr.id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)pr.id);
@@ -300,11 +304,11 @@ static __device__ __forceinline__ uint4 edge_runs(const uint32_t *__restrict__ s
     return e;
 }
 
-/* Candidate i of probe po at entry p: its own row's rest, the row below, then the edges' runs. */
+/* Candidate i of probe po: its own row's rest, the row below, then the edges' runs. */
 template <bool PERIODIC>
-static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p, uint32_t i)
+static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t i)
 {
-    if (i < po.na) return p + 1 + i;
+    if (i < po.na) return po.c + i; /* Probe.c: the entry after the probe's (K = 1) */
     i -= po.na;
     if (!PERIODIC) return po.b0 + i; /* no edge runs */
     if (i < po.nb) return po.b0 + i;
@@ -318,7 +322,7 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t p
  * constant of each build: with the box's wrapping in the walled box's search too, that search took
  * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
  * gas of 1e7's spilled). */
-template <bool TILES, bool MID, bool PERIODIC>
+template <bool TILES, bool MID, bool PERIODIC, bool SLOTS>
 __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS_ONE)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
@@ -351,9 +355,12 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         Probe pr = {};
         if (p < end) {
             /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
-             * disk itself (a pass of 8 bytes a disk fewer: place_kernel) */
+             * disk itself (a pass of 8 bytes a disk fewer: place_kernel); SLOTS: p is a slot, whose key and
+             * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
+             * those of its entries' disks would scatter) */
             uint32_t key = MID ? __ldg(&keys[p])
-                               : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
+                         : SLOTS ? __ldg(&keys[p])
+                                 : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
             uint32_t kl = key / gr.ncell; /* the cell row: a slice of one level */
             uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
@@ -365,8 +372,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             } else {
                 pr.k = kl + k0;
             }
-            pr.c = c;
-            pr.na = __ldg(&start[row + x1 + 1]) - (p + 1);
+            const uint32_t after = SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1 : p + 1; /* its entry's next */
+            pr.c = MID ? c : after;
+            pr.na = __ldg(&start[row + x1 + 1]) - after;
             uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */
             if (PERIODIC && g >= 3) {
                 edge = edge_runs(start, row, kl * gr.ncell + (cy + 1 < g ? (cy + 1) * g : 0), cx, g, &pr.b0, &pr.nb);
@@ -426,14 +434,15 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (; held >= 32; held -= 32) {
                     __syncwarp();
                     uint32_t o = warp * 32 + wo[lane];
-                    test_pair<PERIODIC>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                    test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found,
+                                               best_hi);
                     queue_shift(wq, wo, held - 32, lane);
                 }
             }
             __syncwarp();
             if (lane < held) {
                 uint32_t o = warp * 32 + wo[lane];
-                test_pair<PERIODIC>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
             }
             unsigned long long sum = seen; /* 64 bits: a warp's counts can pass 2^32 */
             for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
@@ -451,7 +460,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair<PERIODIC>(en, gr, po, p, candidate<PERIODIC>(po, p, i), sigma2, &be, ev, cap, found,
+                    test_pair<PERIODIC, SLOTS>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap, found,
                                         best_hi);
             } else {
                 if (threadIdx.x == 0) tests = total;
@@ -461,7 +470,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    test_pair<PERIODIC>(en, gr, po, p0 + o, candidate<PERIODIC>(po, p0 + o, i), sigma2, &be, ev, cap,
+                    test_pair<PERIODIC, SLOTS>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap,
                                         found, best_hi);
                 }
             }

@@ -51,6 +51,13 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos,
 typedef struct {
     const Grid *grid;
     uint32_t *keys;
+    /* cuda's own steps: the next step's disks stay in these slots (step_launch), and their event keys
+     * start here, as the gather would start them (slot_init): else NULL */
+    uint64_t *wall_hi, *best_hi, *best_lo;
+    int32_t *partner;
+    /* this step's disks stayed in their slots: the gather before wrote out's indices and the move after
+     * it in's, slot for slot, so out holds them already */
+    int ids_alike;
 } MoveBin;
 
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
@@ -139,10 +146,16 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             stays = rank_stays(rm, pos1, vel1, id, pc, wc);
             pos = pos1, vel = vel1;
         } else {
-            out.pos[s] = pos1, out.vel[s] = vel1, out.id[s] = id;
+            out.pos[s] = pos1, out.vel[s] = vel1;
+            if (!BIN || !mb.ids_alike) out.id[s] = id;
         }
-        if (BIN && !RANK) /* as bin_kernel keys the entry of slot s in a step of one slice */
+        if (BIN && !RANK) { /* as bin_kernel keys the entry of slot s in a step of one slice */
             mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
+            /* slot s's keys are read by this thread alone in this kernel, above */
+            if (mb.wall_hi)
+                slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
+                          mb.partner);
+        }
         real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
         vabs = ax < ay ? ay : ax;
     }

@@ -836,6 +836,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.slot = NULL;
             en.wall = c->wall_hi;
             en.mid = NULL;
+            en.rank = NULL;
             detect_launch(c, pl, 0, en);
         }
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
