@@ -15,8 +15,9 @@
  *            entries: count, exclusive scan, place. A disk 2^l times slower than the fastest takes
  *            slices 2^l times longer (speed levels, disk_level): it moves no farther in one of them
  *            than the fastest disk in a slice, so the same cells hold it, with fewer entries
- *   place    with K = 1 the disks themselves move into cell order, for locality; with K > 1 a copy of
- *            each disk per entry does
+ *   place    with K = 1 the disks themselves move into cell order, for locality, in a batch's first
+ *            step; its later steps search them where the move before left them, through the order of
+ *            their cell places (SLOT_STEPS); with K > 1 a copy of each disk per entry takes that order
  *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
  *            place), and each entry against the slower levels' slices that contain its own, screened
  *            by whether their paths come within 2r (and margins) during the slice; a pair is kept
@@ -117,7 +118,10 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
 #define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
 #ifndef SLOT_STEPS
-#define SLOT_STEPS 1        /* steps of one slice after a batch's first search the disks in their slots */
+#define SLOT_STEPS 1        /* steps of one slice after a batch's first search the disks in their slots
+                               (step_launch): gas of 1e7 on one H200 7.17e9 -> 7.83e9 particle-steps/s,
+                               dense gas 5.67e9 -> 6.03e9, gas of 1e8 7.11e9 -> 7.61e9
+                               (bench/gpu_h100_variants.log 18) */
 #endif
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
@@ -849,7 +853,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     c->step_windows[ring] = pl->W;
     bool ahead = pl->K == 1 && c->ahead_slack > 0, keyed = ahead && !first, key_ahead = ahead && !last;
     /* a step the move before keyed searches the disks where that move left them, through the cell
-     * order (SLOT_STEPS), and that move started their event keys: no gather */
+     * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
+     * gathers, so the disks return to cell order every BATCH steps (between them a gas's disks move a
+     * few cells at most, and the search's loads stay near each other), and a step run again after a
+     * refusal starts from a gather. */
     bool slots = SLOT_STEPS && keyed;
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
                 pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
