@@ -31,6 +31,10 @@ struct GpuRank {
      * does, where counts by slot had to follow the slots (20 bytes a disk more in the move) */
     int32_t *pc, *wc;
     uint32_t *where;        /* slot before the gather -> its cell place: the halo's sent slots and the copies */
+    /* this step searches the disks in their slots through the cell order, as cuda's gas does (SLOT_STEPS):
+     * no gather, where is each slot itself; steps since the last gather (a rank gathers every BATCH) */
+    bool slots;
+    int since_gather;
     int32_t *cand;          /* gpu_rank_halo_out's own slots with a copy to send (cap) */
     /* the own slots that the last move kept within its reach (hreach) of the cuts hc0, hc1 (hcand, hn of
      * them, where hvalid), and the first slot added since: the next halo looks at those alone, where its
@@ -154,12 +158,12 @@ __global__ void rank_halo_count_kernel(DevState st, const int32_t *list, int64_t
  * order within a rank's; send[] the slot of each record. fill: np places, cleared. */
 __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int32_t *wc, HaloView h,
                                       const int32_t *cand, const unsigned long long *count, unsigned long long *fill,
-                                      int32_t *send, double *rec)
+                                      int32_t *send, double *rec, int mark)
 {
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= (int64_t)count[h.np]) return;
     int32_t s = cand[i], id = st.id[s]; /* cand holds a slot once (rank_halo_count_kernel looks at each once) */
-    st.id[s] = (int32_t)((uint32_t)id | ID_SENT); /* for the gather (where) */
+    if (mark) st.id[s] = (int32_t)((uint32_t)id | ID_SENT); /* for the gather (where) */
     real2 pos = st.pos[s];
     double x = (double)pos.x;
     int lo, hi;
@@ -178,7 +182,7 @@ __global__ void rank_keys_out_kernel(const int32_t *send, int64_t nsend, const u
 {
     int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (k >= nsend) return;
-    uint32_t p = where[send[k]];
+    uint32_t p = where ? where[send[k]] : (uint32_t)send[k]; /* NULL: a step in the slots */
     GpuKey key = {best_hi[p], best_lo[p], partner[p] >= 0};
     keys[k] = key;
 }
@@ -190,19 +194,30 @@ __global__ void rank_keys_in_kernel(const GpuKey *keys, int64_t halo, int64_t ow
 {
     int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (k >= halo) return;
-    uint32_t p = where[own + k];
+    uint32_t p = where ? where[own + k] : (uint32_t)(own + k); /* NULL: a step in the slots */
     GpuKey key = keys[k];
     best_hi[p] = key.hi;
     best_lo[p] = key.lo;
     if (key.decided && partner[p] < 0) partner[p] = (int32_t)p;
 }
 
-/* After the rounds: the copies' places (where after the own slots) marked for the move, which leaves
- * them be (their partners are of no use after the rounds). */
-__global__ void rank_mark_copies_kernel(const uint32_t *where_halo, int64_t halo, int32_t *partner)
+/* After the rounds: the copies' places (where after the own slots; NULL: in the slots) marked for the
+ * move, which leaves them be (their partners are of no use after the rounds). */
+__global__ void rank_mark_copies_kernel(const uint32_t *where, int64_t own, int64_t halo, int32_t *partner)
 {
     int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (k < halo) partner[where_halo[k]] = PARTNER_COPY;
+    if (k < halo) partner[where ? where[own + k] : own + k] = PARTNER_COPY;
+}
+
+/* A step in the slots: each slot's event keys started, as the gather starts them (slot_init). */
+__global__ void rank_slot_init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_hi, uint64_t *best_hi,
+                                      uint64_t *best_lo, int32_t *partner)
+{
+    after_previous();
+    int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (s >= n) return;
+    real2 pos = st.pos[s], vel = st.vel[s];
+    slot_init(s, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
 }
 
 /* ---- buffers ------------------------------------------------------------------------------------------- */
@@ -398,6 +413,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     g->wc = (int32_t *)dev_alloc(ids, "the collision counts");
     const char *room = getenv("SIM_MPI_CUDA_LEAVERS_ROOM");
     g->leavers_room = room && *room ? atoll(room) : -1;
+    g->since_gather = BATCH; /* the first step gathers */
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
@@ -630,6 +646,9 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
     CUDA_CHECK(cudaMemsetAsync(g->halo_count, 0, (2 * (size_t)np + 2) * sizeof(unsigned long long), c->stream));
     HaloView d = *h;
     d.cut = g->view_cut, d.near = g->view_flags, d.whole = g->view_flags + np;
+    /* this step in the slots, or gathered (decided here: a gathered step's pack marks the slots it sends) */
+    g->slots = SLOT_STEPS && g->since_gather < BATCH - 1;
+    g->since_gather = g->slots ? g->since_gather + 1 : 0;
     /* the slots to look at: the last move's list and the disks added since, where it fits this halo */
     bool listed = g->hvalid && !h->any_whole && h->cut[h->me] == g->hc0 && h->cut[h->me + 1] == g->hc1 &&
                   h->reach <= g->hreach && g->hkept <= g->own;
@@ -664,7 +683,7 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
         CUDA_CHECK(cudaStreamWaitEvent(g->side, g->halo_counted, 0));
         rank_halo_pack_kernel<<<blocks_for((int64_t)count[np]), THREADS, 0, g->side>>>(
             c->st[c->cur], g->pc, g->wc, d, g->cand, g->halo_count, g->halo_count + np + 2,
-            g->send, rec);
+            g->send, rec, (int)!g->slots);
         CUDA_LAUNCHED();
         if (!g->peer)
             CUDA_CHECK(cudaMemcpyAsync(g->rec_host, g->rec, (size_t)n * D_LEN * sizeof(double),
@@ -792,7 +811,8 @@ static void round_launch(GpuRank *g, int first)
     GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
     step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
     if (g->nsend > 0) {
-        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, g->where, c->best_hi,
+        const uint32_t *where = g->slots ? NULL : g->where;
+        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, where, c->best_hi,
                     c->best_lo, c->partner, keys);
         if (!g->peer)
             CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey),
@@ -828,15 +848,19 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
         }
         if (n > 0) {
-            step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
-            DevState *d = &c->st[1 - in];
+            if (g->slots) /* searched where they are: their keys started (again, after a list too short) */
+                step_kernel(c, blocks_for(n), THREADS, 0, rank_slot_init_kernel, c->st[in], n, c->par, c->wall_hi,
+                            c->best_hi, c->best_lo, c->partner);
+            else
+                step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order,
+                            n, c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
+            DevState *d = &c->st[g->slots ? in : 1 - in];
             Entries en;
             en.pos = d->pos, en.vel = d->vel, en.id = d->id;
-            en.slot = NULL;
+            en.slot = g->slots ? (int32_t *)c->order : NULL;
             en.wall = c->wall_hi;
             en.mid = NULL;
-            en.rank = NULL;
+            en.rank = c->rank;
             detect_launch(c, pl, 0, en);
         }
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
@@ -899,7 +923,8 @@ void gpu_rank_accept(GpuRank *g)
             CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey),
                                        cudaMemcpyHostToDevice, c->stream));
         }
-        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, g->where,
+        const uint32_t *where = g->slots ? NULL : g->where;
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, where,
                     c->best_hi, c->best_lo, c->partner);
     }
     step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
@@ -914,7 +939,9 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
     CallClock clock_(g, GPU_MOVE);
     Cuda *c = &g->c;
     int64_t n = g->own + g->halo;
-    int in = 1 - c->cur, out = c->cur; /* in: the gathered state; out: the one it came from */
+    /* in: the gathered state, out: the one it came from; a step in the slots moves from the one it
+     * searched to the other */
+    int in = g->slots ? c->cur : 1 - c->cur, out = 1 - in;
     memset(m, 0, sizeof *m);
     *leavers = g->rec_host;
     g->hvalid = false;
@@ -923,8 +950,8 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         return;
     }
     if (g->halo > 0) {
-        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_mark_copies_kernel, (const uint32_t *)g->where + g->own,
-                    g->halo, c->partner);
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_mark_copies_kernel,
+                    g->slots ? (const uint32_t *)NULL : g->where, g->own, g->halo, c->partner);
     }
     int64_t hcap = g->own / 64 + 4096; /* a strip's edges: beyond them, every own disk looked at */
     if (hcap > g->hcap) {
