@@ -2,9 +2,10 @@
  * A rank holds its own disks on its GPU and, during a step, copies of the other ranks' disks within
  * reach of its strip (the halo), after them. The step is cuda's step of one time slice, by cuda.cu's
  * own kernels (that file is included here whole, its main left out):
- *   detect   bin, scan, place, gather and the pair search over the own disks and the copies, on the
- *            grid cuda would fit to the whole box of N disks, its table of cells cut to the strip's columns
- *            (GridLimits' slab) (a copy is a disk like any other here);
+ *   detect   bin, scan, place and the pair search over the own disks and the copies, on the grid cuda
+ *            would fit to the whole box of N disks, its table of cells cut to the strip's columns
+ *            (GridLimits' slab) (a copy is a disk like any other here); the search reads the disks in
+ *            their slots through the cell order, and every BATCH steps they are gathered into it;
  *   rounds   cuda's rounds of the choice, each with one exchange between its min and accept passes:
  *            the smallest live keys of the own disks that other ranks hold copies of go out, and the
  *            copies' keys from their owners replace those found here, which lack the copies' events
