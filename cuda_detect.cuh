@@ -357,7 +357,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
              * disk itself (a pass of 8 bytes a disk fewer: place_kernel); SLOTS: p is a slot, whose key and
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
-             * those of its entries' disks would scatter) */
+             * those of its entries' disks would scatter); every slot has an entry, as a step of one slice
+             * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
             uint32_t key = MID ? __ldg(&keys[p])
                          : SLOTS ? __ldg(&keys[p])
                                  : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
