@@ -359,9 +359,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
              * those of its entries' disks would scatter); every slot has an entry, as a step of one slice
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
-            uint32_t key = MID ? __ldg(&keys[p])
-                         : SLOTS ? __ldg(&keys[p])
-                                 : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
+            uint32_t key = MID || SLOTS
+                               ? __ldg(&keys[p])
+                               : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
             uint32_t kl = key / gr.ncell; /* the cell row: a slice of one level */
             uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
