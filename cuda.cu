@@ -903,11 +903,13 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
     }
     RankMove none = {};
-    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true> alone */
+    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true, *> alone */
     if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.best_lo = c->best_lo, mb.partner = c->partner;
     mb.ids_alike = slots;
-    auto move = key_ahead ? move_kernel<false, true> : move_kernel<false, false>;
-    step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
+    auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
+                          : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);
+    int64_t move_blocks = MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n);
+    step_kernel(c, move_blocks, THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
                 c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
     phase_mark(c, ring, pl->W - 1, 7);
     step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);

@@ -363,7 +363,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                                ? __ldg(&keys[p])
                                : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
-            uint32_t kl = key / gr.ncell; /* the cell row: a slice of one level */
+            uint32_t kl = MID ? key / gr.ncell : 0; /* the cell row: a slice of one level (one slice: 0) */
             uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
             uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
             uint32_t row = kl * gr.ncell + cy * g;

@@ -60,16 +60,26 @@ typedef struct {
     int ids_alike;
 } MoveBin;
 
+/* cuda's move launches MOVE_LOOP blocks a multiprocessor (as many as its registers let stay), whose
+ * threads take the disks in turns, where a block of THREADS disks each left the multiprocessor only once
+ * its slowest warp was done. Gas of 1e7 on one H200: the move 20.7 -> 19.5 ms over 50 steps, 7.89e9 ->
+ * 8.05e9 particle-steps/s; the dense gas's 22.7 -> 23.3 ms, 6.07e9 -> 6.04e9; at 3 blocks slower
+ * (bench/gpu_h100_variants.log 19). 0: a block a THREADS disks. */
+#ifndef MOVE_LOOP
+#define MOVE_LOOP 4
+#endif
+
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
  * overflowed the list decided on part of them only: it is refused here, before anything is written.
  * pc and wc count collisions by disk index (RANK: a GPU rank's step, RankMove's). BIN: the disks keyed for the
  * next step (MoveBin). */
-template <bool RANK, bool BIN>
+template <bool RANK, bool BIN, bool LOOP>
 __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, const int32_t *partner,
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
                             StepInfo *info, int64_t cap, Control *ctl, RankMove rm, MoveBin mb)
 {
+    static_assert(!(RANK && LOOP), "a GPU rank's move packs a block's disks: one a thread");
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
@@ -94,70 +104,80 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     }
     real vabs = 0;
     unsigned long long accepted = 0;
-    int dp = 0, dw = 0; /* collisions with a disk, with a wall */
     bool stays = false; /* RANK: an own disk kept at the front of out (below, with pos, vel, id) */
-    if (s < n && (!RANK || o != PARTNER_COPY)) { /* a rank's copies stay as they are */
-        real lo = par.lo, hi = par.hi;
-        real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-        if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
-        if (o < 0) {
-            x = x + vx;
-            y = y + vy;
-        } else if (o == s) {
-            real t1 = key_time(wall);
-            wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
-            finish_step(&x, &y, vx, vy, t1, lo, hi);
-            dw = 1;
-            accepted = 1;
-        } else {
-            /* both partners compute the contact with the lower original index as i, then each
-             * finishes its own side: the arithmetic of pair_collide */
-            real t1 = key_time(best_hi[s]);
-            real2 pos2 = in.pos[o], vel2 = in.vel[o];
-            real x2 = pos2.x, y2 = pos2.y, vx2 = vel2.x, vy2 = vel2.y;
-            int mine_first = id < in.id[o];
-            real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
-            real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
-            real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
-            real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
-            if (par.periodic)
-                (void)pair_contact_wrap(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1, par.L, par.half);
-            else
-                (void)pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
-            x = mine_first ? xi : xj, y = mine_first ? yi : yj;
-            vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
-            if (par.periodic)
-                fly_rest(&x, &y, vx, vy, t1);
-            else
+    for (;;) { /* LOOP: over the grid's disks, a thread's in turn; else once */
+        int dp = 0, dw = 0; /* collisions with a disk, with a wall */
+        if (s < n && (!RANK || o != PARTNER_COPY)) { /* a rank's copies stay as they are */
+            real lo = par.lo, hi = par.hi;
+            real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
+            if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
+            if (o < 0) {
+                x = x + vx;
+                y = y + vy;
+            } else if (o == s) {
+                real t1 = key_time(wall);
+                wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
                 finish_step(&x, &y, vx, vy, t1, lo, hi);
-            dp = 1;
-            accepted = mine_first;
+                dw = 1;
+                accepted++;
+            } else {
+                /* both partners compute the contact with the lower original index as i, then each
+                 * finishes its own side: the arithmetic of pair_collide */
+                real t1 = key_time(best_hi[s]);
+                real2 pos2 = in.pos[o], vel2 = in.vel[o];
+                real x2 = pos2.x, y2 = pos2.y, vx2 = vel2.x, vy2 = vel2.y;
+                int mine_first = id < in.id[o];
+                real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
+                real vxi = mine_first ? vx : vx2, vyi = mine_first ? vy : vy2;
+                real xj = mine_first ? x2 : x, yj = mine_first ? y2 : y;
+                real vxj = mine_first ? vx2 : vx, vyj = mine_first ? vy2 : vy;
+                if (par.periodic)
+                    (void)pair_contact_wrap(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1, par.L, par.half);
+                else
+                    (void)pair_contact(&xi, &yi, &vxi, &vyi, &xj, &yj, &vxj, &vyj, t1);
+                x = mine_first ? xi : xj, y = mine_first ? yi : yj;
+                vx = mine_first ? vxi : vxj, vy = mine_first ? vyi : vyj;
+                if (par.periodic)
+                    fly_rest(&x, &y, vx, vy, t1);
+                else
+                    finish_step(&x, &y, vx, vy, t1, lo, hi);
+                dp = 1;
+                accepted += mine_first;
+            }
+            if (!RANK || !rm.again) {
+                if (dp) pc[id]++;
+                if (dw) wc[id]++;
+            }
+            real2 pos1, vel1;
+            pos1.x = par.periodic ? wrap_coord(x, par.L) : clamp_coord(x, lo, hi);
+            pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
+            vel1.x = vx;
+            vel1.y = vy;
+            if (RANK) {
+                stays = rank_stays(rm, pos1, vel1, id, pc, wc);
+                pos = pos1, vel = vel1;
+            } else {
+                out.pos[s] = pos1, out.vel[s] = vel1;
+                if (!BIN || !mb.ids_alike) out.id[s] = id;
+            }
+            if (BIN && !RANK) { /* as bin_kernel keys the entry of slot s in a step of one slice */
+                mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
+                /* slot s's keys are read by this thread alone in this kernel, above */
+                if (mb.wall_hi)
+                    slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
+                              mb.partner);
+            }
+            real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
+            vabs = ax < ay ? (ay > vabs ? ay : vabs) : (ax > vabs ? ax : vabs);
         }
-        if (!RANK || !rm.again) {
-            if (dp) pc[id]++;
-            if (dw) wc[id]++;
-        }
-        real2 pos1, vel1;
-        pos1.x = par.periodic ? wrap_coord(x, par.L) : clamp_coord(x, lo, hi);
-        pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
-        vel1.x = vx;
-        vel1.y = vy;
-        if (RANK) {
-            stays = rank_stays(rm, pos1, vel1, id, pc, wc);
-            pos = pos1, vel = vel1;
-        } else {
-            out.pos[s] = pos1, out.vel[s] = vel1;
-            if (!BIN || !mb.ids_alike) out.id[s] = id;
-        }
-        if (BIN && !RANK) { /* as bin_kernel keys the entry of slot s in a step of one slice */
-            mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
-            /* slot s's keys are read by this thread alone in this kernel, above */
-            if (mb.wall_hi)
-                slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
-                          mb.partner);
-        }
-        real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
-        vabs = ax < ay ? ay : ax;
+        if (!LOOP) break;
+        s += (int64_t)gridDim.x * blockDim.x;
+        if (s >= n) break;
+        pos = in.pos[s];
+        vel = in.vel[s];
+        id = in.id[s];
+        o = partner[s];
+        wall = wall_hi[s];
     }
     if (RANK) {
         /* the block's kept disks in thread order after one atomic on the count: with one a warp, all on

@@ -968,7 +968,7 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
         CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
         MoveBin mb = {c->ahead, c->keys}; /* the kept disks keyed on the grid bin_early's gate fitted ahead */
-        auto move = c->ahead_slack > 0 ? move_kernel<true, true> : move_kernel<true, false>;
+        auto move = c->ahead_slack > 0 ? move_kernel<true, true, false> : move_kernel<true, false, false>;
         step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[out], n, c->par, c->partner, c->wall_hi,
                     c->best_hi, g->pc, g->wc, c->info, c->ev_cap, c->ctl, rm, mb);
         CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 3 * sizeof(unsigned long long),
