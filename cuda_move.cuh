@@ -62,9 +62,9 @@ typedef struct {
 
 /* cuda's move launches MOVE_LOOP blocks a multiprocessor (as many as its registers let stay), whose
  * threads take the disks in turns, where a block of THREADS disks each left the multiprocessor only once
- * its slowest warp was done. Gas of 1e7 on one H200: the move 20.7 -> 19.5 ms over 50 steps, 7.89e9 ->
- * 8.05e9 particle-steps/s; the dense gas's 22.7 -> 23.3 ms, 6.07e9 -> 6.04e9; at 3 blocks slower
- * (bench/gpu_h100_variants.log 19). 0: a block a THREADS disks. */
+ * its slowest warp was done. Gas of 1e7 on one H200: the move 21.0 -> 19.7 ms over 50 steps, 7.84e9 ->
+ * 8.00e9 particle-steps/s; but the dense gas's 23.0 -> 23.6 ms, 6.04e9 -> 6.00e9, and the gas of 1e8
+ * 7.62e9 either way; at 3 blocks slower (bench/gpu_h100_variants.log 19). 0: a block a THREADS disks. */
 #ifndef MOVE_LOOP
 #define MOVE_LOOP 4
 #endif
