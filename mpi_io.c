@@ -64,11 +64,12 @@ static int block_of(int64_t n, int64_t i)
 /* Sends item k of m (each `size` bytes) to rank dest[k]; returns what arrives, rank by rank, and its
  * count in *got. */
 static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
-                             void (*pack)(const void *ctx, int64_t k, void *to), const void *ctx);
+                             void (*pack)(const void *ctx, int64_t k, void *to),
+                             void (*own_put)(const void *ctx, int64_t k, int64_t place), const void *ctx);
 
 static void *exchange(const void *items, size_t size, const int *dest, int64_t m, int64_t *got)
 {
-    return exchange_packed(items, size, dest, m, got, NULL, NULL);
+    return exchange_packed(items, size, dest, m, got, NULL, NULL, NULL);
 }
 
 /* exchange, item k written straight into its place by pack(ctx, k, place) where pack is not NULL
@@ -76,9 +77,12 @@ static void *exchange(const void *items, size_t size, const int *dest, int64_t m
  * into the buffer that receives the others' (a copy fewer: all of them on one rank), and that buffer's
  * other pages are touched by the threads first: a fresh buffer faults in its pages as it is first
  * written, which one thread inside MPI did at a fraction of the memory's speed (a third of mpi's whole
- * process at 4e6 disks on one rank). */
+ * process at 4e6 disks on one rank). Where own_put is not NULL the rank's own items are not packed:
+ * own_put(ctx, k, place) hands item k, the place-th of them in index order, to the caller, and the buffer
+ * returned holds only the others' (a buffer and a copy fewer again: all of them on one rank). */
 static void *exchange_packed(const void *items, size_t size, const int *dest, int64_t m, int64_t *got,
-                             void (*pack)(const void *ctx, int64_t k, void *to), const void *ctx)
+                             void (*pack)(const void *ctx, int64_t k, void *to),
+                             void (*own_put)(const void *ctx, int64_t k, int64_t place), const void *ctx)
 {
     int np = mpi_np, me = mpi_me, nt = pass_nt(m);
     int *sc = sim_calloc((size_t)np, sizeof *sc), *rc = sim_calloc((size_t)np, sizeof *rc);
@@ -100,11 +104,15 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
         }
     }
     MPI_Alltoall(sc, 1, MPI_INT, rc, 1, MPI_INT, MPI_COMM_WORLD);
-    int64_t total = mpi_displacements(sc, rc, sd, rd), own = sc[me];
+    int64_t total = mpi_displacements(sc, rc, sd, rd), own = sc[me], kept = own_put ? 0 : own;
+    if (own_put) { /* no room for the own items among the others' */
+        for (int q = me + 1; q < np; q++) rd[q] -= (int)own;
+        total -= own;
+    }
     char *in = sim_realloc(NULL, (size_t)(total ? total : 1), size);
     char *out = sim_realloc(NULL, (size_t)(m - own ? m - own : 1), size); /* the others' items */
     char *own_to = in + (size_t)rd[me] * size, *gap = out + (size_t)sd[me] * size;
-    size_t own0 = (size_t)rd[me] * size, own1 = own0 + (size_t)own * size, all = (size_t)total * size;
+    size_t own0 = (size_t)rd[me] * size, own1 = own0 + (size_t)kept * size, all = (size_t)total * size;
     int64_t pieces = (int64_t)(all >> 21) + 1; /* 2 MB each */
 #pragma omp parallel num_threads(nt)
     {
@@ -120,6 +128,10 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
             for (int64_t k = k0; k < k1; k++) {
                 int q = dest[k];
                 int64_t place = mine[q]++;
+                if (q == me && own_put) {
+                    own_put(ctx, k, place - sd[me]);
+                    continue;
+                }
                 /* the own items' places in out are taken out of it: those after them move down */
                 char *to = q == me          ? own_to + (size_t)(place - sd[me]) * size
                            : place < sd[me] ? out + (size_t)place * size
@@ -173,6 +185,39 @@ static void pack_source(const void *ctx, int64_t k, void *to)
     memcpy(to, &e, sizeof e);
 }
 
+/* Where exchange_packed's own_put puts a rank's own disks of Sources src: by index into blk (from lo
+ * on), or after l's own disks (l not NULL). */
+typedef struct {
+    Sources src; /* first: the context of pack_source too */
+    Sim *blk;
+    int64_t lo;
+    Local *l;
+} Put;
+
+static void put_in_block(const void *ctx, int64_t k, int64_t place)
+{
+    (void)place;
+    const Put *p = ctx;
+    const Sources *c = &p->src;
+    Sim *b = p->blk;
+    int64_t at = c->idx[k] - p->lo;
+    b->x[at] = c->x[k], b->y[at] = c->y[k], b->vx[at] = c->vx[k], b->vy[at] = c->vy[k];
+    b->pc[at] = c->pc[k], b->wc[at] = c->wc[k];
+    if (b->wi) b->wi[at] = c->wi[k];
+}
+
+static void put_in_local(const void *ctx, int64_t k, int64_t place)
+{
+    const Put *p = ctx;
+    const Sources *c = &p->src;
+    Slots *s = &p->l->s;
+    int64_t at = p->l->own + place;
+    s->x[at] = c->x[k], s->y[at] = c->y[k], s->vx[at] = c->vx[k], s->vy[at] = c->vy[k];
+    s->id[at] = (int32_t)(c->idx ? c->idx[k] : c->id0 + k);
+    s->pc[at] = c->pc ? c->pc[k] : 0, s->wc[at] = c->wc ? c->wc[k] : 0;
+    if (p->l->with_wi) s->wi[at] = c->wi ? c->wi[k] : 0;
+}
+
 /* Each rank's disks of its index block, from wherever they are: position k holds disk lo + k (wi
  * too where l has it). */
 static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *lo, int64_t *m)
@@ -183,16 +228,19 @@ static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *l
     int nt = pass_nt(own);
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < own; k++) dest[k] = block_of(n, s->id[k]);
-    int64_t got;
-    Sources src = {s->x, s->y, s->vx, s->vy, s->id, 0, s->pc, s->wc, l->with_wi ? s->wi : NULL};
-    Disk *in = exchange_packed(NULL, sizeof(Disk), dest, own, &got, pack_source, &src);
-    free(dest);
     *lo = block_lo(n, mpi_me);
     *m = block_lo(n, mpi_me + 1) - *lo;
-    if (got != *m)
-        sim_fail("internal error: %lld disks of block %d, not %lld", (long long)got, mpi_me, (long long)*m);
     if (sim_alloc(blk, *m ? *m : 1)) sim_fail("out of memory for %lld disks", (long long)*m);
     if (l->with_wi) blk->wi = sim_calloc((size_t)(*m ? *m : 1), sizeof *blk->wi);
+    int64_t got, kept = 0;
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : kept)
+    for (int64_t k = 0; k < own; k++) kept += dest[k] == mpi_me;
+    Put put = {{s->x, s->y, s->vx, s->vy, s->id, 0, s->pc, s->wc, l->with_wi ? s->wi : NULL}, blk, *lo, NULL};
+    Disk *in = exchange_packed(NULL, sizeof(Disk), dest, own, &got, pack_source, put_in_block, &put);
+    free(dest);
+    if (got + kept != *m)
+        sim_fail("internal error: %lld disks of block %d, not %lld", (long long)(got + kept), mpi_me,
+                 (long long)*m);
     nt = pass_nt(got);
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < got; k++) {
@@ -364,9 +412,14 @@ static void to_strips(const Params *par, const Sources *d, int64_t m, Local *l)
     int *dest = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *dest);
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < m; k++) dest[k] = mpi_owner(d->x[k]);
-    int64_t got;
-    Disk *mine = exchange_packed(NULL, sizeof(Disk), dest, m, &got, pack_source, d);
+    int64_t got, kept = 0;
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : kept)
+    for (int64_t k = 0; k < m; k++) kept += dest[k] == mpi_me;
+    local_reserve(l, l->own + kept);
+    Put put = {*d, NULL, 0, l};
+    Disk *mine = exchange_packed(NULL, sizeof(Disk), dest, m, &got, pack_source, put_in_local, &put);
     free(dest);
+    l->own += kept;
     local_append(l, mine, got);
     free(mine);
 }
