@@ -1407,6 +1407,8 @@ int main(int argc, char **argv)
         r.par.first_step = 0;
     }
     t_read = MPI_Wtime() - t_read;
+    double input_most[INPUT_PHASES]; /* each phase's slowest rank (rank 0's copy) */
+    MPI_Reduce(mpi_input_seconds, input_most, INPUT_PHASES, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
 #ifdef __GLIBC__
     /* Print mode writes a state a step, and its buffers (the gathered block, its text) were allocated
      * anew each time, faulting in their pages afresh (mpi_io.c): malloc keeps what is freed from here
@@ -1534,9 +1536,14 @@ int main(int argc, char **argv)
                     (unsigned long long)reused_sum[4]);
         }
 #endif
-        if (opt.stats)
-            fprintf(stderr, "%s: input read and sent to the strips %.4f s; step 0 written %.4f s, the final "
-                    "state %.4f s\n", sim_program, t_read, t_step0, t_final);
+        if (opt.stats) {
+            fprintf(stderr, "%s: input read and sent to the strips %.4f s", sim_program, t_read);
+            if (input_most[INPUT_READ] + input_most[INPUT_PARSE] > 0)
+                fprintf(stderr, " (each phase's slowest rank: read %.4f s, parsed %.4f, indices checked %.4f, "
+                        "sent to the strips %.4f)", input_most[INPUT_READ], input_most[INPUT_PARSE],
+                        input_most[INPUT_CHECK], input_most[INPUT_STRIPS]);
+            fprintf(stderr, "; step 0 written %.4f s, the final state %.4f s\n", t_step0, t_final);
+        }
         io_report(r.out, &r.par, &opt, &st, run_s, impulse);
         io_output_close(r.out);
     }

@@ -329,6 +329,8 @@ static void input_failed(const Options *opt)
     exit(1);
 }
 
+double mpi_input_seconds[INPUT_PHASES];
+
 /* This rank's share of the particle lines: the lines that start in [a, b) of the file, where a and b
  * cut [body, size) in np parts. Returns the buffer (NULL: no lines) and sets *text, *len to the lines
  * (text[len] writable), or sets *err to an errno. */
@@ -448,14 +450,19 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     char *text;
     size_t len;
     int err;
+    double *sec = mpi_input_seconds, t = sim_clock();
     char *buf = read_share(opt, h, &text, &len, &err);
+    sec[INPUT_READ] = sim_clock() - t;
     IoPiece pc;
     memset(&pc, 0, sizeof pc);
+    t = sim_clock();
     if (buf) io_parse_piece(par, text, len, opt->threads, &pc);
     free(buf);
     int64_t records = pc.bad ? 0 : piece_records(&pc);
+    sec[INPUT_PARSE] = sim_clock() - t;
     int64_t mine[3] = {err, pc.bad, records}, all[3];
-    MPI_Allreduce(mine, all, 3, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+    MPI_Allreduce(mine, all, 3, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD); /* waits for the slowest rank */
+    t = sim_clock();
     if (all[0]) {
         int64_t worst;
         MPI_Allreduce(&mine[0], &worst, 1, MPI_INT64_T, MPI_MAX, MPI_COMM_WORLD);
@@ -499,10 +506,13 @@ static int read_particles(const Options *opt, const Head *h, const Params *par, 
     if (any) input_failed(opt);
 
     free(dest);
+    sec[INPUT_CHECK] = sim_clock() - t;
+    t = sim_clock();
     const Sim *p = &pc.disks;
     Sources src = {p->x, p->y, p->vx, p->vy, pc.idx, 0, NULL, NULL, NULL};
     to_strips(par, &src, records, l);
     io_piece_free(&pc);
+    sec[INPUT_STRIPS] = sim_clock() - t;
     return 0;
 }
 
@@ -582,6 +592,7 @@ void mpi_read_input(const Options *opt, Params *par, Local *l)
         }
     }
     if (h.mode == HEAD_ROOT) {
+        memset(mpi_input_seconds, 0, sizeof mpi_input_seconds);
         scatter(par, &all, l); /* the one case where rank 0 holds the whole state */
         sim_free(&all);
     }

@@ -172,6 +172,25 @@ else
     else
         fail "mpi --stats" "$(head -c 300 "$M/st.err")"
     fi
+    # --stats times the input's phases where the ranks read a file, each no longer than the whole input;
+    # from standard input rank 0 reads alone, and the phases are not given
+    run_mpi 2 1 "$M/mid_dense.in" --quiet --stats > /dev/null 2> "$M/in.err"
+    verdict=$(grep "input read and sent to the strips" "$M/in.err" | tr -d '(),;' | awk '{
+        total = $7; n = 0; bad = ""; after = 0
+        for (k = 1; k < NF; k++)
+            if ($k == "rank:") after = 1
+            else if (after && $k ~ /^(read|parsed|checked|strips)$/ && $(k + 1) ~ /^[0-9.]+$/) {
+                n++
+                if ($(k + 1) > total + 0.05) bad = bad " " $k
+            }
+        if (n != 4) print "found " n " phases"; else if (bad != "") print "longer than the input:" bad; else print "ok"
+    }')
+    run_mpi 2 1 - --quiet --stats < "$M/mid_dense.in" > /dev/null 2> "$M/in_stdin.err"
+    if [ "$verdict" = ok ] && grep -q "input read and sent to the strips [0-9.]* s; step 0" "$M/in_stdin.err"; then
+        pass "mpi --stats: the input's phases from a file, none from standard input"
+    else
+        fail "mpi --stats: the input's phases" "${verdict:-no line}: $(grep -h input "$M/in.err" "$M/in_stdin.err")"
+    fi
     # --stats times the steps' phases on every rank: 70 steps are gathered in a chunk of 64 and the
     # rest; each phase's sum over the steps' slowest ranks is at least the ranks' mean, and equal to
     # it on one rank, whose steps are all its own
