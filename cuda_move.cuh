@@ -69,6 +69,18 @@ typedef struct {
 #define MOVE_LOOP 4
 #endif
 
+/* Slot s's disk for the move: its state, its accepted partner and its wall event. */
+static __device__ __forceinline__ void move_load(const DevState &in, const int32_t *partner, const uint64_t *wall_hi,
+                                                 int64_t s, real2 &pos, real2 &vel, int32_t &id, int32_t &o,
+                                                 uint64_t &wall)
+{
+    pos = in.pos[s];
+    vel = in.vel[s];
+    id = in.id[s];
+    o = partner[s];
+    wall = wall_hi[s];
+}
+
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
  * had that wall event accepted: no remaining pair event of it was smaller. A step whose pair events
  * overflowed the list decided on part of them only: it is refused here, before anything is written.
@@ -85,13 +97,8 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     real2 pos = {0, 0}, vel = {0, 0};
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
-    if (s < n) { /* loaded before the checks below, so that their loads overlap */
-        pos = in.pos[s];
-        vel = in.vel[s];
-        id = in.id[s];
-        o = partner[s];
-        wall = wall_hi[s];
-    }
+    if (s < n) /* loaded before the checks below, so that their loads overlap */
+        move_load(in, partner, wall_hi, s, pos, vel, id, o, wall);
     if (refused(ctl)) return;
     unsigned long long most = 0;
     for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
@@ -173,11 +180,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         if (!LOOP) break;
         s += (int64_t)gridDim.x * blockDim.x;
         if (s >= n) break;
-        pos = in.pos[s];
-        vel = in.vel[s];
-        id = in.id[s];
-        o = partner[s];
-        wall = wall_hi[s];
+        move_load(in, partner, wall_hi, s, pos, vel, id, o, wall);
     }
     if (RANK) {
         /* the block's kept disks in thread order after one atomic on the count: with one a warp, all on
