@@ -1407,8 +1407,9 @@ int main(int argc, char **argv)
         r.par.first_step = 0;
     }
     t_read = MPI_Wtime() - t_read;
-    double input_most[INPUT_PHASES]; /* each phase's slowest rank (rank 0's copy) */
-    MPI_Reduce(mpi_input_seconds, input_most, INPUT_PHASES, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+    double input_most[INPUT_PHASES] = {0}; /* each phase's slowest rank (rank 0's copy), for --stats */
+    if (opt.stats) /* every rank's options are rank 0's */
+        MPI_Reduce(mpi_input_seconds, input_most, INPUT_PHASES, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
 #ifdef __GLIBC__
     /* Print mode writes a state a step, and its buffers (the gathered block, its text) were allocated
      * anew each time, faulting in their pages afresh (mpi_io.c): malloc keeps what is freed from here

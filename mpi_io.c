@@ -149,6 +149,15 @@ static void *exchange_packed(const void *items, size_t size, const int *dest, in
     return in;
 }
 
+/* How many of m items go to this rank (dest[k] == mpi_me), on nt threads. */
+static int64_t own_count(const int *dest, int64_t m, int nt)
+{
+    int64_t c = 0;
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : c)
+    for (int64_t k = 0; k < m; k++) c += dest[k] == mpi_me;
+    return c;
+}
+
 /* Adds m disks to l's own. */
 static void local_append(Local *l, const Disk *d, int64_t m)
 {
@@ -232,9 +241,7 @@ static void gather_block(const Params *par, const Local *l, Sim *blk, int64_t *l
     *m = block_lo(n, mpi_me + 1) - *lo;
     if (sim_alloc(blk, *m ? *m : 1)) sim_fail("out of memory for %lld disks", (long long)*m);
     if (l->with_wi) blk->wi = sim_calloc((size_t)(*m ? *m : 1), sizeof *blk->wi);
-    int64_t got, kept = 0;
-#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : kept)
-    for (int64_t k = 0; k < own; k++) kept += dest[k] == mpi_me;
+    int64_t got, kept = own_count(dest, own, nt);
     Put put = {{s->x, s->y, s->vx, s->vy, s->id, 0, s->pc, s->wc, l->with_wi ? s->wi : NULL}, blk, *lo, NULL};
     Disk *in = exchange_packed(NULL, sizeof(Disk), dest, own, &got, pack_source, put_in_block, &put);
     free(dest);
@@ -414,9 +421,7 @@ static void to_strips(const Params *par, const Sources *d, int64_t m, Local *l)
     int *dest = sim_realloc(NULL, (size_t)(m ? m : 1), sizeof *dest);
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t k = 0; k < m; k++) dest[k] = mpi_owner(d->x[k]);
-    int64_t got, kept = 0;
-#pragma omp parallel for schedule(static) num_threads(nt) reduction(+ : kept)
-    for (int64_t k = 0; k < m; k++) kept += dest[k] == mpi_me;
+    int64_t got, kept = own_count(dest, m, nt);
     local_reserve(l, l->own + kept);
     Put put = {*d, NULL, 0, l};
     Disk *mine = exchange_packed(NULL, sizeof(Disk), dest, m, &got, pack_source, put_in_local, &put);
