@@ -77,7 +77,8 @@ do_check() {
     do_memcheck
 }
 
-# compute-sanitizer memcheck of cuda and cuda_f32 on small scenes, outputs compared with seq.
+# compute-sanitizer memcheck of cuda and cuda_f32 (and mpi_cuda, where built) on small scenes, outputs
+# compared with seq.
 do_memcheck() {
     local san
     san=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
@@ -117,6 +118,21 @@ do_memcheck() {
             || { echo "memcheck san_gas: ERRORS"; tail -20 "$OUT/memcheck_gas.log"; }
         ./seq "$DATA/san_gas.in" --quiet | cmp -s - "$DATA/gas.out" && echo "memcheck san_gas output == seq" \
             || echo "memcheck san_gas output DIFFERS"
+        # mpi_cuda at 3 ranks, where it is built: halos GPU to GPU and through host memory, moves done again
+        # (their leavers beyond the room), searches done again (their events beyond the list)
+        if [ -x ./mpi_cuda ] && command -v mpirun > /dev/null; then
+            ./seq "$DATA/san_gas.in" --quiet > "$DATA/gas.seq"
+            for e in SIM_MPI_CUDA_HOST=0 SIM_MPI_CUDA_HOST=1 SIM_MPI_CUDA_LEAVERS_ROOM=0 SIM_MPI_CUDA_EVENTS=2; do
+                local log="$OUT/memcheck_mpi_cuda_${e#SIM_MPI_CUDA_}"
+                env "$e" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np 3 --oversubscribe \
+                    "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log.%p.log" \
+                    ./mpi_cuda "$DATA/san_gas.in" --quiet > "$DATA/mpi_gas.out" \
+                    && echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: clean" \
+                    || { echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: ERRORS"; tail -n 20 "$log".*.log; }
+                cmp -s "$DATA/gas.seq" "$DATA/mpi_gas.out" && echo "memcheck san_gas, mpi_cuda, $e: output == seq" \
+                    || echo "memcheck san_gas, mpi_cuda, $e: output DIFFERS"
+            done
+        fi
         # the time windows, forced from one slice (a scene this small gets one window otherwise)
         SIM_CUDA_WINDOW=1 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
             --log-file "$OUT/memcheck_windows.log" ./cuda "$DATA/san_random.in" --quiet > "$DATA/win.out" \
