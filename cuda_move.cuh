@@ -7,19 +7,24 @@
  * halo), which the move leaves where they are (their partner PARTNER_COPY, rank_mark_copies_kernel). */
 #define PARTNER_COPY (-2)
 typedef struct {
-    /* the own disks whose x stays in [c0, c1) (no bound below where first, above where last) go to the
-     * front of the new state (count[0] of them); the others (count[1]) as records of mpi_cuda.h into rec,
-     * up to cap. The kept ones not within (h0, h1), which the next step's halo may take, are listed into
-     * hcand (count[2] of them, up to hcap). again: the move once more, its leavers having overflowed rec
-     * (the counts by disk index then have this step's collisions already). */
+    /* the own disks whose x stays in [c0, c1) (no bound below where first, above where last) keep their
+     * slots in the new state, their event keys started in place, as cuda's move starts them; the others
+     * (leavers, count[1]) go as records of mpi_cuda.h into rec, up to cap, each one's slot into holes at
+     * the record's place, and their slots in the new state are marked RANK_HOLE (rank_fill_kernel then
+     * fills the holes below the kept count from the slots above it). The kept ones not within (h0, h1),
+     * which the next step's halo may take, are listed into hcand (count[2] of them, up to hcap). again:
+     * the move once more for the leavers alone, theirs having overflowed rec (the kept ones are in place,
+     * their keys started; the counts by disk index have this step's collisions already). */
     double c0, c1, h0, h1;
     int first, last, again;
     double *rec;
+    int32_t *holes;
     int64_t cap;
     int32_t *hcand;
     int64_t hcap;
     unsigned long long *count;
 } RankMove;
+#define RANK_HOLE (-1) /* a leaver's slot in the new state (its id) */
 
 /* A disk as a record of mpi_cuda.h (D_LEN doubles), for another rank or the host. */
 static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 vel, int32_t id, int32_t pc,
@@ -29,16 +34,19 @@ static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 
     d[D_WI] = 0;
 }
 
-/* A GPU rank's own disk after its move: true where it stays in the strip (the caller keeps it), else
- * packed for another rank. */
-static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos, real2 vel, int32_t id,
+/* A GPU rank's own disk in slot s after its move: true where it stays in the strip (the caller keeps
+ * it), else packed for another rank, its slot noted as a hole. */
+static __device__ __forceinline__ bool rank_stays(const RankMove &rm, int64_t s, real2 pos, real2 vel, int32_t id,
                                                   const int32_t *pc, const int32_t *wc)
 {
     double x = (double)pos.x;
     if ((rm.first || x >= rm.c0) && (rm.last || x < rm.c1)) return true;
     unsigned long long k = list_append(&rm.count[1]);
     /* beyond cap the host makes room and moves the step again */
-    if ((int64_t)k < rm.cap) write_record(rm.rec + k * D_LEN, pos, vel, id, pc[id], wc[id]);
+    if ((int64_t)k < rm.cap) {
+        write_record(rm.rec + k * D_LEN, pos, vel, id, pc[id], wc[id]);
+        rm.holes[k] = (int32_t)s;
+    }
     return false;
 }
 
@@ -47,12 +55,12 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, real2 pos,
  * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
  * -> 4.749e9 (bench/gpu_h100_goals.log, 71b5eb2's section). Counting in the move as well, with an atomic a
  * disk, cost the move more than it saved (bench/gpu_h100_variants.log 12a). A GPU rank's move keys the
- * own disks it keeps, in their new slots (mpi_cuda.cu, bin_early). */
+ * own disks it keeps, in their slots (mpi_cuda.cu, bin_early). */
 typedef struct {
     const Grid *grid;
     uint32_t *keys;
-    /* cuda's own steps: the next step's disks stay in these slots (step_launch), and their event keys
-     * start here, as the gather would start them (slot_init): else NULL */
+    /* the next step's disks stay in these slots (cuda's step_launch; a GPU rank's kept disks, RankMove),
+     * and their event keys start here, as the gather would start them (slot_init): else NULL */
     uint64_t *wall_hi, *best_hi, *best_lo;
     int32_t *partner;
     /* this step's disks stayed in their slots: the gather before wrote out's indices and the move after
@@ -60,11 +68,12 @@ typedef struct {
     int ids_alike;
 } MoveBin;
 
-/* cuda's move launches MOVE_LOOP blocks a multiprocessor (as many as its registers let stay), whose
- * threads take the disks in turns, where a block of THREADS disks each left the multiprocessor only once
- * its slowest warp was done. Gas of 1e7 on one H200: the move 21.0 -> 19.7 ms over 50 steps, 7.84e9 ->
- * 8.00e9 particle-steps/s; but the dense gas's 23.0 -> 23.6 ms, 6.04e9 -> 6.00e9, and the gas of 1e8
- * 7.62e9 either way; at 3 blocks slower (bench/gpu_h100_variants.log 19). 0: a block a THREADS disks. */
+/* The move (cuda's and a GPU rank's) launches MOVE_LOOP blocks a multiprocessor (as many as its registers
+ * let stay), whose threads take the disks in turns, where a block of THREADS disks each left the
+ * multiprocessor only once its slowest warp was done. Gas of 1e7 on one H200: cuda's move 21.0 -> 19.7 ms
+ * over 50 steps, 7.84e9 -> 8.00e9 particle-steps/s; but the dense gas's 23.0 -> 23.6 ms, 6.04e9 -> 6.00e9,
+ * and the gas of 1e8 7.62e9 either way; at 3 blocks slower (bench/gpu_h100_variants.log 19). 0: a block a
+ * THREADS disks. */
 #ifndef MOVE_LOOP
 #define MOVE_LOOP 4
 #endif
@@ -91,7 +100,6 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                             const uint64_t *wall_hi, const uint64_t *best_hi, int32_t *pc, int32_t *wc,
                             StepInfo *info, int64_t cap, Control *ctl, RankMove rm, MoveBin mb)
 {
-    static_assert(!(RANK && LOOP), "a GPU rank's move packs a block's disks: one a thread");
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     real2 pos = {0, 0}, vel = {0, 0};
@@ -111,10 +119,12 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     }
     real vabs = 0;
     unsigned long long accepted = 0;
-    bool stays = false; /* RANK: an own disk kept at the front of out (below, with pos, vel, id) */
     for (;;) { /* LOOP: over the grid's disks, a thread's in turn; else once */
         int dp = 0, dw = 0; /* collisions with a disk, with a wall */
-        if (s < n && (!RANK || o != PARTNER_COPY)) { /* a rank's copies stay as they are */
+        /* a rank's copies stay as they are, their slots holes in out; moved again, a rank's kept disks stay
+         * too (their keys started) */
+        if (RANK && s < n && o == PARTNER_COPY && !rm.again) out.id[s] = RANK_HOLE;
+        if (s < n && (!RANK || (o != PARTNER_COPY && (!rm.again || out.id[s] == RANK_HOLE)))) {
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
             if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
@@ -126,7 +136,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
                 finish_step(&x, &y, vx, vy, t1, lo, hi);
                 dw = 1;
-                accepted++;
+                accepted += !RANK || !rm.again;
             } else {
                 /* both partners compute the contact with the lower original index as i, then each
                  * finishes its own side: the arithmetic of pair_collide */
@@ -149,7 +159,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 else
                     finish_step(&x, &y, vx, vy, t1, lo, hi);
                 dp = 1;
-                accepted += mine_first;
+                accepted += mine_first && (!RANK || !rm.again);
             }
             if (!RANK || !rm.again) {
                 if (dp) pc[id]++;
@@ -160,15 +170,24 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             pos1.y = par.periodic ? wrap_coord(y, par.L) : clamp_coord(y, lo, hi);
             vel1.x = vx;
             vel1.y = vy;
-            if (RANK) {
-                stays = rank_stays(rm, pos1, vel1, id, pc, wc);
-                pos = pos1, vel = vel1;
-            } else {
+            bool stays = !RANK || rank_stays(rm, s, pos1, vel1, id, pc, wc);
+            if (RANK && rm.again) { /* the leaver's record alone (rank_stays) */
+            } else if (stays) {
                 out.pos[s] = pos1, out.vel[s] = vel1;
-                if (!BIN || !mb.ids_alike) out.id[s] = id;
+                if (RANK || !BIN || !mb.ids_alike) out.id[s] = id;
+            } else {
+                out.id[s] = RANK_HOLE;
             }
-            if (BIN && !RANK) { /* as bin_kernel keys the entry of slot s in a step of one slice */
-                mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
+            if (RANK && stays && !rm.again) {
+                double hx = (double)pos1.x;
+                if (!(hx > rm.h0 && hx < rm.h1)) { /* beyond hcap the next step's halo looks at every own disk */
+                    unsigned long long h = list_append(&rm.count[2]);
+                    if ((int64_t)h < rm.hcap) rm.hcand[h] = (int32_t)s;
+                }
+            }
+            if ((BIN || RANK) && stays && (!RANK || !rm.again)) {
+                /* as bin_kernel keys the entry of slot s in a step of one slice */
+                if (BIN) mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
                 /* slot s's keys are read by this thread alone in this kernel, above */
                 if (mb.wall_hi)
                     slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
@@ -181,31 +200,6 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         s += (int64_t)gridDim.x * blockDim.x;
         if (s >= n) break;
         move_load(in, partner, wall_hi, s, pos, vel, id, o, wall);
-    }
-    if (RANK) {
-        /* the block's kept disks in thread order after one atomic on the count: with one a warp, all on
-         * one address, the moves of the 1e8 gas on 2 GPUs took 0.0675 s over 20 steps, against 0.0462
-         * (4-H100 host, --stats; bench/mpi_h100_gpu_ranks.log). A block that keeps all its disks, as
-         * nearly all do, skips the scan. */
-        typedef cub::BlockScan<int, THREADS> ScanK;
-        __shared__ typename ScanK::TempStorage tmp_k;
-        __shared__ unsigned long long kept_base;
-        int at = threadIdx.x, total = __syncthreads_count(stays);
-        if (total < THREADS) ScanK(tmp_k).ExclusiveSum(stays ? 1 : 0, at); /* the same for the whole block */
-        if (threadIdx.x == 0 && total > 0) kept_base = atomicAdd(&rm.count[0], (unsigned long long)total);
-        __syncthreads();
-        if (stays) {
-            unsigned long long k = kept_base + (unsigned long long)at;
-            out.pos[k] = pos;
-            out.vel[k] = vel;
-            out.id[k] = id;
-            if (BIN) mb.keys[k] = cell_key(*mb.grid, pos, vel, slice_mid(0, 0, 1), 0, info);
-            double x = (double)pos.x;
-            if (!(x > rm.h0 && x < rm.h1)) { /* beyond hcap the next step's halo looks at every own disk */
-                unsigned long long h = list_append(&rm.count[2]);
-                if ((int64_t)h < rm.hcap) rm.hcand[h] = (int32_t)k;
-            }
-        }
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;

@@ -14,7 +14,9 @@
  *            which only delays (mpi.c, choose). The rounds end when no rank has a live event;
  *   move     cuda's move for the own disks (a pair with a copy from the copy's state at the step's
  *            start, as cuda moves both partners from the old buffer); the own disks still in the strip
- *            are packed to the front, the others (leavers) into records for their new ranks.
+ *            keep their slots and start their event keys there, as cuda's move does, the others
+ *            (leavers) go into records for their new ranks, and the holes they and the copies leave
+ *            below the kept disks' count are filled from the slots above it.
  * Event keys compare by value (t, kind, i, j), so the order of the slots and of the copies does not
  * matter: the bytes are seq's. Collision counts are kept by disk index, as cuda keeps them, on every
  * rank for all N disks (8 bytes a disk a GPU), and travel in the records of disks that change ranks.
@@ -24,6 +26,7 @@
 #include "mpi_cuda.h"
 
 #define CHUNK ((int64_t)1 << 20) /* records a copy to or from the host takes at a time (64 MB pinned) */
+#define COUNTERS 6              /* GpuRank's counter */
 
 struct GpuRank {
     Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
@@ -31,6 +34,9 @@ struct GpuRank {
     /* the own disks' collision counts by disk index, N of them: a move adds to them in place, as cuda's
      * does, where counts by slot had to follow the slots (20 bytes a disk more in the move) */
     int32_t *pc, *wc;
+    /* every slot's event keys started (slot_init) for the next search, by the move (in place, as cuda's
+     * move starts them), the gather, the fill of the move's holes or the puts since (rank_put_kernel) */
+    bool started;
     uint32_t *where;        /* slot before the gather -> its cell place: the halo's sent slots and the copies */
     /* this step searches the disks in their slots through the cell order, as cuda's gas does (SLOT_STEPS):
      * no gather, where is each slot itself; steps since the last gather (a rank gathers every BATCH) */
@@ -63,7 +69,12 @@ struct GpuRank {
     double *halo_host;      /* pinned: the halo's records as received (gpu_rank_halo_in) */
     int64_t halo_host_cap;
     int64_t rec_cap, rec_host_cap;
-    unsigned long long *counter, *counter_host; /* the move's appends: [0] to [2]; the rounds' lists: [3], [4] */
+    /* the move's appends: [1], [2] (RankMove), the holes' fill [0], [5]; the rounds' lists: [3], [4] */
+    unsigned long long *counter, *counter_host;
+    /* the move's leavers' slots (rec_cap) and the fill's pairs of slots, holes and the kept disks above
+       the kept count (fill_cap): rank_holes_kernel */
+    int32_t *holes, *fill_to, *fill_from;
+    int64_t fill_cap;
     StepInfo *info_host;
     double secs[GPU_CALLS]; /* the host's seconds in each call (gpu_rank_times) */
     Plan pl;
@@ -81,8 +92,10 @@ struct GpuRank {
     unsigned long long keyed_steps[2];
     unsigned long long halo_listed[2]; /* halos that looked at the move's list, and at every own disk */
     unsigned long long moved_again;    /* moves done twice, their leavers overflowing the room */
+    unsigned long long searched_again; /* searches done again, their events overflowing the list */
     int64_t left_last;                 /* the leavers of the last move */
     int64_t leavers_room; /* SIM_MPI_CUDA_LEAVERS_ROOM=K (tests): a move's first pass takes K leavers at most */
+    int64_t events_room;  /* SIM_MPI_CUDA_EVENTS=K (tests): each step's event list K events at most at first */
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
     /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
@@ -109,7 +122,9 @@ static_assert(sizeof(cudaIpcMemHandle_t) == sizeof(((GpuPeer *)0)->handle), "Gpu
 
 /* ---- kernels of the ranks alone: records, edges, keys (the move is cuda's, with RankMove) ------- */
 
-__global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32_t *pc, int32_t *wc, int64_t at)
+/* Records into slots at..at + n, with their counts where pc; their event keys started (slot_init). */
+__global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32_t *pc, int32_t *wc, int64_t at,
+                                Params par, uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner)
 {
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
@@ -121,6 +136,7 @@ __global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32
     int32_t id = (int32_t)d[D_ID];
     st.id[at + i] = id;
     if (pc) pc[id] = (int32_t)d[D_PC], wc[id] = (int32_t)d[D_WC];
+    slot_init(at + i, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
 }
 
 /* Slots slot[i] (first + i where slot is NULL), i < n, as records. */
@@ -143,6 +159,7 @@ __global__ void rank_halo_count_kernel(DevState st, const int32_t *list, int64_t
     int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= nlist + own - first) return;
     int64_t s = i < nlist ? list[i] : first + i - nlist;
+    if (i < nlist && s >= first) return; /* moved below first since it was listed (rank_fill_kernel) */
     double x = (double)st.pos[s].x;
     if (halo_inside(&h, x)) return;
     int lo, hi, n = 0;
@@ -210,7 +227,8 @@ __global__ void rank_mark_copies_kernel(const uint32_t *where, int64_t own, int6
     if (k < halo) partner[where ? where[own + k] : own + k] = PARTNER_COPY;
 }
 
-/* A step in the slots: each slot's event keys started, as the gather starts them (slot_init). */
+/* A step in the slots: each slot's event keys started, as the gather starts them (slot_init), where the
+ * move and the puts since have not (GpuRank's started: the search done again after a list too short). */
 __global__ void rank_slot_init_kernel(DevState st, int64_t n, Params par, uint64_t *wall_hi, uint64_t *best_hi,
                                       uint64_t *best_lo, int32_t *partner)
 {
@@ -219,6 +237,49 @@ __global__ void rank_slot_init_kernel(DevState st, int64_t n, Params par, uint64
     if (s >= n) return;
     real2 pos = st.pos[s], vel = st.vel[s];
     slot_init(s, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
+}
+
+/* After a move (RankMove) that kept own - count[1] disks: the slots below that count that no kept disk
+ * holds (the leavers' and the copies', at where[own + k] after a gather, else above the own disks) into
+ * to (count[0]), and the kept disks at or above it into from (count[5]); as many of each. Nothing where
+ * the leavers overflowed their room (the move again first). */
+__global__ void rank_holes_kernel(DevState out, int64_t own, int64_t halo, const uint32_t *where,
+                                  const int32_t *holes, int64_t room, unsigned long long *count, int32_t *to,
+                                  int32_t *from)
+{
+    int64_t left = (int64_t)count[1];
+    if (left > room) return;
+    int64_t kept = own - left, step = (int64_t)gridDim.x * blockDim.x;
+    for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < left + halo; i += step) {
+        int64_t s = i < left ? holes[i] : where ? where[own + i - left] : own + i - left;
+        if (s < kept) to[list_append(&count[0])] = (int32_t)s;
+        if (out.id[kept + i] != RANK_HOLE) from[list_append(&count[5])] = (int32_t)(kept + i);
+    }
+}
+
+/* The holes below the kept count filled from the slots above it (rank_holes_kernel), each moved disk's
+ * event keys started and its cell key (keys, where the move keyed them) moved with it; those within
+ * reach of the cuts listed for the next halo, as the move lists them. */
+__global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t *from, int64_t room, RankMove rm,
+                                 uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
+                                 uint32_t *keys)
+{
+    if ((int64_t)rm.count[1] > room) return;
+    int64_t m = (int64_t)rm.count[0], step = (int64_t)gridDim.x * blockDim.x;
+    for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < m; i += step) {
+        int32_t a = to[i], b = from[i];
+        real2 pos = out.pos[b];
+        out.pos[a] = pos;
+        out.vel[a] = out.vel[b];
+        out.id[a] = out.id[b];
+        slot_init(a, wall_hi[b], wall_hi, best_hi, best_lo, partner);
+        if (keys) keys[a] = keys[b];
+        double x = (double)pos.x;
+        if (!(x > rm.h0 && x < rm.h1)) {
+            unsigned long long h = list_append(&rm.count[2]);
+            if ((int64_t)h < rm.hcap) rm.hcand[h] = a;
+        }
+    }
 }
 
 /* ---- buffers ------------------------------------------------------------------------------------------- */
@@ -267,10 +328,11 @@ static void rank_reserve(GpuRank *g, int64_t n)
         REGROW(c->st[b].vel, keep * sizeof(real2), cap * sizeof(real2), "the state");
         REGROW(c->st[b].id, keep * 4, cap * 4, "the state");
     }
-    REGROW(c->wall_hi, 0, cap * 8, "the event keys");
-    REGROW(c->best_hi, 0, cap * 8, "the event keys");
-    REGROW(c->best_lo, 0, cap * 8, "the event keys");
-    REGROW(c->partner, 0, cap * 4, "the event keys");
+    /* the keys kept: the own disks' were started by the move (started) when a halo or arrivals grow them */
+    REGROW(c->wall_hi, used * 8, cap * 8, "the event keys");
+    REGROW(c->best_hi, used * 8, cap * 8, "the event keys");
+    REGROW(c->best_lo, used * 8, cap * 8, "the event keys");
+    REGROW(c->partner, used * 4, cap * 4, "the event keys");
     REGROW(g->where, 0, cap * 4, "the event keys");
     REGROW(g->cand, 0, cap * 4, "the halo");
     g->cap = cap;
@@ -282,7 +344,18 @@ static void rec_reserve(GpuRank *g, int64_t n)
     if (n <= g->rec_cap) return;
     int64_t cap = grown(n);
     REGROW(g->rec, 0, (size_t)cap * D_LEN * sizeof(double), "the records between ranks");
+    REGROW(g->holes, 0, (size_t)cap * sizeof(int32_t), "the records between ranks");
     g->rec_cap = cap;
+}
+
+/* The fill's lists for n pairs, contents not kept. */
+static void fill_reserve(GpuRank *g, int64_t n)
+{
+    if (n <= g->fill_cap) return;
+    int64_t cap = grown(n);
+    REGROW(g->fill_to, 0, (size_t)cap * sizeof(int32_t), "the records between ranks");
+    REGROW(g->fill_from, 0, (size_t)cap * sizeof(int32_t), "the records between ranks");
+    g->fill_cap = cap;
 }
 
 static void rec_host_reserve(GpuRank *g, int64_t n)
@@ -366,11 +439,12 @@ const double *gpu_rank_times(const GpuRank *g)
     return g->secs;
 }
 
-void gpu_rank_reused(const GpuRank *g, uint64_t reused[5])
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[6])
 {
     reused[0] = g->keyed_steps[0], reused[1] = g->keyed_steps[1];
     reused[2] = g->halo_listed[0], reused[3] = g->halo_listed[1];
     reused[4] = g->moved_again;
+    reused[5] = g->searched_again;
 }
 
 GpuRank *gpu_rank_open(const Params *par, int local)
@@ -407,13 +481,15 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     c->grid = (Grid *)dev_alloc(sizeof(Grid), "counters");
     ahead_open(c);
     CUDA_CHECK(cudaMemsetAsync(c->ctl, 0, sizeof(Control), c->stream));
-    g->counter = (unsigned long long *)dev_alloc(5 * sizeof(unsigned long long), "counters");
-    CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, 5 * sizeof(unsigned long long)));
+    g->counter = (unsigned long long *)dev_alloc(COUNTERS * sizeof(unsigned long long), "counters");
+    CUDA_CHECK(cudaMallocHost((void **)&g->counter_host, COUNTERS * sizeof(unsigned long long)));
     size_t ids = (size_t)(par->n > 0 ? par->n : 1) * sizeof(int32_t);
     g->pc = (int32_t *)dev_alloc(ids, "the collision counts");
     g->wc = (int32_t *)dev_alloc(ids, "the collision counts");
     const char *room = getenv("SIM_MPI_CUDA_LEAVERS_ROOM");
     g->leavers_room = room && *room ? atoll(room) : -1;
+    room = getenv("SIM_MPI_CUDA_EVENTS");
+    g->events_room = room && *room && atoll(room) > 0 ? atoll(room) : -1;
     g->since_gather = BATCH; /* the first step gathers */
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
@@ -441,6 +517,7 @@ void gpu_rank_close(GpuRank *g)
     }
     cudaFree(g->pc), cudaFree(g->wc), cudaFree(g->hcand);
     cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
+    cudaFree(g->holes), cudaFree(g->fill_to), cudaFree(g->fill_from);
     cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
     cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid), cudaFree(c->ahead);
@@ -479,7 +556,8 @@ static void put_records(GpuRank *g, const double *rec, int64_t n, int64_t at, in
         }
         CUDA_CHECK(cudaMemcpyAsync(g->rec, from, bytes, cudaMemcpyHostToDevice, c->stream));
         rank_put_kernel<<<blocks_for(m), THREADS, 0, c->stream>>>(g->rec, m, c->st[c->cur], own ? g->pc : NULL,
-                                                                  own ? g->wc : NULL, at + k);
+                                                                  own ? g->wc : NULL, at + k, c->par, c->wall_hi,
+                                                                  c->best_hi, c->best_lo, c->partner);
         CUDA_LAUNCHED();
     }
     /* no wait for the last chunk: the migration's arrivals (one chunk) then go while the host goes on
@@ -784,7 +862,9 @@ void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n
                                    (size_t)sg->count * D_LEN * sizeof(double), cudaMemcpyDeviceToDevice, c->stream));
     }
     if (got > 0) {
-        rank_put_kernel<<<blocks_for(got), THREADS, 0, c->stream>>>(g->rec, got, c->st[c->cur], NULL, NULL, g->own);
+        rank_put_kernel<<<blocks_for(got), THREADS, 0, c->stream>>>(g->rec, got, c->st[c->cur], NULL, NULL, g->own,
+                                                                    c->par, c->wall_hi, c->best_hi, c->best_lo,
+                                                                    c->partner);
         CUDA_LAUNCHED();
     }
     g->halo = got;
@@ -836,6 +916,11 @@ void gpu_rank_detect(GpuRank *g, double vmax)
     plan_step(g, pl, vmax); /* what the gate fits, from the same speed */
     c->n = n;
     pl->went[0] = n;
+    if (g->events_room > 0 && c->ev_cap > g->events_room) { /* the test's short list */
+        rank_sync(g);
+        cudaFree(c->ev[0]), cudaFree(c->ev[1]);
+        events_alloc(c, g->events_room);
+    }
     bool early = g->early && g->early_cap == g->cap; /* else the buffers grew since: all binned again */
     if (g->early && !early && c->dirty < g->early_len) c->dirty = g->early_len; /* counts to clear first */
     g->early = false;
@@ -849,10 +934,12 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
         }
         if (n > 0) {
-            if (g->slots) /* searched where they are: their keys started (again, after a list too short) */
+            /* searched where they are: their keys started by the move and the puts since, else here
+             * (after a list too short, again) */
+            if (g->slots && !g->started)
                 step_kernel(c, blocks_for(n), THREADS, 0, rank_slot_init_kernel, c->st[in], n, c->par, c->wall_hi,
                             c->best_hi, c->best_lo, c->partner);
-            else
+            else if (!g->slots)
                 step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order,
                             n, c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
             DevState *d = &c->st[g->slots ? in : 1 - in];
@@ -864,6 +951,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.rank = c->rank;
             detect_launch(c, pl, 0, en);
         }
+        g->started = false; /* the first round's passes below change them */
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
         g->list = 0;
         g->round = 0;
@@ -885,6 +973,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         cudaFree(c->ev[0]), cudaFree(c->ev[1]);
         events_alloc(c, found + found / 4 + 4096);
         early = false;
+        g->searched_again++;
     }
 }
 
@@ -960,18 +1049,36 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         REGROW(g->hcand, 0, (size_t)g->hcap * sizeof(int32_t), "the halo");
     }
     int64_t guess = 0;
-    for (int again = 0;; again = 1) { /* the own disks kept into st[out]; the state it moves stays as it is */
+    /* the own disks kept in their slots of st[out] (the state it moves stays as it is), then the holes
+     * below their count filled from above it; moved again, the leavers alone */
+    for (int again = 0;; again = 1) {
         int64_t room = !again && g->leavers_room >= 0 && g->leavers_room < g->rec_cap ? g->leavers_room : g->rec_cap;
-        RankMove rm = {c0, c1, c0 + reach, c1 - reach, first, last, again, g->rec, room, g->hcand, g->hcap,
+        RankMove rm = {c0, c1, c0 + reach, c1 - reach, first, last, again, g->rec, g->holes, room, g->hcand, g->hcap,
                        g->counter};
-        CUDA_CHECK(cudaMemsetAsync(g->counter, 0, 3 * sizeof(unsigned long long), c->stream));
-        CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
-        CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
-        MoveBin mb = {c->ahead, c->keys}; /* the kept disks keyed on the grid bin_early's gate fitted ahead */
-        auto move = c->ahead_slack > 0 ? move_kernel<true, true, false> : move_kernel<true, false, false>;
-        step_kernel(c, blocks_for(n), THREADS, 0, move, c->st[in], c->st[out], n, c->par, c->partner, c->wall_hi,
-                    c->best_hi, g->pc, g->wc, c->info, c->ev_cap, c->ctl, rm, mb);
-        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, 3 * sizeof(unsigned long long),
+        fill_reserve(g, room + g->halo);
+        if (!again) { /* moved again: the kept disks' counts stand */
+            CUDA_CHECK(cudaMemsetAsync(g->counter, 0, COUNTERS * sizeof(unsigned long long), c->stream));
+            CUDA_CHECK(cudaMemsetAsync(&c->info->vmax, 0, sizeof c->info->vmax, c->stream));
+            CUDA_CHECK(cudaMemsetAsync(&c->info->events, 0, sizeof c->info->events, c->stream));
+        } else {
+            CUDA_CHECK(cudaMemsetAsync(&g->counter[1], 0, sizeof(unsigned long long), c->stream));
+        }
+        /* the kept disks keyed on the grid bin_early's gate fitted ahead, their event keys started */
+        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, c->best_lo, c->partner, 0};
+        auto move = c->ahead_slack > 0 ? (MOVE_LOOP ? move_kernel<true, true, true> : move_kernel<true, true, false>)
+                                       : (MOVE_LOOP ? move_kernel<true, false, true> : move_kernel<true, false, false>);
+        step_kernel(c, MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n), THREADS, 0, move, c->st[in],
+                    c->st[out], n, c->par, c->partner, c->wall_hi, c->best_hi, g->pc, g->wc, c->info, c->ev_cap,
+                    c->ctl, rm, mb);
+        /* the fill: few blocks, looping over the leavers and the copies */
+        const uint32_t *where = g->slots ? NULL : g->where;
+        int64_t blocks = loop_blocks(c, room + g->halo, 1);
+        step_kernel(c, blocks, THREADS, 0, rank_holes_kernel, c->st[out], g->own, g->halo, where,
+                    (const int32_t *)g->holes, room, g->counter, g->fill_to, g->fill_from);
+        step_kernel(c, blocks, THREADS, 0, rank_fill_kernel, c->st[out], (const int32_t *)g->fill_to,
+                    (const int32_t *)g->fill_from, room, rm, c->wall_hi, c->best_hi, c->best_lo, c->partner,
+                    c->ahead_slack > 0 ? c->keys : (uint32_t *)NULL);
+        CUDA_CHECK(cudaMemcpyAsync(g->counter_host, g->counter, COUNTERS * sizeof(unsigned long long),
                                    cudaMemcpyDeviceToHost, c->stream));
         CUDA_CHECK(cudaMemcpyAsync(g->info_host, c->info, sizeof(StepInfo), cudaMemcpyDeviceToHost, c->stream));
         /* the leavers' records as many as twice the last step's, before the wait: mostly all of them */
@@ -985,7 +1092,10 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         rec_reserve(g, (int64_t)g->counter_host[1]); /* more leavers than room: the move again */
         g->moved_again++;
     }
-    int64_t kept = (int64_t)g->counter_host[0], left = (int64_t)g->counter_host[1];
+    int64_t left = (int64_t)g->counter_host[1], kept = g->own - left;
+    if (g->counter_host[0] != g->counter_host[5]) /* as many holes as kept disks above the count: always */
+        sim_fail("internal error: %llu holes below the kept disks' count, %llu kept disks above it",
+                 g->counter_host[0], g->counter_host[5]);
     if (g->info_host->outside) /* a kept disk's key outside the grid ahead: never (gpu_slab's reach) */
         sim_fail("internal error: %llu disks keyed outside the slab of the grid ahead", g->info_host->outside);
     g->keyed = c->ahead_slack > 0 ? kept : 0;
@@ -1003,6 +1113,7 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
     }
     *leavers = g->rec_host;
     c->cur = out;
+    g->started = true;
     g->own = kept;
     g->halo = 0;
     m->leavers = left;

@@ -62,8 +62,9 @@ const double *gpu_rank_times(const GpuRank *g);
  * counted (into reused[0]), and those binned anew, the grid ahead not fitting the step's (reused[1]);
  * halos that looked only at the own disks the move before listed near the cuts (reused[2]), and those
  * that looked at every own disk (reused[3]); moves done twice, their leavers having overflowed the
- * device's room for their records (reused[4]) */
-void gpu_rank_reused(const GpuRank *g, uint64_t reused[5]);
+ * device's room for their records (reused[4]); searches done again, their events having overflowed the
+ * event list (reused[5]) */
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[6]);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
 /* The disks of the steps to come lie within x0 <= x <= x1 (around the box where periodic), if `on`: the

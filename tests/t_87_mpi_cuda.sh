@@ -10,7 +10,8 @@
 # - the moves keying the kept disks' cells for the next step: taken (--stats), and with the grid ahead
 #   at the step's own speed or with no keying (SIM_CUDA_BIN_AHEAD=1, 0); the halos taken from the moves'
 #   lists of own disks near the cuts (--stats); moves done twice, their leavers overflowing the device's
-#   room (SIM_MPI_CUDA_LEAVERS_ROOM=0), their collisions counted once;
+#   room (SIM_MPI_CUDA_LEAVERS_ROOM=0), their collisions counted once; searches done twice, their events
+#   overflowing the list (SIM_MPI_CUDA_EVENTS=2);
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -146,6 +147,15 @@ else
         pass "mpi_cuda moves done twice (SIM_MPI_CUDA_LEAVERS_ROOM=0): $again, seq's bytes at 3 ranks"
     else
         fail "mpi_cuda moves done twice" "${again:-nothing said}; $(head -c 200 "$G/err")"
+    fi
+    # a search whose events overflow the list is done again with a longer one, the slots' keys started
+    # anew: every step's list cut back to 2 events (SIM_MPI_CUDA_EVENTS=2), so all 30 rank-steps
+    (export SIM_MPI_CUDA_EVENTS=2; run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null)
+    twice=$(sed -nE 's/.*searches done twice \(more events than the list held\): ([0-9]+).*/\1/p' "$G/err")
+    if cmp -s "$G/out" "$G/gas.ref" && [ "${twice:-0}" = 30 ]; then
+        pass "mpi_cuda searches done twice (SIM_MPI_CUDA_EVENTS=2): all $twice rank-steps, seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda searches done twice" "${twice:-nothing said} of 30; $(head -c 200 "$G/err")"
     fi
     caller_ahead=${SIM_CUDA_BIN_AHEAD-unset}
     for s in 1 0; do
