@@ -24,7 +24,7 @@ typedef struct {
     int64_t hcap;
     unsigned long long *count;
 } RankMove;
-#define RANK_HOLE (-1) /* a leaver's slot in the new state (its id) */
+#define RANK_HOLE (-1) /* a leaver's or a copy's slot in the new state (its id) */
 
 /* A disk as a record of mpi_cuda.h (D_LEN doubles), for another rank or the host. */
 static __device__ __forceinline__ void write_record(double *d, real2 pos, real2 vel, int32_t id, int32_t pc,

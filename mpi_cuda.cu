@@ -265,7 +265,8 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
                                  uint32_t *keys)
 {
     if ((int64_t)rm.count[1] > room) return;
-    int64_t m = (int64_t)rm.count[0], step = (int64_t)gridDim.x * blockDim.x;
+    /* as many of each, always (the host checks): the fewer, so that no unlisted slot is read */
+    int64_t m = (int64_t)(rm.count[0] < rm.count[5] ? rm.count[0] : rm.count[5]), step = (int64_t)gridDim.x * blockDim.x;
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < m; i += step) {
         int32_t a = to[i], b = from[i];
         real2 pos = out.pos[b];
@@ -353,8 +354,8 @@ static void fill_reserve(GpuRank *g, int64_t n)
 {
     if (n <= g->fill_cap) return;
     int64_t cap = grown(n);
-    REGROW(g->fill_to, 0, (size_t)cap * sizeof(int32_t), "the records between ranks");
-    REGROW(g->fill_from, 0, (size_t)cap * sizeof(int32_t), "the records between ranks");
+    REGROW(g->fill_to, 0, (size_t)cap * sizeof(int32_t), "the move's holes");
+    REGROW(g->fill_from, 0, (size_t)cap * sizeof(int32_t), "the move's holes");
     g->fill_cap = cap;
 }
 
