@@ -50,6 +50,17 @@ static __device__ __forceinline__ bool rank_stays(const RankMove &rm, int64_t s,
     return false;
 }
 
+/* A GPU rank's kept disk in slot s at x: listed for the next step's halo where it lies beyond (h0, h1),
+ * as the move and the fill of its holes (mpi_cuda.cu) list them; beyond hcap the next step's halo looks
+ * at every own disk. */
+static __device__ __forceinline__ void rank_list_near(const RankMove &rm, double x, int64_t s)
+{
+    if (!(x > rm.h0 && x < rm.h1)) {
+        unsigned long long h = list_append(&rm.count[2]);
+        if ((int64_t)h < rm.hcap) rm.hcand[h] = (int32_t)s;
+    }
+}
+
 /* One slice a step: the move also keys its disks' cells for the next step, each slot being its entry, on
  * the grid the gate fitted ahead (gate_kernel); the next step only counts them (count_kernel), and spares
  * a pass over the state. Gas of 1e7 on the H100: 5.595e9 -> 5.769e9 particle-steps/s, dense gas 4.645e9
@@ -178,13 +189,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             } else {
                 out.id[s] = RANK_HOLE;
             }
-            if (RANK && stays && !rm.again) {
-                double hx = (double)pos1.x;
-                if (!(hx > rm.h0 && hx < rm.h1)) { /* beyond hcap the next step's halo looks at every own disk */
-                    unsigned long long h = list_append(&rm.count[2]);
-                    if ((int64_t)h < rm.hcap) rm.hcand[h] = (int32_t)s;
-                }
-            }
+            if (RANK && stays && !rm.again) rank_list_near(rm, (double)pos1.x, s);
             if ((BIN || RANK) && stays && (!RANK || !rm.again)) {
                 /* as bin_kernel keys the entry of slot s in a step of one slice */
                 if (BIN) mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);

@@ -266,7 +266,8 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
 {
     if ((int64_t)rm.count[1] > room) return;
     /* as many of each, always (the host checks): the fewer, so that no unlisted slot is read */
-    int64_t m = (int64_t)(rm.count[0] < rm.count[5] ? rm.count[0] : rm.count[5]), step = (int64_t)gridDim.x * blockDim.x;
+    int64_t m = (int64_t)(rm.count[0] < rm.count[5] ? rm.count[0] : rm.count[5]);
+    int64_t step = (int64_t)gridDim.x * blockDim.x;
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < m; i += step) {
         int32_t a = to[i], b = from[i];
         real2 pos = out.pos[b];
@@ -275,11 +276,7 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
         out.id[a] = out.id[b];
         slot_init(a, wall_hi[b], wall_hi, best_hi, best_lo, partner);
         if (keys) keys[a] = keys[b];
-        double x = (double)pos.x;
-        if (!(x > rm.h0 && x < rm.h1)) {
-            unsigned long long h = list_append(&rm.count[2]);
-            if ((int64_t)h < rm.hcap) rm.hcand[h] = a;
-        }
+        rank_list_near(rm, (double)pos.x, a);
     }
 }
 
@@ -418,6 +415,13 @@ static void region_reserve(GpuRank *g, int64_t n)
         if (g->peer) sim_fail("internal error: the GPU's memory for other ranks could not be shared");
         g->unshared = true;
     }
+}
+
+/* The slots' map for the kernels that find a sent slot or a copy (where): NULL in a step in the slots,
+ * where each is its own place. */
+static const uint32_t *slot_where(const GpuRank *g)
+{
+    return g->slots ? NULL : g->where;
 }
 
 static void rank_sync(GpuRank *g)
@@ -893,9 +897,8 @@ static void round_launch(GpuRank *g, int first)
     GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
     step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
     if (g->nsend > 0) {
-        const uint32_t *where = g->slots ? NULL : g->where;
-        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, where, c->best_hi,
-                    c->best_lo, c->partner, keys);
+        step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, slot_where(g),
+                    c->best_hi, c->best_lo, c->partner, keys);
         if (!g->peer)
             CUDA_CHECK(cudaMemcpyAsync(g->keys_host, g->keys, (size_t)g->nsend * sizeof(GpuKey),
                                        cudaMemcpyDeviceToHost, c->stream));
@@ -1014,8 +1017,7 @@ void gpu_rank_accept(GpuRank *g)
             CUDA_CHECK(cudaMemcpyAsync(g->hkeys, g->hkeys_host, (size_t)g->halo * sizeof(GpuKey),
                                        cudaMemcpyHostToDevice, c->stream));
         }
-        const uint32_t *where = g->slots ? NULL : g->where;
-        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, where,
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_keys_in_kernel, g->hkeys, g->halo, g->own, slot_where(g),
                     c->best_hi, c->best_lo, c->partner);
     }
     step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
@@ -1041,8 +1043,8 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         return;
     }
     if (g->halo > 0) {
-        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_mark_copies_kernel,
-                    g->slots ? (const uint32_t *)NULL : g->where, g->own, g->halo, c->partner);
+        step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_mark_copies_kernel, slot_where(g), g->own, g->halo,
+                    c->partner);
     }
     int64_t hcap = g->own / 64 + 4096; /* a strip's edges: beyond them, every own disk looked at */
     if (hcap > g->hcap) {
@@ -1072,9 +1074,8 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
                     c->st[out], n, c->par, c->partner, c->wall_hi, c->best_hi, g->pc, g->wc, c->info, c->ev_cap,
                     c->ctl, rm, mb);
         /* the fill: few blocks, looping over the leavers and the copies */
-        const uint32_t *where = g->slots ? NULL : g->where;
         int64_t blocks = loop_blocks(c, room + g->halo, 1);
-        step_kernel(c, blocks, THREADS, 0, rank_holes_kernel, c->st[out], g->own, g->halo, where,
+        step_kernel(c, blocks, THREADS, 0, rank_holes_kernel, c->st[out], g->own, g->halo, slot_where(g),
                     (const int32_t *)g->holes, room, g->counter, g->fill_to, g->fill_from);
         step_kernel(c, blocks, THREADS, 0, rank_fill_kernel, c->st[out], (const int32_t *)g->fill_to,
                     (const int32_t *)g->fill_from, room, rm, c->wall_hi, c->best_hi, c->best_lo, c->partner,
