@@ -230,12 +230,24 @@ __global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *
     }
 }
 
-/* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells. */
+/* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells, a
+ * thread a key. The keys lie nearly in cell order (the disks were gathered so a few steps before), so
+ * neighbouring lanes often share a cell: each run of equal keys in a warp takes its ranks with one atomic,
+ * its first lane's. */
 __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count)
 {
     after_previous();
     if (!grid->keyed) return;
-    ENTRY_LOOP(false, e, n) rank[e] = atomicAdd(&count[keys[e]], 1u);
+    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (e >= n) return;
+    unsigned live = __activemask(), lane = threadIdx.x & 31; /* live: lanes 0 to some last one */
+    uint32_t key = keys[e], before = __shfl_up_sync(live, key, 1);
+    unsigned heads = __ballot_sync(live, lane == 0 || before != key); /* the lanes that begin a run */
+    unsigned upto = 0xffffffffu >> (31 - lane), later = heads & ~upto;
+    unsigned head = 31 - __clz(heads & upto), next = later ? __ffs(later) - 1 : 32 - __clz(live);
+    uint32_t base = 0;
+    if (head == lane) base = atomicAdd(&count[key], next - lane);
+    rank[e] = __shfl_sync(live, base, head) + (lane - head);
 }
 
 /* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with

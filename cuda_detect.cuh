@@ -117,7 +117,6 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
 {
     const uint32_t d = SLOTS ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
     real2 pos2 = __ldg(&en.pos[d]), vel2 = __ldg(&en.vel[d]);
-    int32_t id2 = __ldg(&en.id[d]);
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
@@ -129,6 +128,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     PairEvent e;
     e.hi = time_key(t) | 1;
     if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[d]))) return; /* a wall event comes first */
+    int32_t id2 = __ldg(&en.id[d]); /* only a pair with an event needs it */
     bool first = pr.id < id2;
     int32_t s = SLOTS || !en.slot ? (int32_t)p : en.slot[p];
     int32_t s2 = SLOTS || !en.slot ? (int32_t)d : en.slot[q];

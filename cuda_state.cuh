@@ -328,6 +328,8 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
 {
     if (par.periodic) return NO_EVENT; /* no walls */
     real lo = par.lo, hi = par.hi;
+    /* most disks reach no wall within the step: no division (wall_beyond) */
+    if (wall_beyond(x, vx, 1, lo, hi) && wall_beyond(y, vy, 1, lo, hi)) return NO_EVENT;
     real tw = min_time(wall_time(x, vx, lo, hi), wall_time(y, vy, lo, hi));
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
