@@ -239,8 +239,10 @@ __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, 
     after_previous();
     if (!grid->keyed) return;
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    /* the lanes with a key, 0 to some last one: taken with every lane present (a launch of whole warps),
+     * as __activemask would not promise */
+    unsigned live = __ballot_sync(0xffffffffu, e < n), lane = threadIdx.x & 31;
     if (e >= n) return;
-    unsigned live = __activemask(), lane = threadIdx.x & 31; /* live: lanes 0 to some last one */
     uint32_t key = keys[e], before = __shfl_up_sync(live, key, 1);
     unsigned heads = __ballot_sync(live, lane == 0 || before != key); /* the lanes that begin a run */
     unsigned upto = 0xffffffffu >> (31 - lane), later = heads & ~upto;
