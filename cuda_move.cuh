@@ -89,11 +89,10 @@ typedef struct {
 #define MOVE_LOOP 4
 #endif
 
-/* Slot s's disk for the move: its state, its accepted partner and its wall event (its index: where the
- * move needs it, move_kernel). */
+/* Slot s's disk for the move: its state, its accepted partner and its wall event (its index is loaded
+ * where the move needs it, move_kernel). */
 static __device__ __forceinline__ void move_load(const DevState &in, const int32_t *partner, const uint64_t *wall_hi,
-                                                 int64_t s, real2 &pos, real2 &vel, int32_t &id, int32_t &o,
-                                                 uint64_t &wall)
+                                                 int64_t s, real2 &pos, real2 &vel, int32_t &o, uint64_t &wall)
 {
     pos = in.pos[s];
     vel = in.vel[s];
@@ -117,7 +116,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
     if (s < n) /* loaded before the checks below, so that their loads overlap */
-        move_load(in, partner, wall_hi, s, pos, vel, id, o, wall);
+        move_load(in, partner, wall_hi, s, pos, vel, o, wall);
     if (refused(ctl)) return;
     unsigned long long most = 0;
     for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
@@ -207,7 +206,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         if (!LOOP) break;
         s += (int64_t)gridDim.x * blockDim.x;
         if (s >= n) break;
-        move_load(in, partner, wall_hi, s, pos, vel, id, o, wall);
+        move_load(in, partner, wall_hi, s, pos, vel, o, wall);
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;
