@@ -25,6 +25,12 @@
 #ifndef DETECT_MIN_BLOCKS_MID
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
 #endif
+#ifndef DETECT_TAKE
+#define DETECT_TAKE 4 /* a lane's candidates a turn (cursor_take), even: the turn's bookkeeping shared by 4
+                         screens, not 2 (random scene, N = 1e6: the search 9.96 -> 9.04 ms over 10 steps;
+                         at 6 no faster, at 8 spilled; bench/gpu_h100_variants.log 21) */
+#endif
+static_assert(DETECT_TAKE % 2 == 0, "the queue takes two pushes a lane between its flushes (QUEUE)");
 #define PROBE_RUNS (1 + 3 * (LEVELS - 1)) /* a probe's runs of candidates after its first, at most (Cursor) */
 static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower levels begin, in 8 bits each");
 /* dynamic shared memory: their bounds, and the time offsets of the probe's level and the slower ones (an
@@ -257,13 +263,13 @@ static __device__ __forceinline__ Cursor cursor_start(uint32_t p, uint32_t na, u
     return cu;
 }
 
-/* The lane's candidates of a turn: the next two of its current run, or of the next run where the current
- * one is done. Into q0 and q1 where got, else an entry there is (the last of the lane's current run, or
- * its own, to be screened and not kept), and into dt their run's offset; the
- * second is not got where the run has only one left (a run of odd length leaves one turn half used:
- * about 5% more turns at N = 32000, for one branch a turn instead of two). col, dts: the thread's column
- * of runs and of offsets. */
-static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t &q0, uint32_t &q1, bool &got0, bool &got1,
+/* The lane's candidates of a turn: the next DETECT_TAKE of its current run, or of the next run where the
+ * current one is done. Into q[i] where got[i], else an entry there is (the last of the lane's current run,
+ * or its own, to be screened and not kept), and into dt their run's offset; a turn takes from one run only,
+ * so a run whose length is no multiple of DETECT_TAKE leaves its last turn part used (one branch a turn
+ * instead of one a candidate; taking the next run by selects, without the branch, was slower: the search
+ * 11.74 -> 12.42 ms at N = 32000, section 21). col, dts: the thread's column of runs and of offsets. */
+static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t (&q)[DETECT_TAKE], bool (&got)[DETECT_TAKE],
                                                    const uint2 *col, const float *dts)
 {
     if (cu.q >= cu.qe && cu.r < cu.runs) {
@@ -273,11 +279,12 @@ static __device__ __forceinline__ void cursor_take(Cursor &cu, uint32_t &q0, uin
         cu.dt = dts[((cu.r >= (cu.lv & 0xffu)) + (cu.r >= (cu.lv >> 8))) * THREADS];
         cu.r++;
     }
-    got0 = cu.q < cu.qe;
-    got1 = cu.q + 1 < cu.qe;
-    q0 = got0 ? cu.q : cu.qe - 1;
-    q1 = got1 ? cu.q + 1 : cu.qe - 1;
-    cu.q = got0 ? cu.q + 2 : cu.q;
+#pragma unroll
+    for (int i = 0; i < DETECT_TAKE; i++) {
+        got[i] = cu.q + i < cu.qe;
+        q[i] = got[i] ? cu.q + i : cu.qe - 1;
+    }
+    cu.q = got[0] ? cu.q + DETECT_TAKE : cu.q;
 }
 
 /* The periodic box's runs of a probe in cell cx of a row whose first cell is `row` (g >= 3 cells a
@@ -400,8 +407,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             tests = 0;
         }
         if (MID) {
-            /* each lane walks its own candidates (Cursor) and screens them, two a turn (their loads
-             * overlap); those passed queue up in the warp, and each 32 of them take one pair test a
+            /* each lane walks its own candidates (Cursor) and screens them, DETECT_TAKE a turn (their
+             * loads overlap); those passed queue up in the warp, and each 32 of them take one pair test a
              * lane (tested where found, few lanes of a warp would do the work of all). The loop is
              * what the search spends its instructions on: a lane with no candidate left loads an entry
              * of its own runs rather than branch around the load, and the queue is touched only by
@@ -421,23 +428,31 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             uint8_t *wo = queue_owner[warp];
             uint32_t held = 0;
             for (;;) {
-                uint32_t q0, q1;
-                bool got0, got1;
-                cursor_take(cu, q0, q1, got0, got1, col, off);
-                if (!__any_sync(0xffffffffu, got0)) break;
-                float4 m0 = __ldg(&en.mid[q0]), m1 = __ldg(&en.mid[q1]);
+                uint32_t q[DETECT_TAKE];
+                bool got[DETECT_TAKE], keep[DETECT_TAKE], any = false;
+                cursor_take(cu, q, got, col, off);
+                if (!__any_sync(0xffffffffu, got[0])) break;
+                float4 c[DETECT_TAKE];
+#pragma unroll
+                for (int i = 0; i < DETECT_TAKE; i++) c[i] = __ldg(&en.mid[q[i]]);
                 /* screened whether got or not (cursor_take: an entry there is), so no branch */
-                bool keep0 = near_path(m, m0, cu.dt, h, pad2, wrap, wl, wh) & got0;
-                bool keep1 = near_path(m, m1, cu.dt, h, pad2, wrap, wl, wh) & got1;
-                if (!__any_sync(0xffffffffu, keep0 || keep1)) continue;
-                held = queue_push(wq, wo, held, keep0, q0, lane);
-                held = queue_push(wq, wo, held, keep1, q1, lane);
-                for (; held >= 32; held -= 32) {
-                    __syncwarp();
-                    uint32_t o = warp * 32 + wo[lane];
-                    test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found,
-                                               best_hi);
-                    queue_shift(wq, wo, held - 32, lane);
+#pragma unroll
+                for (int i = 0; i < DETECT_TAKE; i++) {
+                    keep[i] = near_path(m, c[i], cu.dt, h, pad2, wrap, wl, wh) & got[i];
+                    any |= keep[i];
+                }
+                if (!__any_sync(0xffffffffu, any)) continue;
+#pragma unroll
+                for (int i = 0; i < DETECT_TAKE; i += 2) { /* two pushes, then the queue below 32 again */
+                    held = queue_push(wq, wo, held, keep[i], q[i], lane);
+                    held = queue_push(wq, wo, held, keep[i + 1], q[i + 1], lane);
+                    for (; held >= 32; held -= 32) {
+                        __syncwarp();
+                        uint32_t o = warp * 32 + wo[lane];
+                        test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found,
+                                                   best_hi);
+                        queue_shift(wq, wo, held - 32, lane);
+                    }
                 }
             }
             __syncwarp();
