@@ -84,6 +84,15 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      near_path, random scene: N = 32000 alike, 3e5 and 1e6 7% and 12% faster at
                                      80 than 40, 1e5 2% slower */
 #endif
+#ifndef SLICE_COST_BIG
+#define SLICE_COST_BIG 160.0      /* the same from SLICE_COST_N disks up, where an entry's binning, placing and
+                                     copying cost more against a screen: random scene, one H200, 1e6 and 4e6
+                                     4.5% faster than at 80 (fewer slices, more screens), 3e5 slightly slower
+                                     at 120, 1e5 and 32000 slower at 100 (bench/gpu_h100_variants.log 21b, 21c) */
+#endif
+#ifndef SLICE_COST_N
+#define SLICE_COST_N 500000
+#endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
 #ifndef WINDOW_ENTRIES
