@@ -14,15 +14,17 @@
  *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
  *            entries: count, exclusive scan, place. A disk 2^l times slower than the fastest takes
  *            slices 2^l times longer (speed levels, disk_level): it moves no farther in one of them
- *            than the fastest disk in a slice, so the same cells hold it, with fewer entries
+ *            than the fastest disk in a slice, so the same cells hold it, with fewer entries. With
+ *            K > 1 in the walled box each cell is keyed in SUB_X columns (Grid.sx), so that a disk's
+ *            neighbours lie within a cell's width to each side, not the rest of its own and one more
  *   place    with K = 1 the disks themselves move into cell order, for locality, in a batch's first
  *            step; its later steps search them where the move before left them, through the order of
  *            their cell places (SLOT_STEPS); with K > 1 a copy of each disk per entry takes that order
- *   detect   every pair in the 3x3 neighbouring cells of the same slice (wall events were computed in
- *            place), and each entry against the slower levels' slices that contain its own, screened
- *            by whether their paths come within 2r (and margins) during the slice; a pair is kept
- *            only in the slice of its faster disk that holds its event time, so it is found once;
- *            each block appends its events to the step's list together
+ *   detect   every pair in the 3x3 neighbouring cells (or columns) of the same slice (wall events
+ *            were computed in place), and each entry against the slower levels' slices that contain
+ *            its own, screened by whether their paths come within 2r (and margins) during the slice;
+ *            a pair is kept only in the slice of its faster disk that holds its event time, so it
+ *            is found once; each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
  *            (SPEC.md 3.3); the last rounds run in one block
  *   windows  with K > 1 and disks enough, bin, place, detect and choose run once per time window (a
@@ -95,6 +97,12 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
+#ifndef SUB_X
+#define SUB_X 2                   /* columns a cell of a walled scene of several slices is cut into
+                                     (Grid.sx): 17% fewer pair tests, random scene, N = 1e6, 4.46e8 ->
+                                     4.57e8 particle-steps/s; at 4, 23% fewer but binning and scan cost
+                                     more (bench/gpu_h100_variants.log 22) */
+#endif
 #ifndef WINDOW_ENTRIES
 #define WINDOW_ENTRIES 1048576.0  /* entries a window should have to fill the device (first_window) */
 #endif
@@ -507,6 +515,7 @@ typedef struct {
     unsigned long long vmax; /* bits of the speed planned for */
     int K;        /* slices at most */
     int64_t gcap; /* cells per side at most */
+    int gsx;      /* and the columns of each (Grid.sx) */
     int F, W;      /* windows (window_start): the first F slices long (0: one window) */
     int levels;    /* speed levels (disk_level) */
     int64_t wcells[WMAX]; /* per window: the cells it clears and scans, its rows at most x gcap^2 */
@@ -556,7 +565,8 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
     /* room for the disks to speed up by SLICE_SLACK, or slow down by SPEED_SLACK, before the grid is
      * coarser than it could be (extra slices cost only threads that return at once) */
     pl.K = grid_slices(&c->lim, vmax * SLICE_SLACK);
-    pl.gcap = grid_fit(&c->lim, vmax / SPEED_SLACK, pl.K, INT64_MAX).g;
+    Grid most = grid_fit(&c->lim, vmax / SPEED_SLACK, pl.K, INT64_MAX);
+    pl.gcap = most.g, pl.gsx = most.sx;
     pl.F = pl.K > 1 ? F : 0;
     pl.W = 1;
     if (pl.F > 0)
@@ -572,7 +582,7 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
         int64_t most = 0;
         for (int w = 0; w < pl.W; w++) {
             int rows = window_rows(window_start(w, pl.F, pl.W, pl.K), window_start(w + 1, pl.F, pl.W, pl.K), pl.levels);
-            pl.wcells[w] = (int64_t)rows * pl.gcap * pl.gcap;
+            pl.wcells[w] = (int64_t)rows * pl.gcap * pl.gcap * pl.gsx;
             most = pl.wcells[w] > most ? pl.wcells[w] : most;
         }
         if (most <= c->lim.cell_cap || pl.levels == 1) break;
@@ -806,16 +816,15 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
     int64_t blocks = window_blocks(c, pl, w);
     bool short_scan = bin_clear(c, pl, w);
     if (keyed) { /* one slice */
-        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false>, c->st[in], c->n, c->grid, 0,
-                    act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
+        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n,
+                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
         step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
     } else {
-        if (lev)
-            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, true>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
-        else
-            step_kernel(c, blocks, THREADS, 0, bin_kernel<WINDOWS, false>, c->st[in], c->n, c->grid, w, act, lev,
-                        c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
+        /* the gate's K is at most the plan's: a plan of one column has a grid of one */
+        auto bin = lev ? (pl->gsx > 1 ? bin_kernel<WINDOWS, true, true> : bin_kernel<WINDOWS, true, false>)
+                       : (pl->gsx > 1 ? bin_kernel<WINDOWS, false, true> : bin_kernel<WINDOWS, false, false>);
+        step_kernel(c, blocks, THREADS, 0, bin, c->st[in], c->n, c->grid, w, act, lev, c->info, c->wall_hi, c->keys,
+                    c->rank, c->count, 1);
     }
     phase_mark(c, ring, w, 1);
     scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan);

@@ -108,7 +108,10 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
 }
 
 /* The cell key of a disk at pos with velocity vel, at the fraction f of the step, in row `row` (info: where
- * a slab's key outside its rows is counted, or NULL). */
+ * a slab's key outside its rows is counted, or NULL). COLUMNS: the grid's cells may be cut into columns
+ * (Grid.sx, K > 1); else a grid of one slice, whose keys take none of those fields (the move and the
+ * one-slice search, which key every disk of a gas each step). */
+template <bool COLUMNS>
 static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, real2 vel, double f, int64_t row,
                                                     const StepInfo *info)
 {
@@ -118,7 +121,8 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
         mx = mx - L * floor(mx / L);
         my = my - L * floor(my / L);
     }
-    int64_t cx = cell_of(mx, gr.inv_cs, gr.g), cy = cell_of(my, gr.inv_cs, gr.g);
+    int64_t gx = COLUMNS ? gr.gx : gr.g;
+    int64_t cx = cell_of(mx, COLUMNS ? gr.inv_csx : gr.inv_cs, gx), cy = cell_of(my, gr.inv_cs, gr.g);
     if (gr.slab) { /* column first: the column's place in the slab is the row */
         int64_t col = cx - gr.xoff;
         if (col < 0) col += gr.g;
@@ -128,7 +132,7 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
         }
         cx = cy, cy = col;
     }
-    return (uint32_t)(row * gr.ncell + cy * gr.g + cx);
+    return (uint32_t)(row * gr.ncell + cy * gx + cx);
 }
 
 /* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
@@ -141,7 +145,7 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
-template <bool WINDOWS, bool LEVELS_LISTED>
+template <bool WINDOWS, bool LEVELS_LISTED, bool COLUMNS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
                            const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
                            uint32_t *rank, uint32_t *count, int keyed_before)
@@ -150,8 +154,8 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
     const Grid gr = *grid;
     if (gr.keyed && keyed_before) return; /* by the move before: count_kernel counts them (a GPU rank's
                                               arrivals and copies, keyed by none, are binned: 0) */
-    /* !LEVELS_LISTED: the compiler drops the lists' decoding (one-slice steps: 44 registers against 52,
-     * 5 blocks a multiprocessor against 4) */
+    /* !LEVELS_LISTED: the compiler drops the lists' decoding, !COLUMNS the columns' fields (one-slice
+     * steps: 47 registers, 5 blocks a multiprocessor; 53 and 4 with the columns' fields) */
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
     ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         const WindowEntry x = window_entry(d, e);
@@ -165,7 +169,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
                 continue;
             }
         }
-        uint32_t key = cell_key(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
+        uint32_t key = cell_key<COLUMNS>(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
     }

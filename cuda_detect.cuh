@@ -3,10 +3,10 @@
 
 /* ==== detect ============================================================================================= */
 
-/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own. Cell
- * order is row by row, so the row above lies wholly before p: what is left is the rest of p's own row
- * (from p + 1 to the end of the cell to its right) and the three cells of the row below, two contiguous
- * runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
+/* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own (cells
+ * keyed in sx columns, Grid.sx: the sx columns to each side of its own). Cell order is row by row, so the
+ * row above lies wholly before p: what is left is the rest of p's own row (from p + 1 to the end of the
+ * last column to its right) and the same columns of the row below, two contiguous runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
  * (cuda_open's limits).
  *
  * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
@@ -222,8 +222,9 @@ static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Gri
                                                       float *dts, uint32_t t, uint32_t *shape)
 {
     uint32_t a = PROBE_LEVEL(pr.k), j = PROBE_SLICE(pr.k), g = (uint32_t)gr.g;
-    uint32_t cy = pr.c / g, cx = pr.c - cy * g;
-    uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
+    uint32_t gx = (uint32_t)gr.gx, sx = (uint32_t)gr.sx; /* the cells' columns (Grid.sx) */
+    uint32_t cy = pr.c / gx, cx = pr.c - cy * gx;
+    uint32_t x0 = cx >= sx ? cx - sx : 0, x1 = cx + sx < gx ? cx + sx : gx - 1;
     uint32_t slots = 0, lv = 0;
     if (pr.nb > 0) runs[slots++ * THREADS + t] = make_uint2(pr.b0, pr.b0 + pr.nb);
     if (edge.y > 0) runs[slots++ * THREADS + t] = make_uint2(edge.x, edge.x + edge.y); /* periodic: one level */
@@ -236,7 +237,7 @@ static __device__ __forceinline__ uint32_t probe_runs(const Probe &pr, const Gri
         uint32_t row = (uint32_t)level_base(k0, k1, (int)b) + (j >> (b - a)) - ((uint32_t)k0 >> b);
         for (uint32_t y = cy; y <= cy + 2; y++) { /* the row above, its own, the one below: y - 1 */
             if (y < 1 || y > g) continue;
-            uint32_t base = row * gr.ncell + (y - 1) * g;
+            uint32_t base = row * gr.ncell + (y - 1) * gx;
             uint2 run = make_uint2(__ldg(&start[base + x0]), __ldg(&start[base + x1 + 1]));
             if (run.y > run.x) runs[slots++ * THREADS + t] = run;
             total += run.y - run.x;
@@ -368,12 +369,15 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
             uint32_t key = MID || SLOTS
                                ? __ldg(&keys[p])
-                               : cell_key(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
+                               : cell_key<false>(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
+            /* the cell's columns (Grid.sx; 1 in one slice and in the periodic box): the runs reach sx of
+             * them to each side */
+            const uint32_t sx = MID && !PERIODIC ? (uint32_t)gr.sx : 1u, gx = MID && !PERIODIC ? (uint32_t)gr.gx : g;
             uint32_t kl = MID ? key / gr.ncell : 0; /* the cell row: a slice of one level (one slice: 0) */
-            uint32_t c = key - kl * gr.ncell, cy = c / g, cx = c - cy * g;
-            uint32_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g ? cx + 1 : g - 1;
-            uint32_t row = kl * gr.ncell + cy * g;
+            uint32_t c = key - kl * gr.ncell, cy = c / gx, cx = c - cy * gx;
+            uint32_t x0 = cx >= sx ? cx - sx : 0, x1 = cx + sx < gx ? cx + sx : gx - 1;
+            uint32_t row = kl * gr.ncell + cy * gx;
             if (MID) {
                 uint32_t base, lv = row_level(kl, k0, k1, gr.levels, &base);
                 pr.k = ((k0 >> lv) + (kl - base)) | (lv << 16);
@@ -387,8 +391,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             if (PERIODIC && g >= 3) {
                 edge = edge_runs(start, row, kl * gr.ncell + (cy + 1 < g ? (cy + 1) * g : 0), cx, g, &pr.b0, &pr.nb);
             } else if (cy + 1 < g) {
-                pr.b0 = __ldg(&start[row + g + x0]);
-                pr.nb = __ldg(&start[row + g + x1 + 1]) - pr.b0;
+                pr.b0 = __ldg(&start[row + gx + x0]);
+                pr.nb = __ldg(&start[row + gx + x1 + 1]) - pr.b0;
             }
             pr.pos = __ldg(&en.pos[p]);
             pr.vel = __ldg(&en.vel[p]);

@@ -194,7 +194,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             if (RANK && stays && !rm.again) rank_list_near(rm, (double)pos1.x, s);
             if ((BIN || RANK) && stays && (!RANK || !rm.again)) {
                 /* as bin_kernel keys the entry of slot s in a step of one slice */
-                if (BIN) mb.keys[s] = cell_key(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
+                if (BIN) mb.keys[s] = cell_key<false>(*mb.grid, pos1, vel1, slice_mid(0, 0, 1), 0, info);
                 /* slot s's keys are read by this thread alone in this kernel, above */
                 if (mb.wall_hi)
                     slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,

@@ -62,7 +62,7 @@ typedef struct {
     int64_t g;      /* cells per side */
     double cs;      /* cell side, length */
     double inv_cs;  /* 1 / cs */
-    uint32_t ncell; /* g * g */
+    uint32_t ncell; /* gx * g */
     int64_t cells;  /* the first window's cells: window_rows x ncell (set by gate_kernel, with the levels) */
     float pad;      /* K > 1: the distance within which near_path keeps two paths */
     int levels;     /* speed levels (disk_level): 1 where K = 1 */
@@ -76,6 +76,11 @@ typedef struct {
     int64_t xoff, rows;
     int keyed;      /* one slice: the move of the step before keyed the disks on this grid (move_kernel's
                        MoveBin), so the step's own binning only counts them */
+    int sx;         /* K > 1 in the walled box: each cell cut into sx columns (SUB_X), so that a probe's
+                       runs reach sx of them to each side, cs wide in all, not a whole cell and the rest of
+                       its own; else 1 */
+    int64_t gx;     /* cells per row: g sx */
+    double inv_csx; /* gx / L (inv_cs where sx = 1) */
 } Grid;
 
 /* Speed levels. A disk whose velocity components are at most vmax / 2^l (vmax: the largest component
@@ -229,7 +234,8 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     double cell_min = (2 * r + 2 * margin + vmax / K) * (1 + SIM_REL_MARGIN) + SIM_REL_MARGIN * scale;
     double per_slice = (double)lim->cell_cap / K;
     if (per_slice > CELLS_PER_DISK * n + 1024) per_slice = CELLS_PER_DISK * n + 1024;
-    double gmax = floor(sqrt(per_slice));
+    int sx = K > 1 && !lim->periodic && !lim->slab ? SUB_X : 1;
+    double gmax = floor(sqrt(per_slice / sx));
     if (gmax > (double)gcap) gmax = (double)gcap;
     double gf = floor(L / cell_min);
     if (gf > gmax) gf = gmax;
@@ -241,7 +247,10 @@ static __host__ __device__ Grid grid_fit(const GridLimits *lim, double vmax, int
     gr.halfw = gr.Lw / 2;
     gr.cs = L / (double)gr.g;
     gr.inv_cs = (double)gr.g / L;
-    gr.ncell = (uint32_t)(gr.g * gr.g);
+    gr.sx = sx;
+    gr.gx = gr.g * sx;
+    gr.inv_csx = (double)gr.gx / L;
+    gr.ncell = (uint32_t)(gr.gx * gr.g);
     gr.slab = 0, gr.xoff = 0, gr.rows = gr.g;
     if (lim->slab && gr.g >= 4) {
         int64_t span, ca = slab_columns(lim, gr.inv_cs, gr.g, &span);

@@ -586,6 +586,7 @@ static void plan_step(GpuRank *g, Plan *pl, double vmax)
     pl->vmax = speed_bits(vmax);
     pl->K = 1, pl->W = 1, pl->levels = 1;
     pl->gcap = grid_fit(&c->lim, vmax, 1, INT64_MAX).g;
+    pl->gsx = 1;
     pl->wcells[0] = pl->gcap * pl->gcap;
     if (c->lim.slab) { /* grid_fit's columns of a slab, at most (x1 - x0) g / L + 4 of them, g <= gcap */
         double rows = floor((c->lim.x1 - c->lim.x0) * (double)pl->gcap / c->lim.L) + 5;
@@ -666,13 +667,13 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
     if (n <= 0) return;
     st.pos += first, st.vel += first, st.id += first;
     if (keyed_before)
-        step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false>, st, n, c->grid, 0,
+        step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
                     c->rank + first, c->count, 1);
     else
-        step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false>, st, n, c->grid, 0, (const int32_t *)NULL,
-                    (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first, c->rank + first, c->count,
-                    0);
+        step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false, false>, st, n, c->grid, 0,
+                    (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
+                    c->rank + first, c->count, 0);
 }
 
 /* A step's gate (gate_kernel) at its plan's speed, for one slice: ahead, keyed and ahead_slack as it
