@@ -19,7 +19,7 @@
  *            neighbours lie within a cell's width to each side, not the rest of its own and one more
  *   place    with K = 1 the disks themselves move into cell order, for locality, in a batch's first
  *            step; its later steps search them where the move before left them, through the order of
- *            their cell places (SLOT_STEPS); with K > 1 a copy of each disk per entry takes that order
+ *            their cell places (SLOT_STEPS); with K > 1 each entry's slot and midpoint take that order
  *   detect   every pair in the 3x3 neighbouring cells (or columns) of the same slice (wall events
  *            were computed in place), and each entry against the slower levels' slices that contain
  *            its own, screened by whether their paths come within 2r (and margins) during the slice;
@@ -72,7 +72,7 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
-#define ENTRY_BYTES (16 + 3 * 8 + 2 * sizeof(real2) + 16 + sizeof(float4)) /* an entry's share (cuda_open) */
+#define ENTRY_BYTES (16 + 3 * 8 + 4 + sizeof(float4)) /* an entry's share (cuda_open) */
 #define EVENTS_PER_DISK 4         /* the first event list holds n / 4 (+ 4096) where steps have one slice
                                      (cuda_run; a gas of fraction 0.4 finds some n / 4.4 a step); a step that
                                      finds more is run again with room for them all */
@@ -366,7 +366,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
      * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
      * state bounds only the slices a plan may take: up to ENTRY_MEMORY of it for entries (per entry,
-     * four 4-byte keys, three cells of count and start, and with K > 1 a copy of the disk), at most
+     * four 4-byte keys, three cells of count and start, and with K > 1 a slot and a midpoint), at most
      * MAX_SLICES per disk. Entry and cell indices stay below 2^31. */
     size_t free_b = 0, total_b = 0;
     CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
@@ -418,7 +418,7 @@ static double buffer_bytes(const Cuda *c)
     double b = n * (2 * (4 * sizeof(real) + 4) + 2 * 4 + 3 * 8 + 4);          /* states, pc, wc, keys, partner */
     b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
     b += 16.0 * (double)c->entry_cap + 8.0 * (double)c->cell_held;            /* entries and cells */
-    b += (double)c->copy_cap * (2 * sizeof(real2) + 4 + 4 + 8 + sizeof(float4)); /* entry copies */
+    b += (double)c->copy_cap * (4 + sizeof(float4));                          /* entries' slots, mids */
     if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */
     if (c->out_dev) b += n * 4 * sizeof(real);                                /* the print buffer */
     return b + (double)c->scan_tmp_bytes + SCAN_TILES * 4;
@@ -440,11 +440,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->start);
     cudaFree(c->scan_tmp);
     cudaFree(c->tile_sums);
-    cudaFree(c->en.pos);
-    cudaFree(c->en.vel);
-    cudaFree(c->en.id);
     cudaFree(c->en.slot);
-    cudaFree(c->en.wall);
     cudaFree(c->en.mid);
     cudaFree(c->wall_hi);
     cudaFree(c->best_hi);
@@ -645,14 +641,9 @@ static void buffers_grow(Cuda *c, const Plan *pl)
             c->entry_cap = e;
         }
         if (copies > c->copy_cap) {
-            cudaFree(c->en.pos), cudaFree(c->en.vel), cudaFree(c->en.id), cudaFree(c->en.slot);
-            cudaFree(c->en.wall), cudaFree(c->en.mid);
+            cudaFree(c->en.slot), cudaFree(c->en.mid);
             size_t ne = (size_t)e;
-            c->en.pos = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
-            c->en.vel = (real2 *)dev_alloc(ne * sizeof(real2), "the entry copies");
-            c->en.id = (int32_t *)dev_alloc(ne * 4, "the entry copies");
             c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
-            c->en.wall = (uint64_t *)dev_alloc(ne * 8, "the entry copies");
             c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
             c->copy_cap = e;
         }
@@ -914,9 +905,11 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
             else
                 bin_place_launch<true>(c, pl, w, in, act, lev, ring, false);
             step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act, lev,
-                        c->info, c->order, c->start, grid, c->wall_hi, c->en);
+                        c->info, c->order, c->start, grid, c->en);
             phase_mark(c, ring, w, 3);
-            detect_launch(c, pl, w, c->en);
+            Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
+            en.pos = c->st[in].pos, en.vel = c->st[in].vel, en.id = c->st[in].id, en.wall = c->wall_hi;
+            detect_launch(c, pl, w, en);
             choose_launch(c, pl, w, c->wall_win, ring);
         }
     }

@@ -316,7 +316,9 @@ __global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *s
     }
 }
 
-/* Copies of the disks, one per entry, in cell order: the pair tests then read neighbours contiguously. */
+/* What the pair search reads of the disks: their state and wall keys (pos to wall), and where K > 1 one
+ * entry a disk and slice in cell order, its slot and mid, so that the screens read neighbours
+ * contiguously (the few pairs they pass read the state through the slot). */
 typedef struct {
     real2 *pos, *vel;
     int32_t *id, *slot;
@@ -331,10 +333,10 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
     return start[(int64_t)window_rows(grid->wb[w], grid->wb[w + 1], grid->levels) * grid->ncell];
 }
 
-/* K > 1: the disks stay in place; entry p of the cell order gets a copy of its disk. */
+/* K > 1: the disks stay in place; entry p of the cell order gets its disk's slot and midpoint. */
 __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const int32_t *lev,
                                       const StepInfo *info, const uint32_t *order, const uint32_t *start,
-                                      const Grid *grid, const uint64_t *wall_hi, Entries en)
+                                      const Grid *grid, Entries en)
 {
     after_previous();
     const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
@@ -343,11 +345,7 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
         const WindowEntry x = window_entry(d, order[p]);
         const int64_t s = x.s;
         real2 pos = st.pos[s], vel = st.vel[s];
-        en.pos[p] = pos;
-        en.vel[p] = vel;
-        en.id[p] = st.id[s];
         en.slot[p] = (int32_t)s;
-        en.wall[p] = wall_hi[s];
         /* the midpoint as bin_kernel computes it, and the velocity */
         double f = slice_mid(x.k, x.l, K);
         en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),

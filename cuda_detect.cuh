@@ -6,8 +6,8 @@
 /* Sorted entry p tests every later entry q > p of the same slice in the 3x3 cells around its own (cells
  * keyed in sx columns, Grid.sx: the sx columns to each side of its own). Cell order is row by row, so the
  * row above lies wholly before p: what is left is the rest of p's own row (from p + 1 to the end of the
- * last column to its right) and the same columns of the row below, two contiguous runs of entries. en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits
- * (cuda_open's limits).
+ * last column to its right) and the same columns of the row below, two contiguous runs of entries.
+ * en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits (cuda_open's limits).
  *
  * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
  * near_path where K > 1 (the warp then tests those passed together). A sparse one (the gas)
@@ -24,6 +24,11 @@
 #endif
 #ifndef DETECT_MIN_BLOCKS_MID
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
+#endif
+#ifndef PROBE_LAZY
+#define PROBE_LAZY 1 /* K > 1: the probe's disk loaded by each pair test, not by the probe (test_pair): few
+                        pass near_path. Random scene, N = 1e6, one H200: 4.77e8 particle-steps/s, against
+                        4.55e8 loaded by the probe through its slot (bench/gpu_h100_variants.log 23) */
 #endif
 #ifndef DETECT_TAKE
 #define DETECT_TAKE 4 /* a lane's candidates a turn (cursor_take), even: the turn's bookkeeping shared by 4
@@ -115,32 +120,36 @@ typedef struct {
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
  * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. SLOTS: the
  * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
- * the probe's slot. */
-template <bool PERIODIC, bool SLOTS>
+ * the probe's slot. MID (K > 1): en's arrays are the slots' too, p an entry, en.slot each entry's; with
+ * PROBE_LAZY the probe's disk is loaded here, for the few candidates near_path passes. */
+template <bool PERIODIC, bool SLOTS, bool MID>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
                                                  int64_t cap, unsigned long long *found, uint64_t *best_hi)
 {
-    const uint32_t d = SLOTS ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
+    const uint32_t d = SLOTS || MID ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
+    const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;          /* and p's, where MID */
+    const bool lazy = MID && PROBE_LAZY;
     real2 pos2 = __ldg(&en.pos[d]), vel2 = __ldg(&en.vel[d]);
+    const real2 pos1 = lazy ? __ldg(&en.pos[ps]) : pr.pos, vel1 = lazy ? __ldg(&en.vel[ps]) : pr.vel;
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
-    real t = PERIODIC ? pair_time_wrap(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y,
-                                          sigma2, gr.Lw, gr.halfw, 1)
-                         : pair_time(pr.pos.x, pr.pos.y, pr.vel.x, pr.vel.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
+    real t = PERIODIC ? pair_time_wrap(pos1.x, pos1.y, vel1.x, vel1.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2, gr.Lw,
+                                          gr.halfw, 1)
+                         : pair_time(pos1.x, pos1.y, vel1.x, vel1.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
     if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
     e.hi = time_key(t) | 1;
-    if (!(e.hi < pr.wall && e.hi < __ldg(&en.wall[d]))) return; /* a wall event comes first */
-    int32_t id2 = __ldg(&en.id[d]); /* only a pair with an event needs it */
-    bool first = pr.id < id2;
-    int32_t s = SLOTS || !en.slot ? (int32_t)p : en.slot[p];
-    int32_t s2 = SLOTS || !en.slot ? (int32_t)d : en.slot[q];
+    uint64_t wall1 = lazy ? __ldg(&en.wall[ps]) : pr.wall;
+    if (!(e.hi < wall1 && e.hi < __ldg(&en.wall[d]))) return; /* a wall event comes first */
+    int32_t id1 = lazy ? __ldg(&en.id[ps]) : pr.id, id2 = __ldg(&en.id[d]); /* only a pair with an event needs */
+    bool first = id1 < id2;
+    int32_t s = (int32_t)ps, s2 = (int32_t)d; /* one slice without SLOTS: entries are slots */
     e.a = first ? s : s2;
     e.b = first ? s2 : s;
-    e.lo = first ? ((uint64_t)pr.id << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)pr.id);
+    e.lo = first ? ((uint64_t)id1 << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id1);
     unsigned long long at = atomicAdd(&be->n, 1ull);
     if (at < BLOCK_EVENTS) {
         be->e[at] = e;
@@ -367,9 +376,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
              * those of its entries' disks would scatter); every slot has an entry, as a step of one slice
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
-            uint32_t key = MID || SLOTS
-                               ? __ldg(&keys[p])
-                               : cell_key<false>(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]), slice_mid(0, 0, 1), 0, NULL);
+            uint32_t key = MID || SLOTS ? __ldg(&keys[p])
+                                        : cell_key<false>(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]),
+                                                          slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
             /* the cell's columns (Grid.sx; 1 in one slice and in the periodic box): the runs reach sx of
              * them to each side */
@@ -394,10 +403,13 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 pr.b0 = __ldg(&start[row + gx + x0]);
                 pr.nb = __ldg(&start[row + gx + x1 + 1]) - pr.b0;
             }
-            pr.pos = __ldg(&en.pos[p]);
-            pr.vel = __ldg(&en.vel[p]);
-            pr.id = __ldg(&en.id[p]);
-            pr.wall = __ldg(&en.wall[p]);
+            if (!MID || !PROBE_LAZY) { /* MID: the entry's disk, in its slot */
+                const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;
+                pr.pos = __ldg(&en.pos[ps]);
+                pr.vel = __ldg(&en.vel[ps]);
+                pr.id = __ldg(&en.id[ps]);
+                pr.wall = __ldg(&en.wall[ps]);
+            }
             if (MID) pr.mid = __ldg(&en.mid[p]);
             else pr.edge = edge;
             if (MID)
@@ -453,8 +465,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                     for (; held >= 32; held -= 32) {
                         __syncwarp();
                         uint32_t o = warp * 32 + wo[lane];
-                        test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found,
-                                                   best_hi);
+                        test_pair<PERIODIC, SLOTS, MID>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap,
+                                                        found, best_hi);
                         queue_shift(wq, wo, held - 32, lane);
                     }
                 }
@@ -462,7 +474,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             __syncwarp();
             if (lane < held) {
                 uint32_t o = warp * 32 + wo[lane];
-                test_pair<PERIODIC, SLOTS>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found, best_hi);
+                test_pair<PERIODIC, SLOTS, MID>(en, gr, probes[o], p0 + o, wq[lane], sigma2, &be, ev, cap, found,
+                                                best_hi);
             }
             unsigned long long sum = seen; /* 64 bits: a warp's counts can pass 2^32 */
             for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
@@ -480,8 +493,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair<PERIODIC, SLOTS>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap, found,
-                                        best_hi);
+                    test_pair<PERIODIC, SLOTS, false>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap,
+                                                      found, best_hi);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -490,8 +503,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    test_pair<PERIODIC, SLOTS>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap,
-                                        found, best_hi);
+                    test_pair<PERIODIC, SLOTS, false>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2, &be, ev,
+                                                      cap, found, best_hi);
                 }
             }
         }
