@@ -160,7 +160,7 @@ typedef struct {
     int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
     int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
-    Entries en;                          /* K > 1 only */
+    Entries en;                          /* K > 1: the entries' slots and mids alone (step_launch) */
     GridLimits lim;
     int64_t entry_cap;   /* entries the key arrays hold (buffers_grow) */
     int64_t cell_held;   /* cells the cell table holds, its last (+1) included */
