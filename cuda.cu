@@ -134,6 +134,13 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define RING (2 * BATCH)    /* steps in flight at most: two batches */
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
 #define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
+#ifndef LO_AT_EVENT
+#define LO_AT_EVENT 1       /* steps of one slice: the search starts the second keys of each event's disks, not
+                               the move and the gather every disk's (8 bytes a disk): gas of 1e7 on one H200,
+                               8.05e9 -> 8.15e9 particle-steps/s, the move 19.46 -> 18.35 ms over 50 steps, the
+                               search 20.31 -> 20.79; dense gas 6.00e9 -> 6.04e9 (bench/gpu_h100_variants.log
+                               24c) */
+#endif
 #ifndef SLOT_STEPS
 #define SLOT_STEPS 1        /* steps of one slice after a batch's first search the disks in their slots
                                (step_launch): gas of 1e7 on one H200 7.17e9 -> 7.83e9 particle-steps/s,
@@ -874,8 +881,8 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
         if (!slots) {
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
-                        c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, (uint32_t *)NULL,
-                        (int64_t)0);
+                        c->par, c->wall_hi, c->best_hi, LO_AT_EVENT ? (uint64_t *)NULL : c->best_lo, c->partner,
+                        c->ctl, (uint32_t *)NULL, (int64_t)0);
             in = 1 - in;
         }
         DevState *d = &c->st[in];
@@ -885,6 +892,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.rank = c->rank;
         en.wall = c->wall_hi;
         en.mid = NULL;
+        en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
         phase_mark(c, ring, 0, 3);
         detect_launch(c, pl, 0, en);
         choose_launch(c, pl, 0, c->wall_hi, ring);
@@ -915,7 +923,8 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     }
     RankMove none = {};
     MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true, *> alone */
-    if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.best_lo = c->best_lo, mb.partner = c->partner;
+    if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.partner = c->partner;
+    if (SLOT_STEPS && !LO_AT_EVENT) mb.best_lo = c->best_lo;
     mb.ids_alike = slots;
     auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
                           : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);

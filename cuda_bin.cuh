@@ -175,13 +175,14 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
     }
 }
 
-/* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. */
+/* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. best_lo
+ * NULL: the search starts the second keys of the disks it finds events of (LO_AT_EVENT, Entries). */
 static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
                                                  uint64_t *best_lo, int32_t *partner)
 {
     wall_hi[s] = w;
     best_hi[s] = w;
-    best_lo[s] = NO_EVENT;
+    if (best_lo) best_lo[s] = NO_EVENT;
     partner[s] = -1;
 }
 
@@ -325,6 +326,8 @@ typedef struct {
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
+    uint64_t *best_lo;    /* cuda's steps of one slice: the choice's second keys, started for each event's disks
+                             here (the move leaves them, MoveBin); else NULL */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */

@@ -139,7 +139,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
             if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
             /* the index counts collisions, orders a pair and goes with the disk where its slot changes:
-             * a disk flying free in a step that keeps the slots needs none (4 of the move's 112 bytes) */
+             * a disk flying free in a step that keeps the slots needs none (4 of the move's 104 bytes) */
             if (RANK || !BIN || !mb.ids_alike || o >= 0) id = in.id[s];
             if (o < 0) {
                 x = x + vx;
