@@ -97,6 +97,10 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
+#ifndef PLACE_FUSED_N
+#define PLACE_FUSED_N 500000      /* below this many disks a step of several slices places its entries' slots and
+                                     midpoints as it places their keys (place_fused) */
+#endif
 #ifndef SUB_X
 #define SUB_X 2                   /* columns a cell of a walled scene of several slices is cut into
                                      (Grid.sx): 17% fewer pair tests, random scene, N = 1e6, 4.46e8 ->
@@ -779,10 +783,21 @@ static bool bin_clear(Cuda *c, const Plan *pl, int w)
 }
 
 /* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
- * two short kernels, bin_clear), then each entry's place. */
+ * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
+ * midpoint, from state buffer in). */
+/* Whether steps of several slices place each entry's slot and midpoint with its key (place_entries_kernel)
+ * rather than gather them in cell order after (gather_entries_kernel): a kernel fewer, their 20 bytes
+ * scattered instead of written in order. The scatter pays while the entries are few: random scene on one
+ * H200, N = 32000, 1e5 and 3e5 2 to 3% faster, but 1e6 1% and 4e6 11% slower, its placement 19.3 -> 30.4
+ * ms over 10 steps (bench/gpu_h100_variants.log 24a, 24c). */
+static bool place_fused(const Cuda *c)
+{
+    return c->n < PLACE_FUSED_N;
+}
+
 template <bool WINDOWS>
 static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act, const int32_t *lev, int ring,
-                              bool short_scan)
+                              bool short_scan, int in)
 {
     int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
     if (short_scan) {
@@ -795,7 +810,11 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
     }
     phase_mark(c, ring, w, 2);
     uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
-    if (lev)
+    if (act && place_fused(c)) {
+        auto place = lev ? place_entries_kernel<WINDOWS, true> : place_entries_kernel<WINDOWS, false>;
+        step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
+                    c->start, c->keys_sorted, c->en);
+    } else if (lev)
         step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, true>, c->grid, w, c->n, lev, c->info, c->keys,
                     c->rank, c->start, sorted, c->order);
     else
@@ -825,7 +844,7 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
                     c->rank, c->count, 1);
     }
     phase_mark(c, ring, w, 1);
-    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan);
+    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan, in);
 }
 
 /* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the
@@ -912,8 +931,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
                 bin_place_launch<false>(c, pl, w, in, act, lev, ring, false);
             else
                 bin_place_launch<true>(c, pl, w, in, act, lev, ring, false);
-            step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act, lev,
-                        c->info, c->order, c->start, grid, c->en);
+            if (!place_fused(c))
+                step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act,
+                            lev, c->info, c->order, c->start, grid, c->en);
             phase_mark(c, ring, w, 3);
             Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
             en.pos = c->st[in].pos, en.vel = c->st[in].vel, en.id = c->st[in].id, en.wall = c->wall_hi;

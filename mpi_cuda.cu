@@ -934,7 +934,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         if (!early) rank_gate(g, NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */
             bin_slots(g, c->st[in], g->own, g->halo, 0);
-            scan_place_launch<false>(c, pl, 0, NULL, NULL, 0, g->early_short);
+            scan_place_launch<false>(c, pl, 0, NULL, NULL, 0, g->early_short, in);
         } else if (n > 0) {
             bin_place_launch<false>(c, pl, 0, in, NULL, NULL, 0, false);
         }
