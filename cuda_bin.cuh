@@ -336,6 +336,18 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
     return start[(int64_t)window_rows(grid->wb[w], grid->wb[w + 1], grid->levels) * grid->ncell];
 }
 
+/* Entry p of the cell order (K > 1): its disk's slot, and its midpoint in its slice as bin_kernel computes
+ * it, with its velocity. */
+static __device__ __forceinline__ void put_entry(const DevState &st, const Entries &en, int64_t p, const WindowEntry &x,
+                                                 int K)
+{
+    real2 pos = st.pos[x.s], vel = st.vel[x.s];
+    en.slot[p] = (int32_t)x.s;
+    double f = slice_mid(x.k, x.l, K);
+    en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
+                            (float)vel.x, (float)vel.y);
+}
+
 /* K > 1: the disks stay in place; entry p of the cell order gets its disk's slot and midpoint. */
 __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const int32_t *lev,
                                       const StepInfo *info, const uint32_t *order, const uint32_t *start,
@@ -345,14 +357,7 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
     const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
     const int K = grid->K;
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
-        const WindowEntry x = window_entry(d, order[p]);
-        const int64_t s = x.s;
-        real2 pos = st.pos[s], vel = st.vel[s];
-        en.slot[p] = (int32_t)s;
-        /* the midpoint as bin_kernel computes it, and the velocity */
-        double f = slice_mid(x.k, x.l, K);
-        en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
-                                (float)vel.x, (float)vel.y);
+        put_entry(st, en, p, window_entry(d, order[p]), K);
     }
 }
 
@@ -373,14 +378,7 @@ __global__ void place_entries_kernel(DevState st, const Grid *grid, int w, int64
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
         keys_sorted[p] = key;
-        const WindowEntry x = window_entry(d, e);
-        const int64_t s = x.s;
-        real2 pos = st.pos[s], vel = st.vel[s];
-        en.slot[p] = (int32_t)s;
-        /* as gather_entries_kernel computes it */
-        double f = slice_mid(x.k, x.l, K);
-        en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
-                                (float)vel.x, (float)vel.y);
+        put_entry(st, en, p, window_entry(d, e), K);
     }
 }
 
