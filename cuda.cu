@@ -782,9 +782,6 @@ static bool bin_clear(Cuda *c, const Plan *pl, int w)
     return short_scan;
 }
 
-/* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
- * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
- * midpoint, from state buffer in). */
 /* Whether steps of several slices place each entry's slot and midpoint with its key (place_entries_kernel)
  * rather than gather them in cell order after (gather_entries_kernel): a kernel fewer, their 20 bytes
  * scattered instead of written in order. The scatter pays while the entries are few: random scene on one
@@ -795,6 +792,9 @@ static bool place_fused(const Cuda *c)
     return c->n < PLACE_FUSED_N;
 }
 
+/* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
+ * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
+ * midpoint, from state buffer in). */
 template <bool WINDOWS>
 static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act, const int32_t *lev, int ring,
                               bool short_scan, int in)
