@@ -170,6 +170,7 @@ typedef struct {
     int64_t scan_tiles;                  /* tables of as many tiles at most are scanned so (else cub) */
     int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
+    int64_t fused_n;                     /* placement fused below this many disks (place_fused) */
     int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
     Entries en;                          /* K > 1: the entries' slots and mids alone (step_launch) */
     GridLimits lim;
@@ -352,6 +353,9 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
     c->scan_alternate = c->scan_tiles < 0;
     if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
+    /* SIM_CUDA_FUSED_N=N: placement fused below N disks (0: never; the tests take both ways) */
+    const char *fused_n = getenv("SIM_CUDA_FUSED_N");
+    c->fused_n = fused_n ? atoll(fused_n) : PLACE_FUSED_N;
     ahead_open(c);
     c->checkpoints = checkpoints;
     if (timed)
@@ -789,7 +793,7 @@ static bool bin_clear(Cuda *c, const Plan *pl, int w)
  * ms over 10 steps (bench/gpu_h100_variants.log 24a, 24c). */
 static bool place_fused(const Cuda *c)
 {
-    return c->n < PLACE_FUSED_N;
+    return c->n < c->fused_n;
 }
 
 /* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the

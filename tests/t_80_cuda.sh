@@ -236,6 +236,48 @@ for name in $(pick "slow fast walls random" "fast walls"); do
     done
 done
 
+# Steps of several slices place each entry's slot and midpoint with its key below PLACE_FUSED_N disks
+# (every scene above), else gather them in cell order after placing (cuda.cu, place_fused): here the
+# gather, forced by SIM_CUDA_FUSED_N=0, on scenes of several slices, and with windows and speed levels.
+for name in $(pick "fast random fast_mid mixed_gas tiny_r dense_fast spread" "random spread"); do
+    for run in "print" "perf" "perf windows"; do
+        read -r mode what <<< "$run"
+        label="cuda/$name $mode, entries gathered after placement${what:+, windows from 1 slice}"
+        if ! have_gpu; then
+            skip "$label" "no GPU"
+            continue
+        fi
+        envs="SIM_CUDA_FUSED_N=0"
+        [ -n "$what" ] && envs="$envs SIM_CUDA_WINDOW=1"
+        same_bytes "$label" "$TMP/cuda_${name}_$mode.expected" env $envs ./cuda "$TMP/cuda_${name}_$mode.in" --quiet
+    done
+done
+
+# Scenes larger than the move's one wave of threads (MOVE_LOOP blocks a multiprocessor of THREADS each,
+# some 1.4e5 on an H100), whose threads then move several disks in turns, and a random scene placed both
+# ways. omp stands for seq here (t_70 holds it to seq's bytes): seq's cost a step grows with N squared.
+big_scenes() {
+    echo "big_gas      tools/gen 300000 --fraction 0.2 --speed 0.5 --steps 10 --seed 31"
+    echo "big_dense    tools/gen 300000 --fraction 0.45 --speed 1 --steps 6 --seed 32"
+    echo "big_random   printf 300000\n20000\n1\n4\nperf\n"
+}
+while read -r name cmd; do
+    if ! have_gpu || [ ! -x ./omp ]; then
+        skip "cuda/$name perf" "no GPU"
+        continue
+    fi
+    if ! scene_input "$name" "$cmd"; then
+        fail "cuda/$name" "cannot generate the scene"
+        continue
+    fi
+    ./omp "$TMP/cuda_$name.in" --quiet > "$TMP/cuda_$name.expected"
+    same_bytes "cuda/$name perf" "$TMP/cuda_$name.expected" ./cuda "$TMP/cuda_$name.in" --quiet
+    if [ "$name" = big_random ]; then
+        same_bytes "cuda/$name perf, entries gathered after placement" "$TMP/cuda_$name.expected" \
+            env SIM_CUDA_FUSED_N=0 ./cuda "$TMP/cuda_$name.in" --quiet
+    fi
+done <<< "$(big_scenes)"
+
 # The periodic box (--periodic, SPEC.md 7): the cells and the differences between disks wrap (cuda_detect.cuh,
 # edge_runs), one cell a side or at least three; steps of one slice and of several (one speed level),
 # time windows, sub-steps, random placement, a crystal near close packing, single precision.
