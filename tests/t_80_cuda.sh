@@ -263,7 +263,7 @@ big_scenes() {
 }
 while read -r name cmd; do
     if ! have_gpu || [ ! -x ./omp ]; then
-        skip "cuda/$name perf" "no GPU"
+        skip "cuda/$name perf" "$(have_gpu && echo "./omp not built" || echo "no GPU")"
         continue
     fi
     if ! scene_input "$name" "$cmd"; then
