@@ -95,6 +95,15 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #ifndef SLICE_COST_N
 #define SLICE_COST_N 500000
 #endif
+#ifndef SLICE_COST_SMALL
+#define SLICE_COST_SMALL 60.0     /* the same below SLICE_COST_SMALL_N disks, where an entry's binning and placing
+                                     wait on their launches more than on memory: random scene, N = 32000, one
+                                     H200, 2.26e8-2.36e8 at 80 against 2.34e8-2.43e8 at 60; 1e5 slower at 60
+                                     (bench/gpu_h100_variants.log 24a, 25a) */
+#endif
+#ifndef SLICE_COST_SMALL_N
+#define SLICE_COST_SMALL_N 50000
+#endif
 #define PHASES 7                  /* phases timed under --stats */
 #define WMAX 10                   /* time windows of a step at most (see window_start) */
 #ifndef PLACE_FUSED_N

@@ -183,12 +183,13 @@ typedef struct {
 } GridLimits;
 
 /* Time slices for a step whose largest velocity component is vmax: K trades binning work (n K entries)
- * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice), an entry costing more from
- * SLICE_COST_N disks up. */
+ * against pair tests (about 4.5 n density (2r + vmax/K)^2 per slice), an entry costing less below
+ * SLICE_COST_SMALL_N disks and more from SLICE_COST_N up. */
 static __host__ __device__ int grid_slices(const GridLimits *lim, double vmax)
 {
     double dens = (double)lim->n / (lim->L * lim->L);
-    double kf = vmax * sqrt(4.5 * dens / (lim->n >= SLICE_COST_N ? SLICE_COST_BIG : SLICE_COST));
+    double cost = lim->n >= SLICE_COST_N ? SLICE_COST_BIG : lim->n < SLICE_COST_SMALL_N ? SLICE_COST_SMALL : SLICE_COST;
+    double kf = vmax * sqrt(4.5 * dens / cost);
     int K = kf >= 1 ? (kf < lim->max_slices ? (int)(kf + 0.5) : lim->max_slices) : 1;
     return K < 1 ? 1 : K;
 }
