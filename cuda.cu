@@ -80,7 +80,9 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define SLICES_AHEAD 2.0          /* the first entries of a scene of several slices: for twice its first
                                      plan's (its fastest disks speed up as collisions spread the speeds) */
 #define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
+#ifndef FINISH_EVENTS
 #define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
+#endif
 #ifndef SLICE_COST
 #define SLICE_COST 80.0           /* cost of one entry, in pair tests (candidates): sets K. Of 28, 40, 56, 80 with
                                      near_path, random scene: N = 32000 alike, 3e5 and 1e6 7% and 12% faster at
@@ -795,7 +797,7 @@ static bool bin_clear(Cuda *c, const Plan *pl, int w)
     return short_scan;
 }
 
-/* Whether steps of several slices place each entry's slot and midpoint with its key (place_entries_kernel)
+/* Whether steps of several slices place each entry's slot and midpoint with its key (place_kernel's ENTRIES)
  * rather than gather them in cell order after (gather_entries_kernel): a kernel fewer, their 20 bytes
  * scattered instead of written in order. The scatter pays while the entries are few: random scene on one
  * H200, N = 32000, 1e5 and 3e5 2 to 3% faster, but 1e6 1% and 4e6 11% slower, its placement 19.3 -> 30.4
@@ -823,16 +825,11 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
     }
     phase_mark(c, ring, w, 2);
     uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
-    if (act && place_fused(c)) {
-        auto place = lev ? place_entries_kernel<WINDOWS, true> : place_entries_kernel<WINDOWS, false>;
-        step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
-                    c->start, c->keys_sorted, c->en);
-    } else if (lev)
-        step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, true>, c->grid, w, c->n, lev, c->info, c->keys,
-                    c->rank, c->start, sorted, c->order);
-    else
-        step_kernel(c, blocks, THREADS, 0, place_kernel<WINDOWS, false>, c->grid, w, c->n, lev, c->info, c->keys,
-                    c->rank, c->start, sorted, c->order);
+    bool fused = act && place_fused(c);
+    auto place = fused ? (lev ? place_kernel<WINDOWS, true, true> : place_kernel<WINDOWS, false, true>)
+                       : (lev ? place_kernel<WINDOWS, true, false> : place_kernel<WINDOWS, false, false>);
+    step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
+                c->start, sorted, c->order, c->en);
 }
 
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the

@@ -216,25 +216,6 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
     if (where && (sent || s >= where_from)) where[s] = (uint32_t)p;
 }
 
-/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
- * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
- * disk itself); the disks, or their copies, are then gathered with coalesced writes. */
-template <bool WINDOWS, bool LEVELS_LISTED>
-__global__ void place_kernel(const Grid *grid, int w, int64_t n, const int32_t *lev, const StepInfo *info,
-                             const uint32_t *keys, const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted,
-                             uint32_t *order)
-{
-    after_previous();
-    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, NULL, LEVELS_LISTED ? lev : NULL, info);
-    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
-        uint32_t key = keys[e];
-        if (key == KEY_OUT) continue;
-        int64_t p = (int64_t)start[key] + rank[e];
-        if (keys_sorted) keys_sorted[p] = key;
-        order[p] = (uint32_t)e;
-    }
-}
-
 /* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells, a
  * thread a key. The keys lie nearly in cell order (the disks were gathered so a few steps before), so
  * neighbouring lanes often share a cell: each run of equal keys in a warp takes its ranks with one atomic,
@@ -361,24 +342,29 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
     }
 }
 
-/* K > 1 below PLACE_FUSED_N disks (cuda.cu's place_fused): place_kernel and gather_entries_kernel in one
- * pass, each entry's key, slot and midpoint scattered to its place, the disk read in entry order (a level
- * list's order) rather than in cell order, and no order[] written or read: a kernel and 8 bytes an entry
- * fewer, 20 more scattered. */
-template <bool WINDOWS, bool LEVELS_LISTED>
-__global__ void place_entries_kernel(DevState st, const Grid *grid, int w, int64_t n, const int32_t *act,
-                                     const int32_t *lev, const StepInfo *info, const uint32_t *keys,
-                                     const uint32_t *rank, const uint32_t *start, uint32_t *keys_sorted, Entries en)
+/* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
+ * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
+ * disk itself); the disks, or their copies, are then gathered with coalesced writes. ENTRIES (K > 1 below
+ * PLACE_FUSED_N disks, cuda.cu's place_fused): the gather of the entries (gather_entries_kernel) done here
+ * too, each entry's slot and midpoint scattered to its place with its key, the disk read in entry order (a
+ * level list's order) rather than in cell order, and no order[] written or read: a kernel and 8 bytes an
+ * entry fewer, 20 more scattered. */
+template <bool WINDOWS, bool LEVELS_LISTED, bool ENTRIES>
+__global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, const int32_t *act, const int32_t *lev,
+                             const StepInfo *info, const uint32_t *keys, const uint32_t *rank, const uint32_t *start,
+                             uint32_t *keys_sorted, uint32_t *order, Entries en)
 {
     after_previous();
-    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
-    const int K = grid->K;
+    const WindowDisks d = window_disks<WINDOWS>(grid, w, n, ENTRIES ? act : NULL, LEVELS_LISTED ? lev : NULL, info);
     ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
-        keys_sorted[p] = key;
-        put_entry(st, en, p, window_entry(d, e), K);
+        if (ENTRIES || keys_sorted) keys_sorted[p] = key;
+        if (ENTRIES)
+            put_entry(st, en, p, window_entry(d, e), grid->K);
+        else
+            order[p] = (uint32_t)e;
     }
 }
 
