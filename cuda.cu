@@ -81,7 +81,9 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      plan's (its fastest disks speed up as collisions spread the speeds) */
 #define MAX_ROUNDS 8              /* choice rounds run over the whole grid, at most, before the one-block finish */
 #ifndef FINISH_EVENTS
-#define FINISH_EVENTS 16384.0     /* pair events a step may leave to the one-block finish, about */
+#define FINISH_EVENTS 4096.0      /* pair events a step may leave to the one-block finish, about: random scene,
+                                     one H200, 1e5 2.48e8-2.50e8 at 16384 against 2.60e8-2.63e8, 1e6 alike
+                                     (bench/gpu_h100_variants.log 25d) */
 #endif
 #ifndef SLICE_COST
 #define SLICE_COST 80.0           /* cost of one entry, in pair tests (candidates): sets K. Of 28, 40, 56, 80 with
