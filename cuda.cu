@@ -123,8 +123,10 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #ifndef WINDOW_ENTRIES
 #define WINDOW_ENTRIES 1048576.0  /* entries a window should have to fill the device (first_window) */
 #endif
+#ifndef CELLS_PER_DISK
 #define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
                                      clearing and scanning cells than it saves in pair tests */
+#endif
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
 #endif
@@ -150,7 +152,9 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #endif
 #define RING (2 * BATCH)    /* steps in flight at most: two batches */
 #define SPEED_SLACK 1.0625  /* plans allow cells this much finer than the last known speed needs */
+#ifndef SLICE_SLACK
 #define SLICE_SLACK 1.25    /* and this many times the slices (speeds grow as collisions spread them) */
+#endif
 #ifndef LO_AT_EVENT
 #define LO_AT_EVENT 1       /* steps of one slice: the search starts the second keys of each event's disks, not
                                the move and the gather every disk's (8 bytes a disk): gas of 1e7 on one H200,
