@@ -32,7 +32,9 @@
  *            out of the later ones, so a dense fast scene, where most disks collide early in the step,
  *            bins and tests few disks after its first slices
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
- *            partners with the lower original index as i, so both see the same arithmetic
+ *            partners with the lower original index as i, so both see the same arithmetic. With K = 1
+ *            (a gas) it also keys each disk's cell for the next step and starts its event keys in its
+ *            slot, so that the next step only counts the keys (count_kernel) before its scan
  * Event keys compare by value only (t, kind, i, j), so nothing depends on thread order.
  * This file is the host's side; the device code, included below, lies in one file a phase:
  * cuda_state.cuh (buffers, speed levels, windows, the grid's fit, event keys), cuda_bin.cuh (the step's
