@@ -102,10 +102,10 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define SLICE_COST_N 500000
 #endif
 #ifndef SLICE_COST_SMALL
-#define SLICE_COST_SMALL 60.0     /* the same below SLICE_COST_SMALL_N disks, where an entry's binning and placing
-                                     wait on their launches more than on memory: random scene, N = 32000, one
-                                     H200, 2.26e8-2.36e8 at 80 against 2.34e8-2.43e8 at 60; 1e5 slower at 60
-                                     (bench/gpu_h100_variants.log 24a, 25a) */
+#define SLICE_COST_SMALL 60.0     /* the same below SLICE_COST_SMALL_N disks, where binning and placing wait on
+                                     their own loads more than on memory, so more entries cost them little: random
+                                     scene, N = 32000, one H200, 2.26e8-2.36e8 at 80 against 2.34e8-2.43e8 at 60;
+                                     1e5 slower at 60 (bench/gpu_h100_variants.log 24a, 25a) */
 #endif
 #ifndef SLICE_COST_SMALL_N
 #define SLICE_COST_SMALL_N 50000
@@ -1403,8 +1403,8 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     cuda_close(&c);
     if (c.timed)
         fprintf(stderr, "cuda: host side (s): waiting for the context %.3f, allocations and upload %.3f, "
-                "then for step 0's writing %.3f, download and final state %.3f, release %.3f\n", h1 - h0, h2 - h1, h3b - h3,
-                h4 - h3b, sim_clock() - h4);
+                "then for step 0's writing %.3f, download and final state %.3f, release %.3f\n", h1 - h0, h2 - h1,
+                h3b - h3, h4 - h3b, sim_clock() - h4);
     return 0;
 }
 

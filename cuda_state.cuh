@@ -31,7 +31,8 @@ typedef struct {
 /* One step's counters, cleared by its gate. */
 typedef struct {
     unsigned long long vmax;   /* bits of the largest |vx| or |vy| after the step (>= 0, so ordered) */
-    unsigned long long found[WMAX];  /* pair events detected per window (beyond the list's length the step is refused) */
+    unsigned long long found[WMAX];  /* pair events detected per window (beyond the list's length, the step is
+                                        refused) */
     unsigned long long active[WMAX]; /* disks still free at each window's start (the first: all) */
     unsigned long long level[WMAX][LEVELS]; /* levels > 1: of those, the disks of each speed level */
     unsigned long long events; /* accepted events */
