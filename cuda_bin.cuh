@@ -344,7 +344,8 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
  * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
- * disk itself); the disks, or their copies, are then gathered with coalesced writes. ENTRIES (K > 1 below
+ * disk itself); the disks, or the entries' slots and midpoints, are then gathered with coalesced writes
+ * (gather_state_kernel, gather_entries_kernel). ENTRIES (K > 1 below
  * PLACE_FUSED_N disks, cuda.cu's place_fused): the gather of the entries (gather_entries_kernel) done here
  * too, each entry's slot and midpoint scattered to its place with its key, the disk read in entry order (a
  * level list's order) rather than in cell order, and no order[] written or read: a kernel and 8 bytes an
@@ -356,13 +357,14 @@ __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, co
 {
     after_previous();
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, ENTRIES ? act : NULL, LEVELS_LISTED ? lev : NULL, info);
+    const int K = ENTRIES ? grid->K : 0; /* once: the loop's stores may alias grid for all the compiler knows */
     ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
         if (ENTRIES || keys_sorted) keys_sorted[p] = key;
         if (ENTRIES)
-            put_entry(st, en, p, window_entry(d, e), grid->K);
+            put_entry(st, en, p, window_entry(d, e), K);
         else
             order[p] = (uint32_t)e;
     }
