@@ -175,6 +175,14 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
     }
 }
 
+/* A disk's partner before the choice: none, and a wall event within the step (PARTNER_WALL) or none (-1).
+ * A disk the choice leaves so has had its wall event accepted, if it has one (cuda's move then needs no
+ * wall key, move_kernel). Every "taken" test of the choice is partner >= 0. */
+#define PARTNER_WALL (-3)
+#ifndef WALL_PENDING
+#define WALL_PENDING 1 /* 0: -1 for both, and cuda's move loads every disk's wall key (move_load) */
+#endif
+
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. best_lo
  * NULL: the search starts the second keys of the disks it finds events of (LO_AT_EVENT, Entries). */
 static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
@@ -183,7 +191,7 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
     wall_hi[s] = w;
     best_hi[s] = w;
     if (best_lo) best_lo[s] = NO_EVENT;
-    partner[s] = -1;
+    partner[s] = WALL_PENDING && w != NO_EVENT ? PARTNER_WALL : -1;
 }
 
 /* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.

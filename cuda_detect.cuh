@@ -30,6 +30,11 @@
                         pass near_path. Random scene, N = 1e6, one H200: 4.77e8 particle-steps/s, against
                         4.55e8 loaded by the probe through its slot (bench/gpu_h100_variants.log 23) */
 #endif
+#ifndef PROBE_EARLY
+#define PROBE_EARLY 1 /* K = 1, disks in their slots: the probe's disk loaded beside its key, not after the cells'
+                         bounds, which wait on the key (gas of 1e7 on one H200: the search 20.80 -> 20.67 ms
+                         over 50 steps, dense gas 32.22 -> 32.08; bench/gpu_h100_variants.log 25g) */
+#endif
 #ifndef DETECT_TAKE
 #define DETECT_TAKE 4 /* a lane's candidates a turn (cursor_take), even: the turn's bookkeeping shared by 4
                          screens, not 2 (random scene, N = 1e6: the search 9.96 -> 9.04 ms over 10 steps;
@@ -117,6 +122,15 @@ typedef struct {
     unsigned long long base;
 } BlockEvents;
 
+/* The wall key of the disk in slot s: loaded, where the periodic box has none. (Computed again from the
+ * probe's state, which slot_init's callers key it from, the gas's search took 9% longer: gas of 1e7 on one
+ * H200, 20.54 -> 22.41 ms over 50 steps; bench/gpu_h100_variants.log 25h.) */
+template <bool PERIODIC>
+static __device__ __forceinline__ uint64_t slot_wall(const Entries &en, uint32_t s)
+{
+    return PERIODIC ? NO_EVENT : __ldg(&en.wall[s]);
+}
+
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
  * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. SLOTS: the
  * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
@@ -142,8 +156,8 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
     e.hi = time_key(t) | 1;
-    uint64_t wall1 = lazy ? __ldg(&en.wall[ps]) : pr.wall;
-    if (!(e.hi < wall1 && e.hi < __ldg(&en.wall[d]))) return; /* a wall event comes first */
+    uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
+    if (!(e.hi < wall1 && e.hi < slot_wall<PERIODIC>(en, d))) return; /* a wall event comes first */
     int32_t id1 = lazy ? __ldg(&en.id[ps]) : pr.id, id2 = __ldg(&en.id[d]); /* only a pair with an event needs */
     bool first = id1 < id2;
     int32_t s = (int32_t)ps, s2 = (int32_t)d; /* one slice without SLOTS: entries are slots */
@@ -375,6 +389,12 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         uint32_t p = p0 + threadIdx.x, seen = 0; /* seen: MID, the probe's candidates */
         Probe pr = {};
         if (p < end) {
+            if (!MID && SLOTS && PROBE_EARLY) { /* the probe's disk (PROBE_EARLY) */
+                pr.pos = __ldg(&en.pos[p]);
+                pr.vel = __ldg(&en.vel[p]);
+                pr.id = __ldg(&en.id[p]);
+                pr.wall = slot_wall<PERIODIC>(en, p);
+            }
             /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
              * disk itself (a pass of 8 bytes a disk fewer: place_kernel); SLOTS: p is a slot, whose key and
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
@@ -407,12 +427,12 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 pr.b0 = __ldg(&start[row + gx + x0]);
                 pr.nb = __ldg(&start[row + gx + x1 + 1]) - pr.b0;
             }
-            if (!MID || !PROBE_LAZY) { /* MID: the entry's disk, in its slot */
+            if (MID ? !PROBE_LAZY : !SLOTS || !PROBE_EARLY) { /* MID: the entry's disk, in its slot */
                 const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;
                 pr.pos = __ldg(&en.pos[ps]);
                 pr.vel = __ldg(&en.vel[ps]);
                 pr.id = __ldg(&en.id[ps]);
-                pr.wall = __ldg(&en.wall[ps]);
+                pr.wall = slot_wall<PERIODIC>(en, ps);
             }
             if (MID) pr.mid = __ldg(&en.mid[p]);
             else pr.edge = edge;

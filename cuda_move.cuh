@@ -89,15 +89,20 @@ typedef struct {
 #define MOVE_LOOP 4
 #endif
 
-/* Slot s's disk for the move: its state, its accepted partner and its wall event (its index is loaded
- * where the move needs it, move_kernel). */
+/* Slot s's disk for the move: its state, its accepted partner and, for a GPU rank (WALL), its wall event
+ * (its index is loaded where the move needs it, move_kernel). cuda's move knows an accepted wall event by
+ * the partner (PARTNER_WALL) and loads its key for those disks alone: 8 bytes fewer for each of the others.
+ * On one H200 the gas of 1e7's move 18.31 -> 17.70 ms over 50 steps, the dense gas's 21.77 -> 20.95; the key
+ * computed again from the state instead, as fast there, cost the random scene's move 12%, its fast disks
+ * meeting walls often (bench/gpu_h100_variants.log 25g). */
+template <bool WALL>
 static __device__ __forceinline__ void move_load(const DevState &in, const int32_t *partner, const uint64_t *wall_hi,
                                                  int64_t s, real2 &pos, real2 &vel, int32_t &o, uint64_t &wall)
 {
     pos = in.pos[s];
     vel = in.vel[s];
     o = partner[s];
-    wall = wall_hi[s];
+    if (WALL) wall = wall_hi[s];
 }
 
 /* Old buffers in, new buffers out. A disk with no accepted pair and a wall event within the step has
@@ -116,7 +121,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
     if (s < n) /* loaded before the checks below, so that their loads overlap */
-        move_load(in, partner, wall_hi, s, pos, vel, o, wall);
+        move_load<RANK || !WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
     if (refused(ctl)) return;
     unsigned long long most = 0;
     for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
@@ -137,7 +142,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         if (s < n && (!RANK || (o != PARTNER_COPY && (!rm.again || out.id[s] == RANK_HOLE)))) {
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-            if (o < 0 && wall != NO_EVENT) o = (int32_t)s;
+            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : o == PARTNER_WALL) o = (int32_t)s;
             /* the index counts collisions, orders a pair and goes with the disk where its slot changes:
              * a disk flying free in a step that keeps the slots needs none (4 of the move's 104 bytes) */
             if (RANK || !BIN || !mb.ids_alike || o >= 0) id = in.id[s];
@@ -145,6 +150,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 x = x + vx;
                 y = y + vy;
             } else if (o == s) {
+                if (!RANK && WALL_PENDING) wall = wall_hi[s];
                 real t1 = key_time(wall);
                 wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
                 finish_step(&x, &y, vx, vy, t1, lo, hi);
@@ -206,7 +212,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         if (!LOOP) break;
         s += (int64_t)gridDim.x * blockDim.x;
         if (s >= n) break;
-        move_load(in, partner, wall_hi, s, pos, vel, o, wall);
+        move_load<RANK || !WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;
