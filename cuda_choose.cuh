@@ -3,9 +3,10 @@
 
 /* ==== choose ============================================================================================= */
 /* best_hi/best_lo of a disk: the smallest key among its remaining events (its wall event and the pair
- * events in the current list). partner: -1 none yet, itself for an accepted wall event, else the other
- * slot of its accepted pair. Each phase below is one pass over a list; the grid versions are separate
- * kernels, the one-block version separates them with __syncthreads. */
+ * events in the current list). partner: negative none yet (-1, or PARTNER_WALL where it has a wall event
+ * within the step, slot_init), itself for an accepted wall event, else the other slot of its accepted pair.
+ * Each phase below is one pass over a list; the grid versions are separate kernels, the one-block version
+ * separates them with __syncthreads. */
 
 static __device__ __forceinline__ void pass_min_lo(const PairEvent *ev, int64_t i, const uint64_t *best_hi,
                                                    uint64_t *best_lo)
