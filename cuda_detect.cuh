@@ -131,6 +131,16 @@ static __device__ __forceinline__ uint64_t slot_wall(const Entries &en, uint32_t
     return PERIODIC ? NO_EVENT : __ldg(&en.wall[s]);
 }
 
+/* Probe pr's disk, from slot ps. */
+template <bool PERIODIC>
+static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, uint32_t ps)
+{
+    pr.pos = __ldg(&en.pos[ps]);
+    pr.vel = __ldg(&en.vel[ps]);
+    pr.id = __ldg(&en.id[ps]);
+    pr.wall = slot_wall<PERIODIC>(en, ps);
+}
+
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
  * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. SLOTS: the
  * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
@@ -389,12 +399,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         uint32_t p = p0 + threadIdx.x, seen = 0; /* seen: MID, the probe's candidates */
         Probe pr = {};
         if (p < end) {
-            if (!MID && SLOTS && PROBE_EARLY) { /* the probe's disk (PROBE_EARLY) */
-                pr.pos = __ldg(&en.pos[p]);
-                pr.vel = __ldg(&en.vel[p]);
-                pr.id = __ldg(&en.id[p]);
-                pr.wall = slot_wall<PERIODIC>(en, p);
-            }
+            if (!MID && SLOTS && PROBE_EARLY) probe_disk<PERIODIC>(pr, en, p);
             /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
              * disk itself (a pass of 8 bytes a disk fewer: place_kernel); SLOTS: p is a slot, whose key and
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
@@ -427,13 +432,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 pr.b0 = __ldg(&start[row + gx + x0]);
                 pr.nb = __ldg(&start[row + gx + x1 + 1]) - pr.b0;
             }
-            if (MID ? !PROBE_LAZY : !SLOTS || !PROBE_EARLY) { /* MID: the entry's disk, in its slot */
-                const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;
-                pr.pos = __ldg(&en.pos[ps]);
-                pr.vel = __ldg(&en.vel[ps]);
-                pr.id = __ldg(&en.id[ps]);
-                pr.wall = slot_wall<PERIODIC>(en, ps);
-            }
+            if (MID ? !PROBE_LAZY : !SLOTS || !PROBE_EARLY) /* MID: the entry's disk, in its slot */
+                probe_disk<PERIODIC>(pr, en, MID ? (uint32_t)__ldg(&en.slot[p]) : p);
             if (MID) pr.mid = __ldg(&en.mid[p]);
             else pr.edge = edge;
             if (MID)
