@@ -8,12 +8,33 @@
  * Each phase below is one pass over a list; the grid versions are separate kernels, the one-block version
  * separates them with __syncthreads. */
 
-static __device__ __forceinline__ void pass_min_lo(const PairEvent *ev, int64_t i, const uint64_t *best_hi,
-                                                   uint64_t *best_lo)
+/* The passes over a list. Each takes, at event i, the ILP events i, i + stride, ... below len, and issues
+ * each of its loads for all of them before waiting on any: taken one after another, each event waited on
+ * its own chain of loads, the list's and then its disks' keys, scattered as the disks with events are. The
+ * grid-wide kernels take CHOOSE_ILP events a thread a turn (min_hi's, on few events after the first round,
+ * one): on one H200 the rounds 7.25 -> 6.87 ms over 50 steps of the gas of 1e7, 8.25e9 -> 8.33e9
+ * particle-steps/s; the random scene's (N = 32000, 200 steps) 3.38 -> 3.11 ms, and at 1e6 4.77e8 -> 4.83e8
+ * (bench/gpu_h100_variants.log 25i). The one-block finish takes one; its compaction so loads the disks' wall
+ * keys before it appends, not after: random scene, N = 32000, the finish 2.30 -> 2.05 ms over 200 steps;
+ * dense gas of 1e7 2.71 -> 2.52 ms over 50 (25k). */
+#ifndef CHOOSE_ILP
+#define CHOOSE_ILP 4
+#endif
+#define ILP_EACH(u) _Pragma("unroll") for (int u = 0; u < ILP; u++) if (ILP == 1 || i + u * stride < len)
+
+/* The events' own keys: each disk's best_lo lowered to the event's where its best_hi is the event's. */
+template <int ILP>
+static __device__ __forceinline__ void pass_min_lo(const PairEvent *ev, int64_t i, int64_t stride, int64_t len,
+                                                   const uint64_t *best_hi, uint64_t *best_lo)
 {
-    PairEvent e = ev[i];
-    if (best_hi[e.a] == e.hi) atomicMin((unsigned long long *)&best_lo[e.a], (unsigned long long)e.lo);
-    if (best_hi[e.b] == e.hi) atomicMin((unsigned long long *)&best_lo[e.b], (unsigned long long)e.lo);
+    PairEvent e[ILP] = {};
+    uint64_t ha[ILP] = {}, hb[ILP] = {};
+    ILP_EACH(u) e[u] = ev[i + u * stride];
+    ILP_EACH(u) ha[u] = best_hi[e[u].a], hb[u] = best_hi[e[u].b];
+    ILP_EACH(u) {
+        if (ha[u] == e[u].hi) atomicMin((unsigned long long *)&best_lo[e[u].a], (unsigned long long)e[u].lo);
+        if (hb[u] == e[u].hi) atomicMin((unsigned long long *)&best_lo[e[u].b], (unsigned long long)e[u].lo);
+    }
 }
 
 static __device__ __forceinline__ void pass_min_hi(const PairEvent *ev, int64_t i, uint64_t *best_hi)
@@ -37,29 +58,45 @@ static __device__ __forceinline__ void accept_event(const PairEvent &e, uint64_t
     if (!(hb & 1)) partner[e.b] = e.b;
 }
 
-static __device__ __forceinline__ void pass_accept(const PairEvent *ev, int64_t i, const uint64_t *best_hi,
-                                                   const uint64_t *best_lo, int32_t *partner)
+template <int ILP>
+static __device__ __forceinline__ void pass_accept(const PairEvent *ev, int64_t i, int64_t stride, int64_t len,
+                                                   const uint64_t *best_hi, const uint64_t *best_lo,
+                                                   int32_t *partner)
 {
-    PairEvent e = ev[i];
-    uint64_t ha = best_hi[e.a], hb = best_hi[e.b], la = NO_EVENT, lb = NO_EVENT;
-    if (ha == e.hi && hb == e.hi) la = best_lo[e.a], lb = best_lo[e.b];
-    accept_event(e, ha, hb, la, lb, partner);
+    PairEvent e[ILP] = {};
+    uint64_t ha[ILP] = {}, hb[ILP] = {}, la[ILP], lb[ILP];
+    ILP_EACH(u) e[u] = ev[i + u * stride];
+    ILP_EACH(u) ha[u] = best_hi[e[u].a], hb[u] = best_hi[e[u].b];
+#pragma unroll
+    for (int u = 0; u < ILP; u++) la[u] = lb[u] = NO_EVENT;
+    ILP_EACH(u) if (ha[u] == e[u].hi && hb[u] == e[u].hi) {
+        la[u] = best_lo[e[u].a];
+        lb[u] = best_lo[e[u].b];
+    }
+    ILP_EACH(u) accept_event(e[u], ha[u], hb[u], la[u], lb[u], partner);
 }
 
 /* Keeps the events whose disks are both still free, and restarts those disks' best keys. */
-static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t i, PairEvent *out,
-                                                    unsigned long long *count_out, int64_t cap,
+template <int ILP>
+static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t i, int64_t stride, int64_t len,
+                                                    PairEvent *out, unsigned long long *count_out, int64_t cap,
                                                     const int32_t *partner, const uint64_t *wall_hi,
                                                     uint64_t *best_hi, uint64_t *best_lo)
 {
-    PairEvent e = ev[i];
-    if (partner[e.a] >= 0 || partner[e.b] >= 0) return;
-    unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
-    if ((int64_t)at < cap) out[at] = e;
-    best_hi[e.a] = wall_hi[e.a];
-    best_hi[e.b] = wall_hi[e.b];
-    best_lo[e.a] = NO_EVENT;
-    best_lo[e.b] = NO_EVENT;
+    PairEvent e[ILP] = {};
+    bool live[ILP] = {};
+    uint64_t wa[ILP] = {}, wb[ILP] = {};
+    ILP_EACH(u) e[u] = ev[i + u * stride];
+    ILP_EACH(u) live[u] = partner[e[u].a] < 0 && partner[e[u].b] < 0;
+    ILP_EACH(u) if (live[u]) wa[u] = wall_hi[e[u].a], wb[u] = wall_hi[e[u].b];
+    ILP_EACH(u) if (live[u]) {
+        unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
+        if ((int64_t)at < cap) out[at] = e[u];
+        best_hi[e[u].a] = wa[u];
+        best_hi[e[u].b] = wb[u];
+        best_lo[e[u].a] = NO_EVENT;
+        best_lo[e[u].b] = NO_EVENT;
+    }
 }
 
 static __device__ __forceinline__ int64_t list_len(const unsigned long long *count, int64_t cap)
@@ -68,37 +105,17 @@ static __device__ __forceinline__ int64_t list_len(const unsigned long long *cou
     return c < cap ? c : cap;
 }
 
-/* The grid-wide passes but min_hi's (rounds after the first, on few events) take CHOOSE_ILP events a
- * thread a turn, and issue each of their loads for all of them before waiting on any: taken one after
- * another, each event waited on its own chain of loads, the list's and then its disks' keys, scattered
- * as the disks with events are. On one H200 the rounds 7.25 -> 6.87 ms over 50 steps of the gas of 1e7,
- * 8.25e9 -> 8.33e9 particle-steps/s; the random scene's (N = 32000, 200 steps) 3.38 -> 3.11 ms, and at
- * 1e6 4.77e8 -> 4.83e8 (bench/gpu_h100_variants.log 25i). Each pass's work per event is pass_min_lo's,
- * pass_accept's and pass_compact's, which the one-block finish takes an event at a time. */
-#ifndef CHOOSE_ILP
-#define CHOOSE_ILP 4
-#endif
+/* A grid-wide pass: event i and the CHOOSE_ILP - 1 after it, stride apart, a turn */
 #define ILP_TURN(i, len)                                                                                 \
     const int64_t stride = (int64_t)gridDim.x * blockDim.x;                                              \
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += CHOOSE_ILP * stride)
-#define ILP_EACH(u, i, len) \
-    _Pragma("unroll") for (int u = 0; u < CHOOSE_ILP; u++) if ((i) + u * stride < (len))
 
 __global__ void min_lo_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
                               const uint64_t *best_hi, uint64_t *best_lo)
 {
     after_previous();
     int64_t len = list_len(count, cap);
-    ILP_TURN(i, len) {
-        PairEvent e[CHOOSE_ILP] = {};
-        uint64_t ha[CHOOSE_ILP] = {}, hb[CHOOSE_ILP] = {};
-        ILP_EACH(u, i, len) e[u] = ev[i + u * stride];
-        ILP_EACH(u, i, len) ha[u] = best_hi[e[u].a], hb[u] = best_hi[e[u].b];
-        ILP_EACH(u, i, len) {
-            if (ha[u] == e[u].hi) atomicMin((unsigned long long *)&best_lo[e[u].a], (unsigned long long)e[u].lo);
-            if (hb[u] == e[u].hi) atomicMin((unsigned long long *)&best_lo[e[u].b], (unsigned long long)e[u].lo);
-        }
-    }
+    ILP_TURN(i, len) pass_min_lo<CHOOSE_ILP>(ev, i, stride, len, best_hi, best_lo);
 }
 
 __global__ void min_hi_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
@@ -114,19 +131,7 @@ __global__ void accept_kernel(const PairEvent *ev, const unsigned long long *cou
 {
     after_previous();
     int64_t len = list_len(count, cap);
-    ILP_TURN(i, len) {
-        PairEvent e[CHOOSE_ILP] = {};
-        uint64_t ha[CHOOSE_ILP] = {}, hb[CHOOSE_ILP] = {}, la[CHOOSE_ILP], lb[CHOOSE_ILP];
-        ILP_EACH(u, i, len) e[u] = ev[i + u * stride];
-        ILP_EACH(u, i, len) ha[u] = best_hi[e[u].a], hb[u] = best_hi[e[u].b];
-#pragma unroll
-        for (int u = 0; u < CHOOSE_ILP; u++) la[u] = lb[u] = NO_EVENT;
-        ILP_EACH(u, i, len) if (ha[u] == e[u].hi && hb[u] == e[u].hi) {
-            la[u] = best_lo[e[u].a];
-            lb[u] = best_lo[e[u].b];
-        }
-        ILP_EACH(u, i, len) accept_event(e[u], ha[u], hb[u], la[u], lb[u], partner);
-    }
+    ILP_TURN(i, len) pass_accept<CHOOSE_ILP>(ev, i, stride, len, best_hi, best_lo, partner);
 }
 
 __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
@@ -136,20 +141,7 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
     after_previous();
     int64_t len = list_len(count, cap);
     ILP_TURN(i, len) {
-        PairEvent e[CHOOSE_ILP] = {};
-        bool live[CHOOSE_ILP] = {};
-        uint64_t wa[CHOOSE_ILP] = {}, wb[CHOOSE_ILP] = {};
-        ILP_EACH(u, i, len) e[u] = ev[i + u * stride];
-        ILP_EACH(u, i, len) live[u] = partner[e[u].a] < 0 && partner[e[u].b] < 0;
-        ILP_EACH(u, i, len) if (live[u]) wa[u] = wall_hi[e[u].a], wb[u] = wall_hi[e[u].b];
-        ILP_EACH(u, i, len) if (live[u]) {
-            unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
-            if ((int64_t)at < cap) out[at] = e[u];
-            best_hi[e[u].a] = wa[u];
-            best_hi[e[u].b] = wb[u];
-            best_lo[e[u].a] = NO_EVENT;
-            best_lo[e[u].b] = NO_EVENT;
-        }
+        pass_compact<CHOOSE_ILP>(ev, i, stride, len, out, count_out, cap, partner, wall_hi, best_hi, best_lo);
     }
 }
 
@@ -165,15 +157,16 @@ __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned lon
         if (threadIdx.x == 0) n_out = 0;
         __syncthreads();
         for (int64_t i = threadIdx.x; i < len; i += blockDim.x)
-            pass_compact(in, i, out, &n_out, cap, partner, wall_hi, best_hi, best_lo);
+            pass_compact<1>(in, i, 0, len, out, &n_out, cap, partner, wall_hi, best_hi, best_lo);
         __syncthreads();
         len = (int64_t)n_out;
         if (len == 0) return;
         for (int64_t i = threadIdx.x; i < len; i += blockDim.x) pass_min_hi(out, i, best_hi);
         __syncthreads();
-        for (int64_t i = threadIdx.x; i < len; i += blockDim.x) pass_min_lo(out, i, best_hi, best_lo);
+        for (int64_t i = threadIdx.x; i < len; i += blockDim.x) pass_min_lo<1>(out, i, 0, len, best_hi, best_lo);
         __syncthreads();
-        for (int64_t i = threadIdx.x; i < len; i += blockDim.x) pass_accept(out, i, best_hi, best_lo, partner);
+        for (int64_t i = threadIdx.x; i < len; i += blockDim.x)
+            pass_accept<1>(out, i, 0, len, best_hi, best_lo, partner);
         __syncthreads();
         PairEvent *t = in;
         in = out;
