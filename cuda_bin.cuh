@@ -135,6 +135,102 @@ static __device__ __forceinline__ uint32_t cell_key(const Grid &gr, real2 pos, r
     return (uint32_t)(row * gr.ncell + cy * gx + cx);
 }
 
+/* The windows' binning (K > 1) takes BIN_CHUNK entries of a disk a thread, its slices one after another: the
+ * disk's state and wall key are loaded once for them, where one entry a thread loaded them for each, and
+ * their counts' atomics are issued together. A work item is a disk and a chunk of its level's slices in the
+ * window, chunk by chunk over the window's disks (a list's neighbours in neighbouring threads); the entries
+ * keep their indices (window_entry). Random scene on one H200: N = 1e6, the binning 3.65 -> 3.41 ms over 10
+ * steps, 4.84e8 -> 4.92e8 particle-steps/s; N = 32000, 3.54 -> 3.33 ms over 200 steps; at 8 alike, at 2
+ * between. The fused placement (place_kernel's ENTRIES) chunked so was slower: N = 32000, 4.03 -> 4.59 ms
+ * (bench/gpu_h100_variants.log 25k). 1: an entry a thread. */
+#ifndef BIN_CHUNK
+#define BIN_CHUNK 4
+#endif
+
+/* The work items of a window's binning (WindowDisks): from ib[l], level l's, nl[l] a chunk of its slices. */
+static __device__ __forceinline__ int64_t chunk_items(const WindowDisks &d, uint32_t *ib)
+{
+    if (d.levels == 1) return d.na * (int64_t)((d.kw + BIN_CHUNK - 1) / BIN_CHUNK);
+    ib[0] = 0;
+#pragma unroll
+    for (int l = 0; l < LEVELS; l++) {
+        uint32_t rows = l < d.levels ? (uint32_t)level_rows(d.k0, d.k0 + d.kw, l) : 0;
+        ib[l + 1] = ib[l] + d.nl[l] * ((rows + BIN_CHUNK - 1) / BIN_CHUNK);
+    }
+    return ib[LEVELS];
+}
+
+/* Work item u of a window's binning (chunk_items): its disk (slot s, level l, place i in its
+ * list of nl), and its entries: slices kl0 to kl0 + BIN_CHUNK - 1 of the level's rows in the window, those
+ * below rows, entry base + kl nl + i in row row0 + kl. */
+typedef struct {
+    int64_t s, i, nl, base;
+    int l, kl0, rows, row0;
+} ChunkItem;
+
+static __device__ __forceinline__ ChunkItem chunk_item(const WindowDisks &d, const uint32_t *ib, int64_t u)
+{
+    ChunkItem c;
+    c.l = 0, c.base = 0;
+    int64_t j;
+    if (d.levels == 1) {
+        j = (uint32_t)u / (uint32_t)d.na, c.i = u - j * d.na; /* 32 bits: entries below 2^31 */
+        c.s = d.act ? d.act[c.i] : c.i;
+        c.nl = d.na, c.rows = d.kw, c.row0 = 0;
+    } else {
+        uint32_t b = ib[0];
+        c.nl = d.nl[0];
+#pragma unroll
+        for (int m = 1; m < LEVELS; m++)
+            if ((uint32_t)u >= ib[m] && d.nl[m] > 0) c.l = m, b = ib[m], c.nl = d.nl[m], c.base = d.base[m];
+        uint32_t v = (uint32_t)u - b;
+        j = v / (uint32_t)c.nl, c.i = v - j * c.nl;
+        c.s = d.lev[(int64_t)c.l * d.n + c.i];
+        c.rows = level_rows(d.k0, d.k0 + d.kw, c.l), c.row0 = level_base(d.k0, d.k0 + d.kw, c.l);
+    }
+    c.kl0 = (int)j * BIN_CHUNK;
+    return c;
+}
+
+/* The first slice of the level slice kl of item c's level in window d (window_entry's k). */
+static __device__ __forceinline__ int64_t chunk_slice(const WindowDisks &d, const ChunkItem &c, int kl)
+{
+    return d.levels == 1 ? (int64_t)d.k0 + kl : (int64_t)((d.k0 >> c.l) + kl) << c.l;
+}
+
+template <bool COLUMNS>
+static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid &gr, const WindowDisks &d,
+                                                 const uint32_t *ib, int64_t u, const uint64_t *wall_hi,
+                                                 uint32_t *keys, uint32_t *rank, uint32_t *count,
+                                                 const StepInfo *info)
+{
+    const ChunkItem c = chunk_item(d, ib, u);
+    const real2 pos = st.pos[c.s], vel = st.vel[c.s];
+    const uint64_t wall = wall_hi[c.s];
+    const int64_t wslice = wall != NO_EVENT ? slice_of(key_time(wall), gr.K) >> c.l : INT64_MAX;
+    uint32_t key[BIN_CHUNK], r[BIN_CHUNK];
+#pragma unroll
+    for (int t = 0; t < BIN_CHUNK; t++) {
+        int kl = c.kl0 + t;
+        int64_t k = chunk_slice(d, c, kl);
+        key[t] = KEY_OUT;
+        /* as bin_kernel: no entry in a slice after the wall event's */
+        if (kl < c.rows && !(k > 0 && (k >> c.l) > wslice))
+            key[t] = cell_key<COLUMNS>(gr, pos, vel, slice_mid(k, c.l, gr.K), c.row0 + kl, info);
+    }
+#pragma unroll
+    for (int t = 0; t < BIN_CHUNK; t++)
+        if (key[t] != KEY_OUT) r[t] = atomicAdd(&count[key[t]], 1u);
+#pragma unroll
+    for (int t = 0; t < BIN_CHUNK; t++) {
+        int kl = c.kl0 + t;
+        if (kl >= c.rows) continue;
+        int64_t e = c.base + (int64_t)kl * c.nl + c.i;
+        keys[e] = key[t];
+        if (key[t] != KEY_OUT) rank[e] = r[t];
+    }
+}
+
 /* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
  * middle; a disk of level l (disk_level) has an entry for each slice of its level, which starts at a
  * slice k that is a multiple of 2^l.
@@ -157,7 +253,10 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
     /* !LEVELS_LISTED: the compiler drops the lists' decoding, !COLUMNS the columns' fields (one-slice
      * steps: 47 registers, 5 blocks a multiprocessor; 53 and 4 with the columns' fields) */
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
-    ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
+    if constexpr (WINDOWS && BIN_CHUNK > 1) {
+        uint32_t ib[LEVELS + 1];
+        GRID_LOOP(u, chunk_items(d, ib)) bin_chunk<COLUMNS>(st, gr, d, ib, u, wall_hi, keys, rank, count, info);
+    } else ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         const WindowEntry x = window_entry(d, e);
         const int64_t s = x.s, k = x.k;
         const int l = x.l;
