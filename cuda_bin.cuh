@@ -178,13 +178,10 @@ static __device__ __forceinline__ ChunkItem chunk_item(const WindowDisks &d, con
         c.s = d.act ? d.act[c.i] : c.i;
         c.nl = d.na, c.rows = d.kw, c.row0 = 0;
     } else {
-        uint32_t b = ib[0];
-        c.nl = d.nl[0];
-#pragma unroll
-        for (int m = 1; m < LEVELS; m++)
-            if ((uint32_t)u >= ib[m] && d.nl[m] > 0) c.l = m, b = ib[m], c.nl = d.nl[m], c.base = d.base[m];
-        uint32_t v = (uint32_t)u - b;
-        j = v / (uint32_t)c.nl, c.i = v - j * c.nl;
+        const ItemLevel v = item_level(d, ib, (uint32_t)u);
+        c.l = v.l, c.nl = v.nl, c.base = v.base;
+        uint32_t at = (uint32_t)u - v.first;
+        j = at / (uint32_t)c.nl, c.i = at - j * c.nl;
         c.s = d.lev[(int64_t)c.l * d.n + c.i];
         c.rows = level_rows(d.k0, d.k0 + d.kw, c.l), c.row0 = level_base(d.k0, d.k0 + d.kw, c.l);
     }

@@ -417,6 +417,25 @@ static __device__ __forceinline__ int64_t window_entries(const WindowDisks &d)
     return e;
 }
 
+/* The speed level of item u of a window whose levels' items begin at first[l] (entries: d.base; the
+ * binning's chunks, chunk_items): the last level beginning at or before u (a level with none, and those
+ * beyond d.levels, begin where the next ones do, and are passed over); where its items begin, its disks
+ * (nl) and where its entries begin (base). Constant indices only, or d would go to local memory. */
+typedef struct {
+    int l;
+    uint32_t first;
+    int64_t nl, base;
+} ItemLevel;
+
+static __device__ __forceinline__ ItemLevel item_level(const WindowDisks &d, const uint32_t *first, uint32_t u)
+{
+    ItemLevel v = {0, first[0], d.nl[0], 0}; /* d.base[0] is 0 */
+#pragma unroll
+    for (int m = 1; m < LEVELS; m++)
+        if (u >= first[m] && d.nl[m] > 0) v.l = m, v.first = first[m], v.nl = d.nl[m], v.base = d.base[m];
+    return v;
+}
+
 static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d, int64_t e)
 {
     WindowEntry x;
@@ -429,19 +448,9 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
         x.row = kl;
         return x;
     }
-    /* the last level whose entries begin at or before e (a level with none, and those beyond d.levels,
-     * begin where the next ones do, and are passed over); constant indices only, or d would go to local
-     * memory */
-    int l = 0;
-    uint32_t b = d.base[0], nl = d.nl[0];
-#pragma unroll
-    for (int m = 1; m < LEVELS; m++)
-        if ((uint32_t)e >= d.base[m] && d.nl[m] > 0) {
-            l = m;
-            b = d.base[m];
-            nl = d.nl[m];
-        }
-    uint32_t j = (uint32_t)e - b, kl = j / nl, i = j - kl * nl;
+    const ItemLevel v = item_level(d, d.base, (uint32_t)e);
+    const int l = v.l;
+    const uint32_t nl = (uint32_t)v.nl, j = (uint32_t)e - v.first, kl = j / nl, i = j - kl * nl;
     x.s = d.lev[(int64_t)l * d.n + i];
     x.l = l;
     x.k = (int64_t)(((uint32_t)d.k0 >> l) + kl) << l;
