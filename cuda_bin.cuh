@@ -189,12 +189,6 @@ static __device__ __forceinline__ ChunkItem chunk_item(const WindowDisks &d, con
     return c;
 }
 
-/* The first slice of the level slice kl of item c's level in window d (window_entry's k). */
-static __device__ __forceinline__ int64_t chunk_slice(const WindowDisks &d, const ChunkItem &c, int kl)
-{
-    return d.levels == 1 ? (int64_t)d.k0 + kl : (int64_t)((d.k0 >> c.l) + kl) << c.l;
-}
-
 template <bool COLUMNS>
 static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid &gr, const WindowDisks &d,
                                                  const uint32_t *ib, int64_t u, const uint64_t *wall_hi,
@@ -203,15 +197,14 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
 {
     const ChunkItem c = chunk_item(d, ib, u);
     const real2 pos = st.pos[c.s], vel = st.vel[c.s];
-    const uint64_t wall = wall_hi[c.s];
-    const int64_t wslice = wall != NO_EVENT ? slice_of(key_time(wall), gr.K) >> c.l : INT64_MAX;
+    const int64_t wslice = wall_level_slice(wall_hi[c.s], c.l, gr.K);
     uint32_t key[BIN_CHUNK], r[BIN_CHUNK];
 #pragma unroll
     for (int t = 0; t < BIN_CHUNK; t++) {
         int kl = c.kl0 + t;
-        int64_t k = chunk_slice(d, c, kl);
+        int64_t k = level_slice_first(d.k0, c.l, (uint32_t)kl); /* window_entry's k */
         key[t] = KEY_OUT;
-        /* as bin_kernel: no entry in a slice after the wall event's */
+        /* no entry in a slice after the wall event's (wall_level_slice) */
         if (kl < c.rows && !(k > 0 && (k >> c.l) > wslice))
             key[t] = cell_key<COLUMNS>(gr, pos, vel, slice_mid(k, c.l, gr.K), c.row0 + kl, info);
     }
@@ -231,10 +224,8 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
 /* Entry e of window w (window_entry): a disk in slice k, keyed by the cell of its position at the slice's
  * middle; a disk of level l (disk_level) has an entry for each slice of its level, which starts at a
  * slice k that is a multiple of 2^l.
- * A pair event at or after a disk's wall event is never accepted (the wall event comes first in the
- * order of 3.3 and takes the disk, unless something earlier did), so slices that start after the
- * disk's wall time get no entry (key KEY_OUT): disks flying through a wall would otherwise pile up in
- * the border cells. slice_of(t) <= slice_of(tw) for t < tw, so the slice test is exact. Midpoints are
+ * Slices that start after the disk's wall event get no entry (key KEY_OUT, wall_level_slice): disks
+ * flying through a wall would otherwise pile up in the border cells. Midpoints are
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
  * changes where disks sit in memory and nothing else (every decision compares values). */
@@ -258,12 +249,11 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         const int64_t s = x.s, k = x.k;
         const int l = x.l;
         real2 vel = st.vel[s];
-        if (k > 0) { /* the wall event as init_kernel keyed it: the time wall_time gives, or none by t = 1 */
-            uint64_t wall = wall_hi[s];
-            if (wall != NO_EVENT && (k >> l) > (slice_of(key_time(wall), gr.K) >> l)) {
-                keys[e] = KEY_OUT;
-                continue;
-            }
+        /* no entry in a slice after the wall event's (wall_level_slice); the wall key as init_kernel keyed
+         * it, loaded only where a slice can be after it */
+        if (k > 0 && (k >> l) > wall_level_slice(wall_hi[s], l, gr.K)) {
+            keys[e] = KEY_OUT;
+            continue;
         }
         uint32_t key = cell_key<COLUMNS>(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;

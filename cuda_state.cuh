@@ -118,6 +118,12 @@ static __device__ __forceinline__ double slice_mid(int64_t k, int l, int K)
     return (double)(span.x + span.y) / (double)(2 * K);
 }
 
+/* The first slice of the kl-th slice of level l in a window from slice k0 (a multiple of 2^l). */
+static __device__ __forceinline__ int64_t level_slice_first(int k0, int l, uint32_t kl)
+{
+    return (int64_t)(((uint32_t)k0 >> l) + kl) << l;
+}
+
 /* The slices of level l in a window of slices k0 to k1 - 1 (k0 a multiple of 2^l). */
 static __host__ __device__ __forceinline__ int level_rows(int k0, int k1, int l)
 {
@@ -346,6 +352,16 @@ static __device__ __forceinline__ uint64_t wall_key(real x, real y, real vx, rea
     return tw <= 1 ? time_key(tw) : NO_EVENT;
 }
 
+/* The level-l slice of a disk's wall event (its slice of the K >> l slices of level l), or INT64_MAX
+ * where it has none by t = 1. A pair event at or after the wall event is never accepted (the wall event
+ * comes first in the order of 3.3 and takes the disk, unless something earlier did), so the binning keys
+ * the disk out of every later level slice (bin_kernel); slice_of(t) <= slice_of(tw) for t < tw, so that
+ * test is exact. */
+static __device__ __forceinline__ int64_t wall_level_slice(uint64_t wall, int l, int K)
+{
+    return wall != NO_EVENT ? slice_of(key_time(wall), K) >> l : INT64_MAX;
+}
+
 /* A disk's wall event as the choice of a window that ends before slice `end` sees it: there only if its
  * slice is in the window (a later window may still find an earlier pair event of the disk). */
 static __device__ __forceinline__ uint64_t window_wall(uint64_t wall, int K, int end)
@@ -453,7 +469,7 @@ static __device__ __forceinline__ WindowEntry window_entry(const WindowDisks &d,
     const uint32_t nl = (uint32_t)v.nl, j = (uint32_t)e - v.first, kl = j / nl, i = j - kl * nl;
     x.s = d.lev[(int64_t)l * d.n + i];
     x.l = l;
-    x.k = (int64_t)(((uint32_t)d.k0 >> l) + kl) << l;
+    x.k = level_slice_first(d.k0, l, kl);
     x.row = level_base(d.k0, d.k0 + d.kw, l) + kl;
     return x;
 }
