@@ -440,7 +440,7 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
  * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
  * disk itself); the disks, or the entries' slots and midpoints, are then gathered with coalesced writes
  * (gather_state_kernel, gather_entries_kernel). ENTRIES (K > 1 below
- * PLACE_FUSED_N disks, cuda.cu's place_fused): the gather of the entries (gather_entries_kernel) done here
+ * PLACE_FUSED_N disks, cuda_launch.cuh's place_fused): the gather of the entries (gather_entries_kernel) done here
  * too, each entry's slot and midpoint scattered to its place with its key, the disk read in entry order (a
  * level list's order) rather than in cell order, and no order[] written or read: a kernel and 8 bytes an
  * entry fewer, 20 more scattered. */

@@ -96,12 +96,12 @@ for name in $(pick "slow fast overlap walls random" "fast walls"); do
     done
 done
 
-# Batches of BATCH steps run as one CUDA graph unless --stats (cuda.cu, batch_launch), as the perf
+# Batches of BATCH steps run as one CUDA graph unless --stats (cuda_launch.cuh, batch_launch), as the perf
 # cases above do: here kernel by kernel (SIM_CUDA_GRAPH=0), and in graphs through refused steps and
 # plans that alternate between one slice and several, which change the graphs' shape (the event list
 # of 2 overflows on these scenes: the --stats cases above count the refusals; without --stats the
 # graphs stay on). Each kernel of a step starts launching while the one before it drains (programmatic
-# dependent launch, cuda.cu step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
+# dependent launch, cuda_launch.cuh step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
 for name in $(pick "fast random dense spread" "random spread"); do
     for what in "kernel by kernel" "graphs, refused steps" "graphs, no programmatic launches"; do
         label="cuda/$name perf, $what"
@@ -237,7 +237,7 @@ for name in $(pick "slow fast walls random" "fast walls"); do
 done
 
 # Steps of several slices place each entry's slot and midpoint with its key below PLACE_FUSED_N disks
-# (every scene above), else gather them in cell order after placing (cuda.cu, place_fused): here the
+# (every scene above), else gather them in cell order after placing (cuda_launch.cuh, place_fused): here the
 # gather, forced by SIM_CUDA_FUSED_N=0, on scenes of several slices, and with windows and speed levels.
 for name in $(pick "fast random fast_mid mixed_gas tiny_r dense_fast spread" "random spread"); do
     for run in "print" "perf" "perf windows"; do

@@ -1,0 +1,290 @@
+/* cuda_launch.cuh: the host's launches: a step's kernels, phase by phase, and a batch of steps as one CUDA graph.
+ * Part of cuda.cu, which includes it after its host-side types and the files before it (cuda.cu's
+ * list). */
+
+/* A kernel of a step, as a programmatic dependent launch where c->pdl (after_previous): random scene,
+ * N = 32000, 1.72e8 against 1.66e8 particle-steps/s without; 1e5 and 1e6 4% to 5% faster, the gas of
+ * 1e7 alike (bench/gpu_h100_variants.log 10b). */
+template <typename... P, typename... A>
+static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void (*kernel)(P...), A &&...args)
+{
+    cudaLaunchConfig_t cfg = {};
+    cfg.gridDim = dim3((unsigned)blocks);
+    cfg.blockDim = dim3((unsigned)threads);
+    cfg.dynamicSmemBytes = smem;
+    cfg.stream = c->stream;
+    cudaLaunchAttribute pdl;
+    pdl.id = cudaLaunchAttributeProgrammaticStreamSerialization;
+    pdl.val.programmaticStreamSerializationAllowed = 1;
+    cfg.attrs = &pdl;
+    cfg.numAttrs = c->pdl ? 1 : 0;
+    CUDA_CHECK(cudaLaunchKernelEx(&cfg, kernel, std::forward<A>(args)...));
+}
+
+/* The choice among window w's pair events (wall: the wall events as it sees them). */
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
+{
+    phase_mark(c, ring, w, 4);
+    int64_t blocks = pl->choose_blocks[w];
+    const unsigned long long *found = &c->info->found[w];
+    unsigned long long *counts = c->counts + w * (MAX_ROUNDS + 1);
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
+    step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
+    int list = 0;
+    const unsigned long long *len = found;
+    for (int r = 1; r < pl->rounds[w]; r++) {
+        step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[list], len, c->ev_cap, c->ev[1 - list],
+                    &counts[r], c->partner, wall, c->best_hi, c->best_lo);
+        list = 1 - list;
+        len = &counts[r];
+        step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[list], len, c->ev_cap, c->best_hi);
+        step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+        step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
+                    c->partner);
+    }
+    phase_mark(c, ring, w, 5);
+    step_kernel(c, 1, 1024, 0, finish_kernel, c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner, wall,
+                c->best_hi, c->best_lo);
+    phase_mark(c, ring, w, 6);
+}
+
+/* Whether a cell table of len counts is scanned by the step's two short kernels (else by cub's scan). */
+static bool scan_short(const Cuda *c, int64_t len)
+{
+    return (len + SCAN_TILE - 1) / SCAN_TILE <= c->scan_tiles;
+}
+
+/* The cell counts of window w's table cleared where the last scan left them (the short scans clear the
+ * counts behind them; after cub's, they are cleared before binning); returns whether the table is
+ * scanned by the two short kernels. */
+static bool bin_clear(Cuda *c, const Plan *pl, int w)
+{
+    int64_t len = pl->wcells[w] + 1;
+    bool short_scan = scan_short(c, len);
+    c->scans[short_scan]++;
+    if (!short_scan || c->dirty > 0) {
+        int64_t clear = len > c->dirty ? len : c->dirty;
+        CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)clear * sizeof(uint32_t), c->stream));
+        c->dirty = 0;
+    }
+    return short_scan;
+}
+
+/* Whether steps of several slices place each entry's slot and midpoint with its key (place_kernel's ENTRIES)
+ * rather than gather them in cell order after (gather_entries_kernel): a kernel fewer, their 20 bytes
+ * scattered instead of written in order. The scatter pays while the entries are few: random scene on one
+ * H200, N = 32000, 1e5 and 3e5 2 to 3% faster, but 1e6 1% and 4e6 11% slower, its placement 19.3 -> 30.4
+ * ms over 10 steps (bench/gpu_h100_variants.log 24a, 24c). */
+static bool place_fused(const Cuda *c)
+{
+    return c->n < c->fused_n;
+}
+
+/* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
+ * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
+ * midpoint, from state buffer in). */
+template <bool WINDOWS>
+static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act, const int32_t *lev, int ring,
+                              bool short_scan, int in)
+{
+    int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
+    if (short_scan) {
+        step_kernel(c, tiles, THREADS, 0, tile_sum_kernel, c->count, len, c->tile_sums);
+        step_kernel(c, tiles, THREADS, 0, tile_scan_kernel, c->count, len, c->tile_sums, c->start);
+    } else {
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start, len,
+                                                 c->stream));
+        c->dirty = len;
+    }
+    phase_mark(c, ring, w, 2);
+    uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
+    bool fused = act && place_fused(c);
+    auto place = fused ? (lev ? place_kernel<WINDOWS, true, true> : place_kernel<WINDOWS, false, true>)
+                       : (lev ? place_kernel<WINDOWS, true, false> : place_kernel<WINDOWS, false, false>);
+    step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
+                c->start, sorted, c->order, c->en);
+}
+
+/* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
+ * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
+ * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
+ * where the keys are taken loops over its entries: few blocks to start. */
+template <bool WINDOWS>
+static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
+                             int ring, bool keyed)
+{
+    int64_t blocks = window_blocks(c, pl, w);
+    bool short_scan = bin_clear(c, pl, w);
+    if (keyed) { /* one slice */
+        step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n,
+                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
+        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
+    } else {
+        /* the gate's K is at most the plan's: a plan of one column has a grid of one */
+        auto bin = lev ? (pl->gsx > 1 ? bin_kernel<WINDOWS, true, true> : bin_kernel<WINDOWS, true, false>)
+                       : (pl->gsx > 1 ? bin_kernel<WINDOWS, false, true> : bin_kernel<WINDOWS, false, false>);
+        step_kernel(c, blocks, THREADS, 0, bin, c->st[in], c->n, c->grid, w, act, lev, c->info, c->wall_hi, c->keys,
+                    c->rank, c->count, 1);
+    }
+    phase_mark(c, ring, w, 1);
+    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan, in);
+}
+
+/* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the
+ * build for the run's box. */
+template <bool PERIODIC>
+static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
+{
+    int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
+    const uint32_t *keys = c->keys_sorted, *start = c->start;
+    if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, true>, en, c->keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else if (pl->K == 1)
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, false>, en, keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else if (pl->W == 1)
+        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC, false>, en, keys, start, c->grid,
+                    w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else
+        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC, false>, en, keys, start,
+                    c->grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+}
+
+static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
+{
+    if (c->par.periodic)
+        detect_box<true>(c, pl, w, en);
+    else
+        detect_box<false>(c, pl, w, en);
+}
+
+/* Launches one step from the current state; if the step commits, the current state is then in c->cur.
+ * ring: the step's phase marks under --stats; first, last: whether it is its batch's first, last. In
+ * steps of one slice where moves key ahead (MoveBin): keyed, the move of the step before keyed the
+ * disks' cells for this one; key_ahead, this one's move keys them for the next. */
+static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last)
+{
+    int64_t n = c->n;
+    int in = c->cur;
+    const Grid *grid = c->grid;
+    c->step_windows[ring] = pl->W;
+    bool ahead = pl->K == 1 && c->ahead_slack > 0, keyed = ahead && !first, key_ahead = ahead && !last;
+    /* a step the move before keyed searches the disks where that move left them, through the cell
+     * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
+     * gathers, so the disks return to cell order every BATCH steps (between them a gas's disks move a
+     * few cells at most, and the search's loads stay near each other), and a step run again after a
+     * refusal starts from a gather. */
+    bool slots = SLOT_STEPS && keyed;
+    step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
+                pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
+    if (pl->K == 1) {
+        phase_mark(c, ring, 0, 0);
+        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
+        if (!slots) {
+            step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
+                        c->par, c->wall_hi, c->best_hi, LO_AT_EVENT ? (uint64_t *)NULL : c->best_lo, c->partner,
+                        c->ctl, (uint32_t *)NULL, (int64_t)0);
+            in = 1 - in;
+        }
+        DevState *d = &c->st[in];
+        Entries en;
+        en.pos = d->pos, en.vel = d->vel, en.id = d->id;
+        en.slot = slots ? (int32_t *)c->order : NULL;
+        en.rank = c->rank;
+        en.wall = c->wall_hi;
+        en.mid = NULL;
+        en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
+        phase_mark(c, ring, 0, 3);
+        detect_launch(c, pl, 0, en);
+        choose_launch(c, pl, 0, c->wall_hi, ring);
+    } else {
+        for (int w = 0; w < pl->W; w++) {
+            phase_mark(c, ring, w, 0);
+            int32_t *act = c->act[w & 1];
+            int32_t *lev = pl->levels > 1 ? c->lev : NULL; /* the device's grid may take fewer */
+            if (w == 0)
+                step_kernel(c, blocks_for(n), THREADS, 0, init_kernel, c->st[in], n, grid, c->par, c->wall_hi,
+                            c->wall_win, c->best_hi, c->best_lo, c->partner, c->level_of, c->lev, c->info);
+            else
+                step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, activate_kernel, n, grid, w, c->act[(w - 1) & 1],
+                            act, c->info, c->partner, c->wall_hi, c->wall_win, c->best_hi, c->best_lo, c->level_of,
+                            c->lev);
+            if (pl->W == 1 && !W1_LOOP)
+                bin_place_launch<false>(c, pl, w, in, act, lev, ring, false);
+            else
+                bin_place_launch<true>(c, pl, w, in, act, lev, ring, false);
+            if (!place_fused(c))
+                step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act,
+                            lev, c->info, c->order, c->start, grid, c->en);
+            phase_mark(c, ring, w, 3);
+            Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
+            en.pos = c->st[in].pos, en.vel = c->st[in].vel, en.id = c->st[in].id, en.wall = c->wall_hi;
+            detect_launch(c, pl, w, en);
+            choose_launch(c, pl, w, c->wall_win, ring);
+        }
+    }
+    RankMove none = {};
+    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true, *> alone */
+    if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.partner = c->partner;
+    if (SLOT_STEPS && !LO_AT_EVENT) mb.best_lo = c->best_lo;
+    mb.ids_alike = slots;
+    auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
+                          : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);
+    int64_t move_blocks = MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n);
+    step_kernel(c, move_blocks, THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
+                c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
+    phase_mark(c, ring, pl->W - 1, 7);
+    step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
+    c->cur = 1 - in;
+}
+
+/* What sets the kernels a batch launches, and in what order (step_launch): its steps, one slice or
+ * several, the windows, the speed levels' lists, each window's choice rounds and way of scanning its
+ * cell table, and whether a scan by cub left counts to clear. */
+static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
+{
+    uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
+    int64_t f[5 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0};
+    for (int w = 0; w < pl->W && w < WMAX; w++) {
+        f[5 + 2 * w] = pl->rounds[w];
+        f[6 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
+    }
+    for (int i = 0; i < 5 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
+    return h;
+}
+
+/* Steps first to last, from the current state (cur_at: the state each starts from). A batch of BATCH
+ * steps whose shape (batch_shape) is that of the last batch of its slot b is captured and launched as
+ * one graph, whose kernels the device starts with less delay between them than kernels launched one
+ * by one (random scene, N = 32000: 1.62e8-1.65e8 against 1.51e8-1.52e8 particle-steps/s). graph[b] is
+ * updated in place (only sizes and pointers differ), made the first time; slot b's last launch has
+ * finished by then (the host read its batch back). Other batches launch kernel by kernel: making a
+ * graph takes milliseconds, which a run of 10 steps at N = 1e6 does not win back (2.5e8 against 2.8e8
+ * when every full batch made one), and so do --stats runs. bench/gpu_h100_variants.log 9h. */
+static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at)
+{
+    if (c->scan_alternate) c->scan_tiles = b ? SCAN_TILES : 0; /* SIM_CUDA_SCAN_TILES=-1 */
+    uint64_t shape = batch_shape(c, pl, last - first + 1);
+    int graph = c->graphs && last - first + 1 == BATCH && shape == c->shape[b];
+    c->shape[b] = shape;
+    if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
+    for (int64_t s = first; s <= last; s++) {
+        cur_at[s % RING] = c->cur;
+        step_launch(c, pl, (int)(s % RING), s == first, s == last);
+    }
+    if (!graph) return;
+    cudaGraph_t g;
+    CUDA_CHECK(cudaStreamEndCapture(c->stream, &g));
+    if (c->graph[b]) {
+        cudaGraphExecUpdateResultInfo info;
+        if (cudaGraphExecUpdate(c->graph[b], g, &info) != cudaSuccess) {
+            cudaGetLastError(); /* a graph of another shape: made anew below */
+            CUDA_CHECK(cudaGraphExecDestroy(c->graph[b]));
+            c->graph[b] = NULL;
+        }
+    }
+    if (!c->graph[b]) CUDA_CHECK(cudaGraphInstantiate(&c->graph[b], g, 0));
+    CUDA_CHECK(cudaGraphDestroy(g));
+    CUDA_CHECK(cudaGraphLaunch(c->graph[b], c->stream));
+}
