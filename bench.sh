@@ -28,7 +28,8 @@ subcommands (SUBCOMMAND --help tells more where it has options of its own):
               (PARTS="fluid loop rungs"; --quick: seconds)
   gpu-check   on a GPU machine: build, make test, compute-sanitizer memcheck
   gpu-perf    on a GPU machine: cuda against omp on gases and the random scene (also gpu-host,
-              gpu-big, gpu-profile, gpu-kernels, gpu-targets, gpu-goals: see bench/cmd/gpu.sh)
+              gpu-big, gpu-profile, gpu-kernels, gpu-targets, gpu-goals, gpu-bytes, gpu-streams: see
+              bench/cmd/gpu.sh)
   gpu-sweep   on a GPU machine: the sweeps of REPORT.md in parts of under 10 minutes (small|cuda|big)
   variants    on a GPU machine: cuda.cu's build variants timed against each other
   viewer      the viewer's frame rates in headless Chromium (N and steps as arguments)
@@ -76,7 +77,7 @@ fi
 case $cmd in
     sweep | targets | phases | io | exact | mpi | accuracy | dense | variants | plots) exec bash "bench/cmd/$cmd.sh" "$@" ;;
     gpu-sweep) exec bash bench/cmd/gpu_sweep.sh "$@" ;;
-    gpu-check | gpu-memcheck | gpu-perf | gpu-host | gpu-big | gpu-profile | gpu-kernels | gpu-targets | gpu-goals | gpu-bytes | gpu-all)
+    gpu-check | gpu-memcheck | gpu-perf | gpu-host | gpu-big | gpu-profile | gpu-kernels | gpu-targets | gpu-goals | gpu-bytes | gpu-streams | gpu-all)
         exec bash bench/cmd/gpu.sh "${cmd#gpu-}" "$@" ;;
     viewer) exec python3 tools/viewer_bench.py "$@" ;;
     *) echo "bench.sh: unknown subcommand '$cmd' (see ./bench.sh --help)" >&2; exit 1 ;;

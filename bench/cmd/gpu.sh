@@ -32,6 +32,8 @@
 #                            scenes (GOALS_SCENES=none GOALS_BIG=1: the gas of 1e8 alone)
 #   ./bench.sh gpu-bytes   DRAM bytes a particle-step, kernel by kernel, under Nsight Compute, on the gas
 #                            of 1e7 (BYTES_N), beside the 80-byte floor
+#   ./bench.sh gpu-streams the memory streams of cuda's move of a gas alone (bench/cmd/streams.cu, N = 1e7):
+#                            the time its bytes take, the move's floor
 #   ./bench.sh gpu-all     check, then perf
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -412,8 +414,18 @@ do_goals() {
     fi
 }
 
+# The move's memory streams alone (bench/cmd/streams.cu).
+do_streams() {
+    local nvcc=${NVCC:-nvcc}
+    "$nvcc" -O2 ${CUDA_ARCH:--arch=native} bench/cmd/streams.cu -o "$OUT/streams" > "$OUT/streams_build.log" 2>&1 \
+        || { tail -5 "$OUT/streams_build.log"; return 1; }
+    machine_provenance "$(cut -d' ' -f1-3 /proc/loadavg)" "$(nproc)" | tee "$OUT/streams.log"
+    "$OUT/streams" "${STREAMS_N:-10000000}" | tee -a "$OUT/streams.log"
+}
+
 case ${1:-all} in
 check) do_check ;;
+streams) do_streams ;;
 goals) do_goals ;;
 bytes) do_bytes ;;
 memcheck) do_memcheck ;;
