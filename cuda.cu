@@ -494,7 +494,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
 static double bytes_needed(const Params *par, int print_buffer)
 {
     double n = (double)par->n;
-    double state = 2 * (4 * sizeof(real) + 4) + 2 * 4; /* two state buffers (pos, vel, id); pc, wc */
+    double state = 2 * (4 * sizeof(real) + 4) + 2 * 4; /* two state buffers (disks, ids); pc, wc */
     double keys = 3 * 8 + 4;                           /* wall_hi, best_hi, best_lo; partner */
     double events = 2 * sizeof(PairEvent) * (n / EVENTS_PER_DISK + 4096) / n;
     double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, keys_sorted, order; count, start */

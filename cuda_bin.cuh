@@ -196,7 +196,7 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
                                                  const StepInfo *info)
 {
     const ChunkItem c = chunk_item(d, ib, u);
-    const real2 pos = st.pos[c.s], vel = st.vel[c.s];
+    const real2 pos = st.d[c.s].pos, vel = st.d[c.s].vel;
     const int64_t wslice = wall_level_slice(wall_hi[c.s], c.l, gr.K);
     uint32_t key[BIN_CHUNK], r[BIN_CHUNK];
 #pragma unroll
@@ -248,14 +248,14 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         const WindowEntry x = window_entry(d, e);
         const int64_t s = x.s, k = x.k;
         const int l = x.l;
-        real2 vel = st.vel[s];
+        real2 vel = st.d[s].vel;
         /* no entry in a slice after the wall event's (wall_level_slice); the wall key as init_kernel keyed
          * it, loaded only where a slice can be after it */
         if (k > 0 && (k >> l) > wall_level_slice(wall_hi[s], l, gr.K)) {
             keys[e] = KEY_OUT;
             continue;
         }
-        uint32_t key = cell_key<COLUMNS>(gr, st.pos[s], vel, slice_mid(k, l, gr.K), x.row, info);
+        uint32_t key = cell_key<COLUMNS>(gr, st.d[s].pos, vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
         rank[e] = atomicAdd(&count[key], 1u);
     }
@@ -299,11 +299,11 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
      * in the host's reckoning, so an odd number of them before a K = 1 step leaves it one off). */
     uint32_t s = order[p];
     if (s >= n) s = 0;
-    real2 pos = in.pos[s], vel = in.vel[s];
+    Disk disk = in.d[s];
     int32_t id = in.id[s];
     if (refused(ctl)) return;
-    out.pos[p] = pos;
-    out.vel[p] = vel;
+    out.d[p] = disk;
+    real2 pos = disk.pos, vel = disk.vel;
     bool sent = ((uint32_t)id & ID_SENT) != 0;
     out.id[p] = (int32_t)((uint32_t)id & ~ID_SENT);
     slot_init(p, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
@@ -392,11 +392,11 @@ __global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *s
     }
 }
 
-/* What the pair search reads of the disks: their state and wall keys (pos to wall), and where K > 1 one
+/* What the pair search reads of the disks: their state and wall keys (disk to wall), and where K > 1 one
  * entry a disk and slice in cell order, its slot and mid, so that the screens read neighbours
  * contiguously (the few pairs they pass read the state through the slot). */
 typedef struct {
-    real2 *pos, *vel;
+    Disk *disk;
     int32_t *id, *slot;
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
@@ -416,7 +416,7 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
 static __device__ __forceinline__ void put_entry(const DevState &st, const Entries &en, int64_t p, const WindowEntry &x,
                                                  int K)
 {
-    real2 pos = st.pos[x.s], vel = st.vel[x.s];
+    real2 pos = st.d[x.s].pos, vel = st.d[x.s].vel;
     en.slot[p] = (int32_t)x.s;
     double f = slice_mid(x.k, x.l, K);
     en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
@@ -494,7 +494,7 @@ __global__ void init_kernel(DevState st, int64_t n, const Grid *grid, Params par
     const int levels = grid->levels;
     int l = 0;
     if (s < n) {
-        real2 pos = st.pos[s], vel = st.vel[s];
+        real2 pos = st.d[s].pos, vel = st.d[s].vel;
         uint64_t wall = wall_key(pos.x, pos.y, vel.x, vel.y, par);
         slot_init(s, wall, wall_hi, best_hi, best_lo, partner);
         uint64_t seen = window_wall(wall, grid->K, grid->wb[1]);

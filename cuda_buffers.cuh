@@ -24,16 +24,13 @@ static void *dev_alloc(size_t bytes, const char *what)
 
 static void state_alloc(DevState *d, int64_t n)
 {
-    size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
-    d->pos = (real2 *)dev_alloc(2 * nd, "the state");
-    d->vel = (real2 *)dev_alloc(2 * nd, "the state");
-    d->id = (int32_t *)dev_alloc(ni, "the state");
+    d->d = (Disk *)dev_alloc((size_t)n * sizeof(Disk), "the state");
+    d->id = (int32_t *)dev_alloc((size_t)n * sizeof(int32_t), "the state");
 }
 
 static void state_free(DevState *d)
 {
-    cudaFree(d->pos);
-    cudaFree(d->vel);
+    cudaFree(d->d);
     cudaFree(d->id);
 }
 
@@ -193,7 +190,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
      * then paired into positions and velocities, with ids, on the device */
     DevState *d = &c->st[0], *spare = &c->st[1];
     size_t nd = (size_t)n * sizeof(real), ni = (size_t)n * sizeof(int32_t);
-    real *x = (real *)spare->pos, *vx = (real *)spare->vel;
+    real *x = (real *)spare->d, *vx = x + 2 * n; /* its 4 n reals as x, y, vx, vy */
     CUDA_CHECK(cudaMemcpy(x, sim->x, nd, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(x + n, sim->y, nd, cudaMemcpyHostToDevice));
     CUDA_CHECK(cudaMemcpy(vx, sim->vx, nd, cudaMemcpyHostToDevice));

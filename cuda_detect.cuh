@@ -135,8 +135,8 @@ static __device__ __forceinline__ uint64_t slot_wall(const Entries &en, uint32_t
 template <bool PERIODIC>
 static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, uint32_t ps)
 {
-    pr.pos = __ldg(&en.pos[ps]);
-    pr.vel = __ldg(&en.vel[ps]);
+    pr.pos = __ldg(&en.disk[ps].pos);
+    pr.vel = __ldg(&en.disk[ps].vel);
     pr.id = __ldg(&en.id[ps]);
     pr.wall = slot_wall<PERIODIC>(en, ps);
 }
@@ -154,8 +154,8 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     const uint32_t d = SLOTS || MID ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
     const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;          /* and p's, where MID */
     const bool lazy = MID && PROBE_LAZY;
-    real2 pos2 = __ldg(&en.pos[d]), vel2 = __ldg(&en.vel[d]);
-    const real2 pos1 = lazy ? __ldg(&en.pos[ps]) : pr.pos, vel1 = lazy ? __ldg(&en.vel[ps]) : pr.vel;
+    real2 pos2 = __ldg(&en.disk[d].pos), vel2 = __ldg(&en.disk[d].vel);
+    const real2 pos1 = lazy ? __ldg(&en.disk[ps].pos) : pr.pos, vel1 = lazy ? __ldg(&en.disk[ps].vel) : pr.vel;
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
      * is lower, and only the event's fields below depend on the order. */
@@ -406,7 +406,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * those of its entries' disks would scatter); every slot has an entry, as a step of one slice
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
             uint32_t key = MID || SLOTS ? __ldg(&keys[p])
-                                        : cell_key<false>(*grid, __ldg(&en.pos[p]), __ldg(&en.vel[p]),
+                                        : cell_key<false>(*grid, __ldg(&en.disk[p].pos), __ldg(&en.disk[p].vel),
                                                           slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
             /* the cell's columns (Grid.sx; 1 in one slice and in the periodic box): the runs reach sx of

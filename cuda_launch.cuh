@@ -189,7 +189,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
         DevState *d = &c->st[in];
         Entries en;
-        en.pos = d->pos, en.vel = d->vel, en.id = d->id;
+        en.disk = d->d, en.id = d->id;
         en.slot = slots ? (int32_t *)c->order : NULL;
         en.rank = c->rank;
         en.wall = c->wall_hi;
@@ -219,7 +219,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
                             lev, c->info, c->order, c->start, grid, c->en);
             phase_mark(c, ring, w, 3);
             Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
-            en.pos = c->st[in].pos, en.vel = c->st[in].vel, en.id = c->st[in].id, en.wall = c->wall_hi;
+            en.disk = c->st[in].d, en.id = c->st[in].id, en.wall = c->wall_hi;
             detect_launch(c, pl, w, en);
             choose_launch(c, pl, w, c->wall_win, ring);
         }

@@ -108,8 +108,8 @@ template <bool WALL>
 static __device__ __forceinline__ void move_load(const DevState &in, const int32_t *partner, const uint64_t *wall_hi,
                                                  int64_t s, real2 &pos, real2 &vel, int32_t &o, uint64_t &wall)
 {
-    pos = in.pos[s];
-    vel = in.vel[s];
+    pos = in.d[s].pos;
+    vel = in.d[s].vel;
     o = partner[s];
     if (WALL) wall = wall_hi[s];
 }
@@ -169,7 +169,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 /* both partners compute the contact with the lower original index as i, then each
                  * finishes its own side: the arithmetic of pair_collide */
                 real t1 = key_time(best_hi[s]);
-                real2 pos2 = in.pos[o], vel2 = in.vel[o];
+                real2 pos2 = in.d[o].pos, vel2 = in.d[o].vel;
                 real x2 = pos2.x, y2 = pos2.y, vx2 = vel2.x, vy2 = vel2.y;
                 int mine_first = id < in.id[o];
                 real xi = mine_first ? x : x2, yi = mine_first ? y : y2;
@@ -206,7 +206,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             bool stays = !RANK || rank_stays(rm, s, pos1, vel1, id, pc, wc);
             if (RANK && rm.again) { /* the leaver's record alone (rank_stays) */
             } else if (stays) {
-                out.pos[s] = pos1, out.vel[s] = vel1;
+                out.d[s].pos = pos1, out.d[s].vel = vel1;
                 if (RANK || !BIN || !mb.ids_alike) out.id[s] = id;
             } else {
                 out.id[s] = RANK_HOLE;
@@ -248,7 +248,7 @@ __global__ void unpermute_kernel(DevState st, int64_t n, real *x, real *y, real 
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
     int32_t i = st.id[s];
-    real2 pos = st.pos[s], vel = st.vel[s];
+    real2 pos = st.d[s].pos, vel = st.d[s].vel;
     x[i] = pos.x;
     y[i] = pos.y;
     vx[i] = vel.x;
@@ -265,7 +265,7 @@ __global__ void pair_up_kernel(DevState st, int64_t n, const real *x, const real
     pos.y = y[i];
     vel.x = vx[i];
     vel.y = vy[i];
-    st.pos[i] = pos;
-    st.vel[i] = vel;
+    st.d[i].pos = pos;
+    st.d[i].vel = vel;
     st.id[i] = (int32_t)i;
 }

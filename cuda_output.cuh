@@ -163,7 +163,7 @@ static void state_download_and_write(Cuda *c, Sim *sim, Output *out)
 {
     int64_t n = c->n;
     DevState *spare = &c->st[1 - c->cur];
-    real *x = (real *)spare->pos, *vx = (real *)spare->vel;
+    real *x = (real *)spare->d, *vx = x + 2 * n; /* its 4 n reals as x, y, vx, vy */
     unpermute_kernel<<<blocks_for(n), THREADS, 0, c->stream>>>(c->st[c->cur], n, x, x + n, vx, vx + n, c->ctl);
     CUDA_LAUNCHED();
     CUDA_CHECK(cudaStreamSynchronize(c->stream));

@@ -11,11 +11,21 @@ typedef float2 real2;
 typedef double2 real2;
 #endif
 
+/* A disk's position (x, y) and velocity (vx, vy), side by side: a disk read at a scattered slot (the pair
+ * search's candidates, a pair's partner, the gather) takes one 32-byte sector in double, where a position and a
+ * velocity kept apart took two. Random scene, N = 1e6, on one H200: 4.91e8 -> 5.07e8 particle-steps/s; but the
+ * gas of 1e7's search, whose probes' coalesced loads of their own disks now each touch twice the sectors they
+ * use, 20.68 -> 21.24 ms over 50 steps: the gas 8.75e9 -> 8.69e9, the dense gas 6.59e9 -> 6.50e9
+ * (bench/gpu_h100_variants.log 26c). */
+typedef struct {
+    real2 pos, vel;
+} Disk;
+
 /* One copy of the disks in slot order; id maps a slot to the disk's original index. The collision
  * counts stay in original order outside it (Cuda.pc, Cuda.wc): only the few disks with an event touch
  * them, so they are not carried along when the disks change places. */
 typedef struct {
-    real2 *pos, *vel; /* (x, y) and (vx, vy) */
+    Disk *d;
     int32_t *id;
 } DevState;
 

@@ -131,8 +131,8 @@ __global__ void rank_put_kernel(const double *rec, int64_t n, DevState st, int32
     const double *d = rec + i * D_LEN;
     real2 pos, vel;
     pos.x = (real)d[D_X], pos.y = (real)d[D_Y], vel.x = (real)d[D_VX], vel.y = (real)d[D_VY];
-    st.pos[at + i] = pos;
-    st.vel[at + i] = vel;
+    st.d[at + i].pos = pos;
+    st.d[at + i].vel = vel;
     int32_t id = (int32_t)d[D_ID];
     st.id[at + i] = id;
     if (pc) pc[id] = (int32_t)d[D_PC], wc[id] = (int32_t)d[D_WC];
@@ -147,7 +147,7 @@ __global__ void rank_pack_kernel(DevState st, const int32_t *pc, const int32_t *
     if (i >= n) return;
     int64_t s = slot ? slot[i] : first + i;
     int32_t id = st.id[s];
-    write_record(rec + i * D_LEN, st.pos[s], st.vel[s], id, pc[id], wc[id]);
+    write_record(rec + i * D_LEN, st.d[s].pos, st.d[s].vel, id, pc[id], wc[id]);
 }
 
 /* The own disks that go to other ranks (h's arrays on the device): how many to each rank into count[0 ..
@@ -160,7 +160,7 @@ __global__ void rank_halo_count_kernel(DevState st, const int32_t *list, int64_t
     if (i >= nlist + own - first) return;
     int64_t s = i < nlist ? list[i] : first + i - nlist;
     if (i < nlist && s >= first) return; /* moved below first since it was listed (rank_fill_kernel) */
-    double x = (double)st.pos[s].x;
+    double x = (double)st.d[s].pos.x;
     if (halo_inside(&h, x)) return;
     int lo, hi, n = 0;
     if (!halo_span(&h, x, &lo, &hi)) {
@@ -182,7 +182,7 @@ __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int3
     if (i >= (int64_t)count[h.np]) return;
     int32_t s = cand[i], id = st.id[s]; /* cand holds a slot once (rank_halo_count_kernel looks at each once) */
     if (mark) st.id[s] = (int32_t)((uint32_t)id | ID_SENT); /* for the gather (where) */
-    real2 pos = st.pos[s];
+    real2 pos = st.d[s].pos;
     double x = (double)pos.x;
     int lo, hi;
     (void)halo_span(&h, x, &lo, &hi);
@@ -191,7 +191,7 @@ __global__ void rank_halo_pack_kernel(DevState st, const int32_t *pc, const int3
         unsigned long long at = atomicAdd(&fill[k], 1ull);
         for (int q = 0; q < k; q++) at += count[q];
         send[at] = s;
-        write_record(rec + at * D_LEN, pos, st.vel[s], id, pc[id], wc[id]);
+        write_record(rec + at * D_LEN, pos, st.d[s].vel, id, pc[id], wc[id]);
     }
 }
 
@@ -235,7 +235,7 @@ __global__ void rank_slot_init_kernel(DevState st, int64_t n, Params par, uint64
     after_previous();
     int64_t s = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (s >= n) return;
-    real2 pos = st.pos[s], vel = st.vel[s];
+    real2 pos = st.d[s].pos, vel = st.d[s].vel;
     slot_init(s, wall_key(pos.x, pos.y, vel.x, vel.y, par), wall_hi, best_hi, best_lo, partner);
 }
 
@@ -270,13 +270,12 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
     int64_t step = (int64_t)gridDim.x * blockDim.x;
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < m; i += step) {
         int32_t a = to[i], b = from[i];
-        real2 pos = out.pos[b];
-        out.pos[a] = pos;
-        out.vel[a] = out.vel[b];
+        Disk disk = out.d[b];
+        out.d[a] = disk;
         out.id[a] = out.id[b];
         slot_init(a, wall_hi[b], wall_hi, best_hi, best_lo, partner);
         if (keys) keys[a] = keys[b];
-        rank_list_near(rm, (double)pos.x, a);
+        rank_list_near(rm, (double)disk.pos.x, a);
     }
 }
 
@@ -322,8 +321,7 @@ static void rank_reserve(GpuRank *g, int64_t n)
     int64_t cap = grown(n), used = g->own + g->halo;
     for (int b = 0; b < 2; b++) {
         size_t keep = b == c->cur ? (size_t)used : 0;
-        REGROW(c->st[b].pos, keep * sizeof(real2), cap * sizeof(real2), "the state");
-        REGROW(c->st[b].vel, keep * sizeof(real2), cap * sizeof(real2), "the state");
+        REGROW(c->st[b].d, keep * sizeof(Disk), cap * sizeof(Disk), "the state");
         REGROW(c->st[b].id, keep * 4, cap * 4, "the state");
     }
     /* the keys kept: the own disks' were started by the move (started) when a halo or arrivals grow them */
@@ -665,7 +663,7 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
 {
     Cuda *c = &g->c;
     if (n <= 0) return;
-    st.pos += first, st.vel += first, st.id += first;
+    st.d += first, st.id += first;
     if (keyed_before)
         step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
@@ -949,7 +947,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
                             n, c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
             DevState *d = &c->st[g->slots ? in : 1 - in];
             Entries en;
-            en.pos = d->pos, en.vel = d->vel, en.id = d->id;
+            en.disk = d->d, en.id = d->id;
             en.slot = g->slots ? (int32_t *)c->order : NULL;
             en.wall = c->wall_hi;
             en.mid = NULL;
