@@ -129,8 +129,12 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define WINDOW_ENTRIES 1048576.0  /* entries a window should have to fill the device (first_window) */
 #endif
 #ifndef CELLS_PER_DISK
-#define CELLS_PER_DISK 2.0        /* cells per slice at most: in a dilute scene a finer grid costs more in
-                                     clearing and scanning cells than it saves in pair tests */
+#define CELLS_PER_DISK 1.5        /* cells per slice at most: in a dilute scene a finer grid costs more in
+                                     counting and scanning cells than it saves in pair tests. Gas of 1e7 on
+                                     one H200, particle-steps/s: 8.53e9 at 1 cell a disk, 8.74e9 at 1.25,
+                                     8.85e9 at 1.5 (2.75 pair tests a disk), 8.77e9 at 1.75, 8.74e9 at 2
+                                     (2.56); the dense gas's and the random scene's cells are set by their
+                                     disks' reach (bench/gpu_h100_variants.log 26f) */
 #endif
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
