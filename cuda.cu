@@ -133,8 +133,9 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      counting and scanning cells than it saves in pair tests. Gas of 1e7 on
                                      one H200, particle-steps/s: 8.53e9 at 1 cell a disk, 8.74e9 at 1.25,
                                      8.85e9 at 1.5 (2.75 pair tests a disk), 8.77e9 at 1.75, 8.74e9 at 2
-                                     (2.56); the dense gas's and the random scene's cells are set by their
-                                     disks' reach (bench/gpu_h100_variants.log 26f) */
+                                     (2.56); gas of 1e8: 8.25e9 at 2, 8.47e9 at 1.5. The dense gas's and the
+                                     random scene's cells are set by their disks' reach
+                                     (bench/gpu_h100_variants.log 26f) */
 #endif
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
