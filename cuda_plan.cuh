@@ -118,7 +118,7 @@ static bool buffers_fit(const Cuda *c, const Plan *pl)
  * SLICES_AHEAD beyond for several; later GROWTH beyond; within cuda_open's limits), with no step in
  * flight: the kernels of every batch launched so far are done with them. The cell table
  * comes back cleared, as the short scans keep it. A run's buffers thereby follow its scene: a gas takes
- * one entry and two cells a disk, a fast scene as many as its slices need. */
+ * one entry and at most CELLS_PER_DISK cells a disk, a fast scene as many as its slices need. */
 static void buffers_grow(Cuda *c, const Plan *pl)
 {
     int64_t entries, cells, copies, n = c->n;
