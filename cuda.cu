@@ -266,6 +266,9 @@ static void phase_report(const Cuda *c, const Control *h)
     for (int k = 0; k < PHASES; k++) fprintf(stderr, " %s %.3f", phase_names[k], c->phase_ms[k]);
     fprintf(stderr, "\ncuda: pair events undecided before each grid-wide round:");
     for (int r = 0; r < MAX_ROUNDS && (r == 0 || h->left[r]); r++) fprintf(stderr, " %llu", h->left[r]);
+    if (h->settling[0])
+        fprintf(stderr, "\ncuda: steps of one slice found %llu pair events and left %llu of them to the rounds (the "
+                "others, the only event of both disks, settled before)", h->settling[0], h->settling[1]);
     if (h->wactive[1]) {
         fprintf(stderr, "\ncuda: per window, disks free at its start and pair events found:");
         for (int w = 0; w < WMAX && h->wactive[w]; w++) fprintf(stderr, " %llu/%llu", h->wactive[w], h->wfound[w]);

@@ -77,11 +77,12 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
 
-/* The last kernel of a step (one warp): the step's state is now the current one. A thread per round
+/* The last kernel of a step (one warp): the step's state is now the current one (settled: its choice
+ * settled the events the only one of both disks first, and counts[0] holds the others). A thread per round
  * and window: one thread's read-add-write chain took 15 us, a twentieth of a step at N = 32000. (Done
  * by the move's last block instead, it cost the gas of 1e7 6%: its 39000 blocks each counted themselves
  * on one address.) */
-__global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts)
+__global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned long long *counts, int settled)
 {
     after_previous();
     static_assert(MAX_ROUNDS <= 32 && WMAX <= 32, "a thread each");
@@ -104,6 +105,10 @@ __global__ void commit_kernel(Control *ctl, const StepInfo *info, const unsigned
         ctl->faster += info->faster;
         ctl->ahead[0] += info->ahead[0];
         ctl->ahead[1] += info->ahead[1];
+        if (settled) { /* a step of one slice: a window */
+            ctl->settling[0] += info->found[0];
+            ctl->settling[1] += counts[0];
+        }
     }
 }
 
@@ -265,6 +270,18 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
  * A disk the choice leaves so has had its wall event accepted, if it has one (cuda's move then needs no
  * wall key, move_kernel). Every "taken" test of the choice is partner >= 0. */
 #define PARTNER_WALL (-3)
+#define PARTNER_TALLY 4 /* a disk's partner lowered by this for each of its events (SETTLE, settle_kernel) */
+/* Steps of one slice accept the events that are the only one of both their disks before the grid-wide
+ * rounds (settle_kernel), where a disk has fewer than SETTLE_EVENTS events a step on average (Plan.settle):
+ * on one H200 the gas of 1e7 (0.14 events a disk, 14% of them contested) 8.84e9 -> 9.38e9 particle-steps/s,
+ * its choice 6.82 -> 3.67 ms over 50 steps; the dense gas (0.47, 43% contested) would lose, 6.52e9 -> 6.32e9,
+ * its choice 13.05 -> 15.54 ms, so it does not settle (bench/gpu_h100_variants.log 27a). */
+#ifndef SETTLE
+#define SETTLE 1
+#endif
+#ifndef SETTLE_EVENTS
+#define SETTLE_EVENTS 0.3
+#endif
 #ifndef WALL_PENDING
 #define WALL_PENDING 1 /* 0: -1 for both, and cuda's move loads every disk's wall key (move_load) */
 #endif
@@ -403,6 +420,8 @@ typedef struct {
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
     uint64_t *best_lo;    /* cuda's steps of one slice: the choice's second keys, started for each event's disks
                              here (the move leaves them, MoveBin); else NULL */
+    int32_t *tally;       /* SETTLE: the disks' partners, each event's two lowered by PARTNER_TALLY (settle_kernel);
+                             best_lo is then started by the settling, for the contested events' disks alone */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */

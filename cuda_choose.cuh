@@ -145,6 +145,48 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
     }
 }
 
+/* SETTLE (cuda's steps of one slice): an event the only one of both its disks is the smallest of both, and
+ * accepted at once; the others, contested, go on to the rounds. The search lowered each event's disks'
+ * partners by PARTNER_TALLY (append_event), from -1 or PARTNER_WALL, which the two low bits still tell
+ * apart: a partner of -1 - 4k or PARTNER_WALL - 4k has k events. A contested event's disks get their
+ * partners back and their second keys started, for min_lo; the rounds see the contested events alone,
+ * as no other event shares a disk with a settled one. An event reading a tally another event's
+ * settling has already restored reads 0 events, so it too is contested, as it should be: a tally of one
+ * is final (the settling only restores, to 0). */
+static __device__ __forceinline__ int32_t tally_base(int32_t p)
+{
+    return (p & 3) == 3 ? -1 : PARTNER_WALL;
+}
+
+__global__ void settle_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap, PairEvent *out,
+                              unsigned long long *count_out, int32_t *partner, uint64_t *best_lo)
+{
+    after_previous();
+    static_assert((-1 & 3) == 3 && (PARTNER_WALL & 3) == 1 && PARTNER_TALLY == 4, "tally_base");
+    int64_t len = list_len(count, cap);
+    ILP_TURN(i, len) {
+        PairEvent e[CHOOSE_ILP] = {};
+        int32_t pa[CHOOSE_ILP] = {}, pb[CHOOSE_ILP] = {};
+        const int ILP = CHOOSE_ILP;
+        ILP_EACH(u) e[u] = ev[i + u * stride];
+        ILP_EACH(u) pa[u] = partner[e[u].a], pb[u] = partner[e[u].b];
+        ILP_EACH(u) {
+            int32_t ba = tally_base(pa[u]), bb = tally_base(pb[u]);
+            if (ba - pa[u] == PARTNER_TALLY && bb - pb[u] == PARTNER_TALLY) {
+                partner[e[u].a] = e[u].b;
+                partner[e[u].b] = e[u].a;
+            } else {
+                unsigned long long at = list_append(count_out); /* < cap: a part of the list it came from */
+                if ((int64_t)at < cap) out[at] = e[u];
+                partner[e[u].a] = ba;
+                partner[e[u].b] = bb;
+                best_lo[e[u].a] = NO_EVENT;
+                best_lo[e[u].b] = NO_EVENT;
+            }
+        }
+    }
+}
+
 /* The remaining rounds in one block, until no pair event is left. */
 __global__ void finish_kernel(PairEvent *ev0, PairEvent *ev1, const unsigned long long *count, int64_t cap,
                               int32_t *partner, const uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo)

@@ -183,7 +183,10 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     }
     atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
     atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
-    if (en.best_lo) { /* every writer stores the same; the choice's first pass reads it */
+    if (en.tally) { /* reductions, their values unused: settle_kernel reads the tallies */
+        atomicSub(&en.tally[e.a], PARTNER_TALLY);
+        atomicSub(&en.tally[e.b], PARTNER_TALLY);
+    } else if (en.best_lo) { /* every writer stores the same; the choice's first pass reads it */
         en.best_lo[e.a] = NO_EVENT;
         en.best_lo[e.b] = NO_EVENT;
     }

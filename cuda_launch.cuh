@@ -22,16 +22,23 @@ static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void 
 }
 
 /* The choice among window w's pair events (wall: the wall events as it sees them). */
-static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring, bool settle = false)
 {
     phase_mark(c, ring, w, 4);
     int64_t blocks = pl->choose_blocks[w];
     const unsigned long long *found = &c->info->found[w];
     unsigned long long *counts = c->counts + w * (MAX_ROUNDS + 1);
-    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo);
-    step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[0], found, c->ev_cap, c->best_hi, c->best_lo, c->partner);
     int list = 0;
     const unsigned long long *len = found;
+    if (settle) { /* the contested events into the other list, counted in counts[0] */
+        step_kernel(c, blocks, THREADS, 0, settle_kernel, c->ev[0], found, c->ev_cap, c->ev[1], &counts[0],
+                    c->partner, c->best_lo);
+        list = 1;
+        len = &counts[0];
+    }
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+    step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
+                c->partner);
     for (int r = 1; r < pl->rounds[w]; r++) {
         step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[list], len, c->ev_cap, c->ev[1 - list],
                     &counts[r], c->partner, wall, c->best_hi, c->best_lo);
@@ -195,9 +202,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.wall = c->wall_hi;
         en.mid = NULL;
         en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
+        en.tally = pl->settle ? c->partner : NULL;
         phase_mark(c, ring, 0, 3);
         detect_launch(c, pl, 0, en);
-        choose_launch(c, pl, 0, c->wall_hi, ring);
+        choose_launch(c, pl, 0, c->wall_hi, ring, pl->settle);
     } else {
         for (int w = 0; w < pl->W; w++) {
             phase_mark(c, ring, w, 0);
@@ -235,7 +243,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     step_kernel(c, move_blocks, THREADS, 0, move, c->st[in], c->st[1 - in], n, c->par, c->partner, c->wall_hi,
                 c->best_hi, c->pc, c->wc, c->info, c->ev_cap, c->ctl, none, mb);
     phase_mark(c, ring, pl->W - 1, 7);
-    step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts);
+    step_kernel(c, 1, 32, 0, commit_kernel, c->ctl, c->info, c->counts, (int)pl->settle);
     c->cur = 1 - in;
 }
 
@@ -245,12 +253,12 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
 static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    int64_t f[5 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0};
+    int64_t f[6 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle};
     for (int w = 0; w < pl->W && w < WMAX; w++) {
-        f[5 + 2 * w] = pl->rounds[w];
-        f[6 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
+        f[6 + 2 * w] = pl->rounds[w];
+        f[7 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
     }
-    for (int i = 0; i < 5 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
+    for (int i = 0; i < 6 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
     return h;
 }
 

@@ -65,6 +65,7 @@ typedef struct {
     unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */
     unsigned long long wfound[WMAX], wactive[WMAX]; /* per window: pair events found, disks still free */
     unsigned long long ahead[2];                    /* sums of StepInfo.ahead */
+    unsigned long long settling[2]; /* pair events of the steps that settle (SETTLE): found, left to the rounds */
 } Control;
 
 /* Binning of one step. */

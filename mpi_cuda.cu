@@ -953,6 +953,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.mid = NULL;
             en.rank = c->rank;
             en.best_lo = NULL;
+            en.tally = NULL;
             detect_launch(c, pl, 0, en);
         }
         g->started = false; /* the first round's passes below change them */
