@@ -26,7 +26,8 @@
  *            a pair is kept only in the slice of its faster disk that holds its event time, so it
  *            is found once; each block appends its events to the step's list together
  *   choose   rounds of "accept every event that is the smallest remaining one of each of its disks"
- *            (SPEC.md 3.3); the last rounds run in one block
+ *            (SPEC.md 3.3); the last rounds run in one block. In a gas an event that is the only one of
+ *            both its disks is accepted first, and the rounds see the others alone (settle_kernel)
  *   windows  with K > 1 and disks enough, bin, place, detect and choose run once per time window (a
  *            run of slices, window_start), in time order: disks the choice of a window takes are left
  *            out of the later ones, so a dense fast scene, where most disks collide early in the step,
