@@ -199,6 +199,7 @@ typedef struct {
     int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
     int64_t fused_n;                     /* placement fused below this many disks (place_fused) */
+    double settle_events;                /* steps of one slice settle below this many events a disk (Plan) */
     int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
     Entries en;                          /* K > 1: the entries' slots and mids alone (step_launch) */
     GridLimits lim;

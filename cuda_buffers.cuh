@@ -137,6 +137,10 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     /* SIM_CUDA_FUSED_N=N: placement fused below N disks (0: never; the tests take both ways) */
     const char *fused_n = getenv("SIM_CUDA_FUSED_N");
     c->fused_n = fused_n ? atoll(fused_n) : PLACE_FUSED_N;
+    /* SIM_CUDA_SETTLE=E: steps of one slice settle where a disk has fewer than E events on average (0:
+     * never; the tests take both ways) */
+    const char *settle = getenv("SIM_CUDA_SETTLE");
+    c->settle_events = settle ? atof(settle) : SETTLE_EVENTS;
     ahead_open(c);
     c->checkpoints = checkpoints;
     if (timed)

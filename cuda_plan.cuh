@@ -92,7 +92,7 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
     }
     /* settling pays where few events are contested: about 1 - exp(-e) of them, where e = 2 found / n is
      * a disk's events in a step (0.14 of 0.14 in the gas of 1e7, 0.43 of 0.47 in the dense gas) */
-    pl.settle = SETTLE && LO_AT_EVENT && pl.K == 1 && 2 * found[0] < SETTLE_EVENTS * (double)c->n;
+    pl.settle = SETTLE && LO_AT_EVENT && pl.K == 1 && 2 * found[0] < c->settle_events * (double)c->n;
     return pl;
 }
 

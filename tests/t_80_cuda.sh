@@ -169,6 +169,36 @@ for name in $(pick "slow dense overlap" "slow dense"); do
     same_bytes "$label, no keys ahead" "$expected" env SIM_CUDA_BIN_AHEAD=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
 done
 
+# Steps of one slice settle the pair events that are the only one of both their disks before the choice's
+# rounds (cuda_choose.cuh, settle_kernel) where a disk has few events a step; SIM_CUDA_SETTLE sets how few.
+# Every step settles at 1e30 and none at 0, and both print seq's bytes; --stats counts the events the steps
+# that settle found and those they left to the rounds, and both the settled and the contested must be some.
+# Then in graphs through refused steps.
+for name in $(pick "slow dense overlap" "slow dense"); do
+    label="cuda/$name perf, events settled before the rounds"
+    if ! have_gpu; then
+        for what in "" ", in graphs, refused steps" ", never"; do skip "$label$what" "no GPU"; done
+        continue
+    fi
+    expected=$TMP/cuda_${name}_perf.expected
+    same_bytes "$label" "$expected" env SIM_CUDA_SETTLE=1e30 ./cuda "$TMP/cuda_${name}_perf.in" --quiet --stats
+    line=$(grep "of them to the rounds" "$TMP/err")
+    if [[ $line =~ found\ ([0-9]+)\ pair\ events\ and\ left\ ([0-9]+)\ of ]] &&
+        [ "${BASH_REMATCH[1]}" -gt "${BASH_REMATCH[2]}" ] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+        pass "$label: some settled, some contested"
+    else
+        fail "$label: some settled, some contested" "stats: ${line:-no line}"
+    fi
+    same_bytes "$label, in graphs, refused steps" "$expected" env SIM_CUDA_SETTLE=1e30 SIM_CUDA_EVENTS=2 \
+        ./cuda "$TMP/cuda_${name}_perf.in" --quiet
+    same_bytes "$label, never" "$expected" env SIM_CUDA_SETTLE=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet --stats
+    if grep -q "of them to the rounds" "$TMP/err"; then
+        fail "$label, never: no step settles" "stats: $(grep "of them to the rounds" "$TMP/err")"
+    else
+        pass "$label, never: no step settles"
+    fi
+done
+
 # Time windows (cuda_state.cuh, window_start): a step's slices are cut into windows whose choice is made one
 # after another, disks taken leaving the later windows. A scene gets them only when it has disks enough
 # to fill the device (about 1e6 entries a window), so here SIM_CUDA_WINDOW forces the first window's
