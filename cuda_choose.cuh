@@ -145,9 +145,10 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
     }
 }
 
-/* SETTLE (cuda's steps of one slice): an event the only one of both its disks is the smallest of both, and
- * accepted at once; the others, contested, go on to the rounds. The search lowered each event's disks'
- * partners by PARTNER_TALLY (append_event), from -1 or PARTNER_WALL, which the two low bits still tell
+/* SETTLE (cuda's steps of one slice): an event the only one of both its disks is the smallest of both (the
+ * search keeps no pair event at or after either disk's wall event), and accepted at once; the others,
+ * contested, go on to the rounds. The search lowered each event's disks'
+ * partners by PARTNER_TALLY (test_pair), from -1 or PARTNER_WALL, which the two low bits still tell
  * apart: a partner of -1 - 4k or PARTNER_WALL - 4k has k events. A contested event's disks get their
  * partners back and their second keys started, for min_lo; the rounds see the contested events alone,
  * as no other event shares a disk with a settled one. An event reading a tally another event's
