@@ -21,8 +21,9 @@ static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void 
     CUDA_CHECK(cudaLaunchKernelEx(&cfg, kernel, std::forward<A>(args)...));
 }
 
-/* The choice among window w's pair events (wall: the wall events as it sees them). */
-static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring, bool settle = false)
+/* The choice among window w's pair events (wall: the wall events as it sees them); a plan that settles
+ * (steps of one slice alone) settles them first. */
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
 {
     phase_mark(c, ring, w, 4);
     int64_t blocks = pl->choose_blocks[w];
@@ -30,7 +31,7 @@ static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, 
     unsigned long long *counts = c->counts + w * (MAX_ROUNDS + 1);
     int list = 0;
     const unsigned long long *len = found;
-    if (settle) { /* the contested events into the other list, counted in counts[0] */
+    if (pl->settle) { /* the contested events into the other list, counted in counts[0] */
         step_kernel(c, blocks, THREADS, 0, settle_kernel, c->ev[0], found, c->ev_cap, c->ev[1], &counts[0],
                     c->partner, c->best_lo);
         list = 1;
@@ -205,7 +206,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.tally = pl->settle ? c->partner : NULL;
         phase_mark(c, ring, 0, 3);
         detect_launch(c, pl, 0, en);
-        choose_launch(c, pl, 0, c->wall_hi, ring, pl->settle);
+        choose_launch(c, pl, 0, c->wall_hi, ring);
     } else {
         for (int w = 0; w < pl->W; w++) {
             phase_mark(c, ring, w, 0);
@@ -253,12 +254,13 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
 static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    int64_t f[6 + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle};
+    enum { HEAD = 6 }; /* the fields before the windows' */
+    int64_t f[HEAD + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle};
     for (int w = 0; w < pl->W && w < WMAX; w++) {
-        f[6 + 2 * w] = pl->rounds[w];
-        f[7 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
+        f[HEAD + 2 * w] = pl->rounds[w];
+        f[HEAD + 1 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
     }
-    for (int i = 0; i < 6 + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
+    for (int i = 0; i < HEAD + 2 * WMAX; i++) h = (h ^ (uint64_t)f[i]) * 1099511628211ull;
     return h;
 }
 
