@@ -17,9 +17,10 @@
  *            than the fastest disk in a slice, so the same cells hold it, with fewer entries. With
  *            K > 1 in the walled box each cell is keyed in SUB_X columns (Grid.sx), so that a disk's
  *            neighbours lie within a cell's width to each side, not the rest of its own and one more
- *   place    with K = 1 the disks themselves move into cell order, for locality, in a batch's first
- *            step; its later steps search them where the move before left them, through the order of
- *            their cell places (SLOT_STEPS); with K > 1 each entry's slot and midpoint take that order
+ *   place    with K = 1 the disks themselves move, for locality, in a batch's first step: into patches
+ *            of cells (PATCH_W), each row by row; its later steps search them where the move before left
+ *            them, through the order of their cell places (SLOT_STEPS); with K > 1 each entry's slot and
+ *            midpoint take the cell order
  *   detect   every pair in the 3x3 neighbouring cells (or columns) of the same slice (wall events
  *            were computed in place), and each entry against the slower levels' slices that contain
  *            its own, screened by whether their paths come within 2r (and margins) during the slice;
@@ -195,6 +196,8 @@ typedef struct {
     void *scan_tmp;
     size_t scan_tmp_bytes;
     uint32_t *tile_sums;                 /* SCAN_TILES: the short tables' tile sums (tile_sum_kernel) */
+    uint32_t *pieces, *patch_at;         /* PATCH_W: the patches' pieces, where each begins (patch_count_kernel) */
+    int64_t patch_cap;                   /* pieces they hold */
     int64_t scan_tiles;                  /* tables of as many tiles at most are scanned so (else cub) */
     int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */

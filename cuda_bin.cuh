@@ -297,8 +297,49 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
     partner[s] = WALL_PENDING && w != NO_EVENT ? PARTNER_WALL : -1;
 }
 
+/* K = 1 (cuda's step, not a GPU rank's): a batch's first step gathers the disks in patches of PATCH_W x
+ * PATCH_H cells rather than in the cell table's rows across the box: each patch row by row, the bands of
+ * PATCH_H rows one after another and the patches of a band from left to right. A block of the search's
+ * probes then covers a few rows of a patch, and finds most of its candidates in the row below among its own
+ * probes (test_pair), not among another block's; the choice and the move meet partners in nearby slots.
+ * Bands, not whole columns: a wave of blocks across every row scattered the counting's atomics and the
+ * move's accesses over all of L2. Gas of 1e7 on one H200 9.40e9 -> 9.45e9 particle-steps/s, dense gas
+ * 6.52e9 -> 6.72e9: over 50 steps the search 21.36 -> 20.78 ms (dense 33.25 -> 31.88), the choice's rounds
+ * 3.67 -> 3.40 (13.03 -> 12.10), the placement 5.70 -> 6.31 (bench/gpu_h100_variants.log 27f to 27h).
+ * 0: the rows' order. */
+#ifndef PATCH_W
+#define PATCH_W 32
+#endif
+#ifndef PATCH_H
+#define PATCH_H 64
+#endif
+#define PATCH_COLS (PATCH_W > 0 ? PATCH_W : 1) /* for the arithmetic, where PATCH_W is 0 */
+
+/* The patches' pieces: piece j, row j % PATCH_H of patch j / PATCH_H, holds the entries of that row's cells
+ * in the patch; their exclusive sum (patch_at) is where each begins in the gathered order. */
+static __device__ __forceinline__ int64_t patch_piece(int64_t g, int64_t y, int64_t x0)
+{
+    return (y / PATCH_H * ((g + PATCH_COLS - 1) / PATCH_COLS) + x0 / PATCH_COLS) * PATCH_H + y % PATCH_H;
+}
+
+/* The entries of each piece, from the cell table. len: a bound of the plan's (patch_pieces); pieces past the
+ * grid's hold none. */
+__global__ void patch_count_kernel(const Grid *grid, const uint32_t *start, int64_t len, uint32_t *pieces)
+{
+    after_previous();
+    int64_t j = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= len) return;
+    /* patch_piece's inverse */
+    int64_t g = grid->g, across = (g + PATCH_COLS - 1) / PATCH_COLS, patch = j / PATCH_H, band = patch / across;
+    int64_t y = band * PATCH_H + (j - patch * PATCH_H);
+    int64_t x0 = (patch - band * across) * PATCH_COLS, x1 = x0 + PATCH_COLS < g ? x0 + PATCH_COLS : g;
+    /* after a refusal the table is empty: every start 0 (the gather writes nothing) */
+    pieces[j] = y < g && grid->cells > 0 ? start[y * g + x1] - start[y * g + x0] : 0;
+}
+
 /* K = 1: the disks move into cell order (slot p takes the disk of sorted entry p), with coalesced writes.
  * (Scattering them straight from slot order, saving the entry order, measured 1.5x slower.)
+ * Or in patches, where the placement wrote order so (place_patches_kernel).
  * where: a GPU rank's (mpi_cuda.cu), where each slot its halo sent went (their ids marked with ID_SENT,
  * cleared here) and each slot from where_from up (its copies): those alone, a write a disk costing 4% of
  * the gather. */
@@ -418,6 +459,8 @@ typedef struct {
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
+    const uint32_t *patches; /* K = 1, a gathering step in patches (PATCH_W): where each piece begins in the
+                                slots (patch_at), from which a slot's place comes (patch_place); else NULL */
     uint64_t *best_lo;    /* cuda's steps of one slice: the choice's second keys, started for each event's disks
                              here (the move leaves them, MoveBin); else NULL */
     int32_t *tally;       /* SETTLE: the disks' partners, each event's two lowered by PARTNER_TALLY (settle_kernel);
@@ -453,6 +496,44 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
         put_entry(st, en, p, window_entry(d, order[p]), K);
     }
+}
+
+/* A gathering step in patches (PATCH_W): the slot of the disk of cell `key` at place p of the cell order,
+ * from where its piece begins in each (its first cell, x0 of row y, and patch_at). */
+static __device__ __forceinline__ int64_t patch_slot(int64_t g, uint32_t key, int64_t p, const uint32_t *start,
+                                                   const uint32_t *patch_at)
+{
+    int64_t y = key / g, x0 = key - y * g;
+    x0 -= x0 % PATCH_COLS;
+    return (int64_t)patch_at[patch_piece(g, y, x0)] + (p - (int64_t)start[y * g + x0]);
+}
+
+/* ... and the place of the disk in slot t of cell `key` (the search's probe, detect_kernel). */
+static __device__ __forceinline__ uint32_t patch_place(int64_t g, uint32_t key, uint32_t t, const uint32_t *start,
+                                                      const uint32_t *patch_at)
+{
+    int64_t y = key / g, x0 = key - y * g;
+    x0 -= x0 % PATCH_COLS;
+    return __ldg(&start[y * g + x0]) + (t - __ldg(&patch_at[patch_piece(g, y, x0)]));
+}
+
+/* The placement of a gathering step in patches: the disk of slot e, at place p of the cell order, goes to
+ * slot patch_slot (order[that slot] = e, for gather_state_kernel), and slot_of[p] is that slot (the search's
+ * Entries.slot, as the keyed steps' order). Both scattered, where the rows' placement scatters one: the
+ * gather after it then writes in order. (The gather writing each disk to its patch slot itself took 436
+ * against 293 us a batch: bench/gpu_h100_variants.log 27g.) After a refusal the grid is empty, and
+ * nothing is written. */
+__global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t *keys, const uint32_t *rank,
+                                   const uint32_t *start, const uint32_t *patch_at, uint32_t *order,
+                                   uint32_t *slot_of)
+{
+    after_previous();
+    int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (e >= n || grid->cells == 0) return;
+    uint32_t key = keys[e];
+    int64_t p = (int64_t)start[key] + rank[e], to = patch_slot(grid->g, key, p, start, patch_at);
+    order[to] = (uint32_t)e;
+    slot_of[p] = (uint32_t)to;
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte

@@ -240,6 +240,8 @@ static void cuda_close(Cuda *c)
     cudaFree(c->start);
     cudaFree(c->scan_tmp);
     cudaFree(c->tile_sums);
+    cudaFree(c->pieces);
+    cudaFree(c->patch_at);
     cudaFree(c->en.slot);
     cudaFree(c->en.mid);
     cudaFree(c->wall_hi);

@@ -47,6 +47,11 @@ static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower 
  * offset beside each run would save the selects but take 4 KB more a block: random scene, N = 32000,
  * 1.90e8 against 2.05e8-2.14e8 particle-steps/s, bench/gpu_h100_variants.log 10k) */
 #define RUN_BYTES ((size_t)PROBE_RUNS * THREADS * sizeof(uint2) + (size_t)LEVELS * THREADS * sizeof(float))
+#ifndef SHARED_CANDIDATES
+#define SHARED_CANDIDATES 1 /* K = 1: a candidate among the block's probes read from their records (test_pair):
+                               with the disks in patches (PATCH_W) most of a block's candidates; alone, in the
+                               rows' order, no faster (bench/gpu_h100_variants.log 27f) */
+#endif
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
@@ -149,12 +154,15 @@ static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, 
 template <bool PERIODIC, bool SLOTS, bool MID>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
-                                                 int64_t cap, unsigned long long *found, uint64_t *best_hi)
+                                                 int64_t cap, unsigned long long *found, uint64_t *best_hi,
+                                                 const Probe *block = NULL, uint32_t p0 = 0)
 {
     const uint32_t d = SLOTS || MID ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
     const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;          /* and p's, where MID */
     const bool lazy = MID && PROBE_LAZY;
-    real2 pos2 = __ldg(&en.disk[d].pos), vel2 = __ldg(&en.disk[d].vel);
+    /* K = 1: a candidate among the block's own probes (slots p0 on), from their records (SHARED_CANDIDATES) */
+    const Probe *mine = !MID && SHARED_CANDIDATES && block && d - p0 < THREADS ? &block[d - p0] : NULL;
+    real2 pos2 = mine ? mine->pos : __ldg(&en.disk[d].pos), vel2 = mine ? mine->vel : __ldg(&en.disk[d].vel);
     const real2 pos1 = lazy ? __ldg(&en.disk[ps].pos) : pr.pos, vel1 = lazy ? __ldg(&en.disk[ps].vel) : pr.vel;
     /* pair_time(i, j) is pair_time(j, i) bit for bit: swapping the disks negates dx, dy, dvx and dvy
      * exactly, which changes no product, sum or comparison after them. So p goes first whichever index
@@ -167,8 +175,9 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     PairEvent e;
     e.hi = time_key(t) | 1;
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
-    if (!(e.hi < wall1 && e.hi < slot_wall<PERIODIC>(en, d))) return; /* a wall event comes first */
-    int32_t id1 = lazy ? __ldg(&en.id[ps]) : pr.id, id2 = __ldg(&en.id[d]); /* only a pair with an event needs */
+    if (!(e.hi < wall1 && e.hi < (mine ? mine->wall : slot_wall<PERIODIC>(en, d)))) return; /* a wall's first */
+    int32_t id1 = lazy ? __ldg(&en.id[ps]) : pr.id, id2 = mine ? mine->id : __ldg(&en.id[d]); /* only a pair
+                                                                                     with an event needs */
     bool first = id1 < id2;
     int32_t s = (int32_t)ps, s2 = (int32_t)d; /* one slice without SLOTS: entries are slots */
     e.a = first ? s : s2;
@@ -369,8 +378,9 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t i
  * state spilled registers: 6% slower at N = 32000). PERIODIC: the box is periodic (Grid.periodic), a
  * constant of each build: with the box's wrapping in the walled box's search too, that search took
  * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
- * gas of 1e7's spilled). */
-template <bool TILES, bool MID, bool PERIODIC, bool SLOTS>
+ * gas of 1e7's spilled). SLOTS (test_pair): 1, the disks in their slots; 2, a gathering step's in patches
+ * (Entries.patches), a build of its own, as testing the pointer took registers the search spills. */
+template <bool TILES, bool MID, bool PERIODIC, int SLOTS>
 __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS_ONE)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
                   const Grid *grid, int w, real sigma2, PairEvent *ev, int64_t cap, StepInfo *info,
@@ -408,9 +418,12 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
              * those of its entries' disks would scatter); every slot has an entry, as a step of one slice
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
-            uint32_t key = MID || SLOTS ? __ldg(&keys[p])
-                                        : cell_key<false>(*grid, __ldg(&en.disk[p].pos), __ldg(&en.disk[p].vel),
-                                                          slice_mid(0, 0, 1), 0, NULL);
+            /* a gathering step in patches (Entries.patches): the key from the disk, its place from its slot */
+            const bool patched = !MID && SLOTS == 2;
+            uint32_t key = MID || (SLOTS && !patched)
+                               ? __ldg(&keys[p])
+                               : cell_key<false>(*grid, __ldg(&en.disk[p].pos), __ldg(&en.disk[p].vel),
+                                                 slice_mid(0, 0, 1), 0, NULL);
             uint32_t g = (uint32_t)gr.g;
             /* the cell's columns (Grid.sx; 1 in one slice and in the periodic box): the runs reach sx of
              * them to each side */
@@ -425,7 +438,9 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             } else {
                 pr.k = kl + k0;
             }
-            const uint32_t after = SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1 : p + 1; /* its entry's next */
+            const uint32_t after = patched ? patch_place(gr.g, key, p, start, en.patches) + 1
+                                   : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
+                                           : p + 1; /* its entry's next */
             pr.c = MID ? c : after;
             pr.na = __ldg(&start[row + x1 + 1]) - after;
             uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */
@@ -521,7 +536,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
                     test_pair<PERIODIC, SLOTS, false>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap,
-                                                      found, best_hi);
+                                                      found, best_hi, probes, p0);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -531,7 +546,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
                     test_pair<PERIODIC, SLOTS, false>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2, &be, ev,
-                                                      cap, found, best_hi);
+                                                      cap, found, best_hi, probes, p0);
                 }
             }
         }

@@ -88,12 +88,19 @@ static bool place_fused(const Cuda *c)
     return c->n < c->fused_n;
 }
 
+/* The patches' pieces a gathering step's grid may have (PATCH_W; patch_count_kernel): within the plan's. */
+static int64_t patch_pieces(const Plan *pl)
+{
+    return (pl->gcap + PATCH_H - 1) / PATCH_H * PATCH_H * ((pl->gcap + PATCH_COLS - 1) / PATCH_COLS);
+}
+
 /* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
  * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
- * midpoint, from state buffer in). */
+ * midpoint, from state buffer in). in_patches: a gathering step of one slice in patches (PATCH_W), whose
+ * placement also gives each disk its slot in them (place_patches_kernel). */
 template <bool WINDOWS>
 static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act, const int32_t *lev, int ring,
-                              bool short_scan, int in)
+                              bool short_scan, int in, bool in_patches = false)
 {
     int64_t blocks = window_blocks(c, pl, w), len = pl->wcells[w] + 1, tiles = (len + SCAN_TILE - 1) / SCAN_TILE;
     if (short_scan) {
@@ -105,6 +112,15 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
         c->dirty = len;
     }
     phase_mark(c, ring, w, 2);
+    if (in_patches) {
+        int64_t pieces = patch_pieces(pl);
+        step_kernel(c, blocks_for(pieces), THREADS, 0, patch_count_kernel, c->grid, c->start, pieces, c->pieces);
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->pieces, c->patch_at, pieces,
+                                                 c->stream));
+        step_kernel(c, blocks_for(c->n), THREADS, 0, place_patches_kernel, c->grid, c->n, c->keys, c->rank, c->start,
+                    c->patch_at, c->order, c->keys_sorted);
+        return;
+    }
     uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
     bool fused = act && place_fused(c);
     auto place = fused ? (lev ? place_kernel<WINDOWS, true, true> : place_kernel<WINDOWS, false, true>)
@@ -119,7 +135,7 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
  * where the keys are taken loops over its entries: few blocks to start. */
 template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
-                             int ring, bool keyed)
+                             int ring, bool keyed, bool in_patches = false)
 {
     int64_t blocks = window_blocks(c, pl, w);
     bool short_scan = bin_clear(c, pl, w);
@@ -135,7 +151,7 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
                     c->rank, c->count, 1);
     }
     phase_mark(c, ring, w, 1);
-    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan, in);
+    scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan, in, in_patches);
 }
 
 /* The pair search over window w's entries, placed and copied to en (with midpoints where K > 1), in the
@@ -145,17 +161,20 @@ static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
 {
     int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
     const uint32_t *keys = c->keys_sorted, *start = c->start;
-    if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, true>, en, c->keys, start, c->grid, w,
+    if (pl->K == 1 && en.patches) /* a gathering step in patches (step_launch): places from the slots */
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 2>, en, c->keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 1>, en, c->keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->K == 1)
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, false>, en, keys, start, c->grid, w,
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 0>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->W == 1)
-        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC, false>, en, keys, start, c->grid,
+        step_kernel(c, one, THREADS, RUN_BYTES, detect_kernel<false, true, PERIODIC, 0>, en, keys, start, c->grid,
                     w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else
-        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC, false>, en, keys, start,
+        step_kernel(c, tiles, THREADS, RUN_BYTES, detect_kernel<true, true, PERIODIC, 0>, en, keys, start,
                     c->grid, w, c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
 }
 
@@ -184,11 +203,14 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
      * few cells at most, and the search's loads stay near each other), and a step run again after a
      * refusal starts from a gather. */
     bool slots = SLOT_STEPS && keyed;
+    /* a gathering step in patches (PATCH_W): its placement gives each disk its slot in them, and the step
+     * searches the disks in their slots */
+    bool patches = PATCH_W > 0 && SLOT_STEPS && pl->K == 1 && !slots;
     step_kernel(c, 1, 1, 0, gate_kernel, c->ctl, c->info, c->counts, c->lim, pl->vmax, pl->K, pl->gcap, pl->F, pl->W,
                 pl->levels, c->grid, c->ahead, (int)keyed, key_ahead ? c->ahead_slack : 0.0);
     if (pl->K == 1) {
         phase_mark(c, ring, 0, 0);
-        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed);
+        bin_place_launch<false>(c, pl, 0, in, NULL, NULL, ring, keyed, patches);
         if (!slots) {
             step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order, n,
                         c->par, c->wall_hi, c->best_hi, LO_AT_EVENT ? (uint64_t *)NULL : c->best_lo, c->partner,
@@ -198,8 +220,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         DevState *d = &c->st[in];
         Entries en;
         en.disk = d->d, en.id = d->id;
-        en.slot = slots ? (int32_t *)c->order : NULL;
+        en.slot = slots ? (int32_t *)c->order : patches ? (int32_t *)c->keys_sorted : NULL;
         en.rank = c->rank;
+        en.patches = patches ? c->patch_at : NULL;
         en.wall = c->wall_hi;
         en.mid = NULL;
         en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;

@@ -159,8 +159,17 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp);
         c->count = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
         c->start = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
+        int64_t scanned = nc;
+        if (PATCH_W > 0) { /* a grid of g^2 <= nc cells: (g + PATCH_H) (g / PATCH_W + 1) pieces at most */
+            cudaFree(c->pieces), cudaFree(c->patch_at);
+            double g = sqrt((double)nc);
+            c->patch_cap = (int64_t)((g + PATCH_H) * (g / PATCH_COLS + 1)) + 2;
+            c->pieces = (uint32_t *)dev_alloc((size_t)c->patch_cap * 4, "the cell table");
+            c->patch_at = (uint32_t *)dev_alloc((size_t)c->patch_cap * 4, "the cell table");
+            scanned = c->patch_cap > nc ? c->patch_cap : nc; /* cub's scratch for either sum */
+        }
         c->scan_tmp_bytes = 0;
-        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, nc, c->stream));
+        CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, scanned, c->stream));
         c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)nc * 4, c->stream));
         c->dirty = 0;

@@ -523,6 +523,7 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(g->holes), cudaFree(g->fill_to), cudaFree(g->fill_from);
     cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
+    cudaFree(c->pieces), cudaFree(c->patch_at);
     cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid), cudaFree(c->ahead);
     cudaFree(g->where), cudaFree(g->cand), cudaFree(g->send);
     cudaFree(g->view_cut), cudaFree(g->view_flags), cudaFree(g->halo_count);
@@ -952,6 +953,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.wall = c->wall_hi;
             en.mid = NULL;
             en.rank = c->rank;
+            en.patches = NULL;
             en.best_lo = NULL;
             en.tally = NULL;
             detect_launch(c, pl, 0, en);
