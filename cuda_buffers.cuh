@@ -218,6 +218,7 @@ static double buffer_bytes(const Cuda *c)
     double b = n * (2 * (4 * sizeof(real) + 4) + 2 * 4 + 3 * 8 + 4);          /* states, pc, wc, keys, partner */
     b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
     b += 16.0 * (double)c->entry_cap + 8.0 * (double)c->cell_held;            /* entries and cells */
+    b += 8.0 * (double)c->patch_cap;                                          /* the patches' pieces */
     b += (double)c->copy_cap * (4 + sizeof(float4));                          /* entries' slots, mids */
     if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */
     if (c->out_dev) b += n * 4 * sizeof(real);                                /* the print buffer */
