@@ -191,7 +191,8 @@ typedef struct {
     int cur;
     int32_t *pc, *wc;    /* collision counts, in original order */
     uint32_t *keys, *rank;               /* per entry: cell key, rank within the cell */
-    uint32_t *keys_sorted, *order;       /* per place in cell order: key, entry */
+    uint32_t *keys_sorted, *order;       /* per place in cell order: key, entry; a gathering step in patches:
+                                            each place's new slot, each new slot's entry (place_patches_kernel) */
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
