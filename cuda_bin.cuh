@@ -460,7 +460,7 @@ typedef struct {
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
     const uint32_t *patches; /* K = 1, a gathering step in patches (PATCH_W): where each piece begins in the
-                                slots (patch_at), from which a slot's place comes (patch_place); else NULL */
+                                slots (patch_at), from which a slot's place comes (patch_shift); else NULL */
     uint64_t *best_lo;    /* cuda's steps of one slice: the choice's second keys, started for each event's disks
                              here (the move leaves them, MoveBin); else NULL */
     int32_t *tally;       /* SETTLE: the disks' partners, each event's two lowered by PARTNER_TALLY (settle_kernel);
@@ -498,27 +498,21 @@ __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32
     }
 }
 
-/* A gathering step in patches (PATCH_W): the slot of the disk of cell `key` at place p of the cell order,
- * from where its piece begins in each (its first cell, x0 of row y, and patch_at). */
-static __device__ __forceinline__ int64_t patch_slot(int64_t g, uint32_t key, int64_t p, const uint32_t *start,
-                                                   const uint32_t *patch_at)
+/* A gathering step in patches (PATCH_W): how far the disks of cell `key` move from their places in the
+ * cell order to their slots, the same for every disk of the cell's piece (x0 to x0 + PATCH_W - 1 of its row
+ * y): where the piece begins in the patches (patch_at) less where its first cell begins (start). A disk at
+ * place p goes to slot p + shift (place_patches_kernel); the disk in slot t came from place t - shift (the
+ * search's probe, detect_kernel). */
+static __device__ __forceinline__ int64_t patch_shift(int64_t g, uint32_t key, const uint32_t *start,
+                                                    const uint32_t *patch_at)
 {
     int64_t y = key / g, x0 = key - y * g;
     x0 -= x0 % PATCH_COLS;
-    return (int64_t)patch_at[patch_piece(g, y, x0)] + (p - (int64_t)start[y * g + x0]);
-}
-
-/* ... and the place of the disk in slot t of cell `key` (the search's probe, detect_kernel). */
-static __device__ __forceinline__ uint32_t patch_place(int64_t g, uint32_t key, uint32_t t, const uint32_t *start,
-                                                      const uint32_t *patch_at)
-{
-    int64_t y = key / g, x0 = key - y * g;
-    x0 -= x0 % PATCH_COLS;
-    return __ldg(&start[y * g + x0]) + (t - __ldg(&patch_at[patch_piece(g, y, x0)]));
+    return (int64_t)__ldg(&patch_at[patch_piece(g, y, x0)]) - (int64_t)__ldg(&start[y * g + x0]);
 }
 
 /* The placement of a gathering step in patches: the disk of slot e, at place p of the cell order, goes to
- * slot patch_slot (order[that slot] = e, for gather_state_kernel), and slot_of[p] is that slot (the search's
+ * slot p + patch_shift (order[that slot] = e, for gather_state_kernel), and slot_of[p] is that slot (the search's
  * Entries.slot, as the keyed steps' order). Both scattered, where the rows' placement scatters one: the
  * gather after it then writes in order. (The gather writing each disk to its patch slot itself took 436
  * against 293 us a batch: bench/gpu_h100_variants.log 27g.) After a refusal the grid is empty, and
@@ -531,7 +525,7 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= n || grid->cells == 0) return;
     uint32_t key = keys[e];
-    int64_t p = (int64_t)start[key] + rank[e], to = patch_slot(grid->g, key, p, start, patch_at);
+    int64_t p = (int64_t)start[key] + rank[e], to = p + patch_shift(grid->g, key, start, patch_at);
     order[to] = (uint32_t)e;
     slot_of[p] = (uint32_t)to;
 }

@@ -438,7 +438,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             } else {
                 pr.k = kl + k0;
             }
-            const uint32_t after = patched ? patch_place(gr.g, key, p, start, en.patches) + 1
+            const uint32_t after = patched ? (uint32_t)(p - patch_shift(gr.g, key, start, en.patches)) + 1
                                    : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
                                            : p + 1; /* its entry's next */
             pr.c = MID ? c : after;
