@@ -315,11 +315,17 @@ static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t
 #endif
 #define PATCH_COLS (PATCH_W > 0 ? PATCH_W : 1) /* for the arithmetic, where PATCH_W is 0 */
 
+/* The patches across a grid of g cells a side (the last one narrower where PATCH_W does not divide g). */
+static __host__ __device__ __forceinline__ int64_t patches_across(int64_t g)
+{
+    return (g + PATCH_COLS - 1) / PATCH_COLS;
+}
+
 /* The patches' pieces: piece j, row j % PATCH_H of patch j / PATCH_H, holds the entries of that row's cells
  * in the patch; their exclusive sum (patch_at) is where each begins in the gathered order. */
 static __device__ __forceinline__ int64_t patch_piece(int64_t g, int64_t y, int64_t x0)
 {
-    return (y / PATCH_H * ((g + PATCH_COLS - 1) / PATCH_COLS) + x0 / PATCH_COLS) * PATCH_H + y % PATCH_H;
+    return (y / PATCH_H * patches_across(g) + x0 / PATCH_COLS) * PATCH_H + y % PATCH_H;
 }
 
 /* The entries of each piece, from the cell table. len: a bound of the plan's (patch_pieces); pieces past the
@@ -330,7 +336,7 @@ __global__ void patch_count_kernel(const Grid *grid, const uint32_t *start, int6
     int64_t j = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (j >= len) return;
     /* patch_piece's inverse */
-    int64_t g = grid->g, across = (g + PATCH_COLS - 1) / PATCH_COLS, patch = j / PATCH_H, band = patch / across;
+    int64_t g = grid->g, across = patches_across(g), patch = j / PATCH_H, band = patch / across;
     int64_t y = band * PATCH_H + (j - patch * PATCH_H);
     int64_t x0 = (patch - band * across) * PATCH_COLS, x1 = x0 + PATCH_COLS < g ? x0 + PATCH_COLS : g;
     /* after a refusal the table is empty: every start 0 (the gather writes nothing) */

@@ -91,7 +91,7 @@ static bool place_fused(const Cuda *c)
 /* The patches' pieces a gathering step's grid may have (PATCH_W; patch_count_kernel): within the plan's. */
 static int64_t patch_pieces(const Plan *pl)
 {
-    return (pl->gcap + PATCH_H - 1) / PATCH_H * PATCH_H * ((pl->gcap + PATCH_COLS - 1) / PATCH_COLS);
+    return (pl->gcap + PATCH_H - 1) / PATCH_H * PATCH_H * patches_across(pl->gcap);
 }
 
 /* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
