@@ -92,6 +92,12 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      one H200, 1e5 2.48e8-2.50e8 at 16384 against 2.60e8-2.63e8, 1e6 alike
                                      (bench/gpu_h100_variants.log 25d) */
 #endif
+#ifndef FINISH_LIST
+#define FINISH_LIST 8192.0        /* pair events of the last grid-wide round's list, at most, which the one-block
+                                     finish compacts first (rounds_for): one H200, dense gas of 1e7 (39000 a step
+                                     after 2 rounds; 3 rounds) 6.68e9 -> 6.84e9 particle-steps/s, at 16384 6.78e9;
+                                     the gas and random scenes within their spread (bench/gpu_h100_variants.log 28) */
+#endif
 #ifndef SLICE_COST
 #define SLICE_COST 80.0           /* cost of one entry, in pair tests (candidates): sets K. Of 28, 40, 56, 80 with
                                      near_path, random scene: N = 32000 alike, 3e5 and 1e6 7% and 12% faster at

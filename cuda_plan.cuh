@@ -35,14 +35,17 @@ static int first_window(int64_t n)
 }
 
 /* Grid-wide rounds for steps that find `found` pair events, of which a fraction `decay` is left after
- * each round (both as the last batch had them): enough that about FINISH_EVENTS are left to the one
- * block that finishes the choice, whose time grows with them (a dense scene of 1e6 disks leaves it
- * millions after two rounds: 17 ms a step), and no more (each round costs four launches, about 10 us). */
+ * each round (both as the last batch had them). The one block that finishes the choice first compacts
+ * the last round's whole list, then takes rounds over what that round left: its time grows with both (a
+ * dense scene of 1e6 disks leaves it millions after two rounds: 17 ms a step). So enough rounds that
+ * the list is at most FINISH_LIST events and about FINISH_EVENTS are left, and no more (each round costs
+ * four launches, about 10 us). */
 static int rounds_for(double found, double decay)
 {
     if (!(decay < 1)) return MAX_ROUNDS;
     int r = 2; /* at least two, or the next batch's decay would not be known */
-    for (double left = found * decay * decay; r < MAX_ROUNDS && left > FINISH_EVENTS; r++) left *= decay;
+    for (double list = found * decay; r < MAX_ROUNDS && (list > FINISH_LIST || list * decay > FINISH_EVENTS); r++)
+        list *= decay;
     return r;
 }
 
