@@ -321,6 +321,12 @@ static __host__ __device__ __forceinline__ int64_t patches_across(int64_t g)
     return (g + PATCH_COLS - 1) / PATCH_COLS;
 }
 
+/* The patches' pieces of a grid of g cells a side (patch_count_kernel): PATCH_H a patch, in bands of PATCH_H rows. */
+static __host__ __device__ __forceinline__ int64_t patch_pieces(int64_t g)
+{
+    return (g + PATCH_H - 1) / PATCH_H * PATCH_H * patches_across(g);
+}
+
 /* The patches' pieces: piece j, row j % PATCH_H of patch j / PATCH_H, holds the entries of that row's cells
  * in the patch; their exclusive sum (patch_at) is where each begins in the gathered order. */
 static __device__ __forceinline__ int64_t patch_piece(int64_t g, int64_t y, int64_t x0)

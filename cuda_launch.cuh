@@ -88,12 +88,6 @@ static bool place_fused(const Cuda *c)
     return c->n < c->fused_n;
 }
 
-/* The patches' pieces a gathering step's grid may have (PATCH_W; patch_count_kernel): within the plan's. */
-static int64_t patch_pieces(const Plan *pl)
-{
-    return (pl->gcap + PATCH_H - 1) / PATCH_H * PATCH_H * patches_across(pl->gcap);
-}
-
 /* Window w's binned entries placed in cell order: the exclusive sum of the counts (short_scan: by the
  * two short kernels, bin_clear), then each entry's place (and where place_fused, its disk's slot and
  * midpoint, from state buffer in). in_patches: a gathering step of one slice in patches (PATCH_W), whose
@@ -113,7 +107,7 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
     }
     phase_mark(c, ring, w, 2);
     if (in_patches) {
-        int64_t pieces = patch_pieces(pl);
+        int64_t pieces = patch_pieces(pl->gcap); /* the step's grid has at most the plan's cells a side */
         step_kernel(c, blocks_for(pieces), THREADS, 0, patch_count_kernel, c->grid, c->start, pieces, c->pieces);
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->pieces, c->patch_at, pieces,
                                                  c->stream));

@@ -163,10 +163,9 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         c->count = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
         c->start = (uint32_t *)dev_alloc((size_t)nc * 4, "the cell table");
         int64_t scanned = nc;
-        if (PATCH_W > 0) { /* a grid of g^2 <= nc cells: (g + PATCH_H) (g / PATCH_W + 1) pieces at most */
+        if (PATCH_W > 0) { /* the pieces of any grid these cells hold: g^2 <= nc cells a window */
             cudaFree(c->pieces), cudaFree(c->patch_at);
-            double g = sqrt((double)nc);
-            c->patch_cap = (int64_t)((g + PATCH_H) * (g / PATCH_COLS + 1)) + 2;
+            c->patch_cap = patch_pieces((int64_t)sqrt((double)nc));
             c->pieces = (uint32_t *)dev_alloc((size_t)c->patch_cap * 4, "the cell table");
             c->patch_at = (uint32_t *)dev_alloc((size_t)c->patch_cap * 4, "the cell table");
             scanned = c->patch_cap > nc ? c->patch_cap : nc; /* cub's scratch for either sum */
