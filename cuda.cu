@@ -79,7 +79,7 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
-#define ENTRY_BYTES (16 + 3 * 8 + 4 + sizeof(float4)) /* an entry's share (cuda_open) */
+#define ENTRY_BYTES (16 + 3 * 8 + sizeof(uint2) + sizeof(float4)) /* an entry's share (cuda_open) */
 #define EVENTS_PER_DISK 4         /* the first event list holds n / 4 (+ 4096) where steps have one slice
                                      (cuda_run; a gas of fraction 0.4 finds some n / 4.4 a step); a step that
                                      finds more is run again with room for them all */
@@ -197,8 +197,9 @@ typedef struct {
     int cur;
     int32_t *pc, *wc;    /* collision counts, in original order */
     uint32_t *keys, *rank;               /* per entry: cell key, rank within the cell */
-    uint32_t *keys_sorted, *order;       /* per place in cell order: key, entry; a gathering step in patches:
-                                            each place's new slot, each new slot's entry (place_patches_kernel) */
+    uint32_t *slot_of, *order;           /* steps of one slice: each place's entry in cell order (order); a
+                                            gathering step in patches: each place's new slot, each new slot's
+                                            entry (place_patches_kernel) */
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
@@ -517,7 +518,7 @@ static double bytes_needed(const Params *par, int print_buffer)
     double state = 2 * (4 * sizeof(real) + 4) + 2 * 4; /* two state buffers (disks, ids); pc, wc */
     double keys = 3 * 8 + 4;                           /* wall_hi, best_hi, best_lo; partner */
     double events = 2 * sizeof(PairEvent) * (n / EVENTS_PER_DISK + 4096) / n;
-    double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, keys_sorted, order; count, start */
+    double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, slot_of, order; count, start */
     return n * (state + keys + events + entries + (print_buffer ? 4 * sizeof(real) : 0));
 }
 

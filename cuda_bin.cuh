@@ -463,11 +463,11 @@ __global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *s
 }
 
 /* What the pair search reads of the disks: their state and wall keys (disk to wall), and where K > 1 one
- * entry a disk and slice in cell order, its slot and mid, so that the screens read neighbours
+ * entry a disk and slice in cell order, its slot, key and mid, so that the screens read neighbours
  * contiguously (the few pairs they pass read the state through the slot). */
 typedef struct {
     Disk *disk;
-    int32_t *id, *slot;
+    int32_t *id, *slot; /* slot: K = 1 with the disks in their slots, each place's slot; else NULL */
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
@@ -477,6 +477,10 @@ typedef struct {
                              here (the move leaves them, MoveBin); else NULL */
     int32_t *tally;       /* SETTLE: the disks' partners, each event's two lowered by PARTNER_TALLY (settle_kernel);
                              best_lo is then started by the settling, for the contested events' disks alone */
+    uint2 *placed; /* K > 1: each entry's slot and cell key side by side, which the placement scatters in one
+                      store where two arrays took two (random scene on one H200, N = 32000: the placement 4.00 ->
+                      3.15 ms over 200 steps, 2.54e8 -> 2.63e8 particle-steps/s; at 1e6, 3.03 -> 2.46 ms over
+                      10, 5.05e8 -> 5.22e8; bench/gpu_h100_variants.log 29a); else NULL */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */
@@ -488,25 +492,26 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
 /* Entry p of the cell order (K > 1): its disk's slot, and its midpoint in its slice as bin_kernel computes
  * it, with its velocity. */
 static __device__ __forceinline__ void put_entry(const DevState &st, const Entries &en, int64_t p, const WindowEntry &x,
-                                                 int K)
+                                                 int K, uint32_t key)
 {
     real2 pos = st.d[x.s].pos, vel = st.d[x.s].vel;
-    en.slot[p] = (int32_t)x.s;
+    en.placed[p] = make_uint2((uint32_t)x.s, key);
     double f = slice_mid(x.k, x.l, K);
     en.mid[p] = make_float4((float)((double)pos.x + (double)vel.x * f), (float)((double)pos.y + (double)vel.y * f),
                             (float)vel.x, (float)vel.y);
 }
 
-/* K > 1: the disks stay in place; entry p of the cell order gets its disk's slot and midpoint. */
+/* K > 1: the disks stay in place; entry p of the cell order, placed as its entry's index and key, gets its
+ * disk's slot in place of the index, and its midpoint. */
 __global__ void gather_entries_kernel(DevState st, int64_t n, int w, const int32_t *act, const int32_t *lev,
-                                      const StepInfo *info, const uint32_t *order, const uint32_t *start,
-                                      const Grid *grid, Entries en)
+                                      const StepInfo *info, const uint32_t *start, const Grid *grid, Entries en)
 {
     after_previous();
     const WindowDisks d = window_disks<true>(grid, w, n, act, lev, info);
     const int K = grid->K;
     GRID_LOOP(p, (int64_t)window_end(grid, w, start)) {
-        put_entry(st, en, p, window_entry(d, order[p]), K);
+        const uint2 e = en.placed[p];
+        put_entry(st, en, p, window_entry(d, e.x), K, e.y);
     }
 }
 
@@ -543,17 +548,16 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
 }
 
 /* Where each entry goes in cell order (start[] is the exclusive sum of the counts). Only the 4-byte
- * entry index is scattered (and its key, where keys_sorted: in steps of one slice the search keys each
- * disk itself); the disks, or the entries' slots and midpoints, are then gathered with coalesced writes
- * (gather_state_kernel, gather_entries_kernel). ENTRIES (K > 1 below
+ * entry index is scattered (in steps of one slice, to order[]; else with its key, one 8-byte store to
+ * en.placed: the search keys each probe by it); the disks, or the entries' slots and midpoints, are then
+ * gathered with coalesced writes (gather_state_kernel, gather_entries_kernel). ENTRIES (K > 1 below
  * PLACE_FUSED_N disks, cuda_launch.cuh's place_fused): the gather of the entries (gather_entries_kernel) done here
- * too, each entry's slot and midpoint scattered to its place with its key, the disk read in entry order (a
- * level list's order) rather than in cell order, and no order[] written or read: a kernel and 8 bytes an
- * entry fewer, 20 more scattered. */
+ * too, each entry's slot, key and midpoint scattered to its place, the disk read in entry order (a
+ * level list's order) rather than in cell order: a kernel and 8 bytes an entry fewer, 16 more scattered. */
 template <bool WINDOWS, bool LEVELS_LISTED, bool ENTRIES>
 __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, const int32_t *act, const int32_t *lev,
                              const StepInfo *info, const uint32_t *keys, const uint32_t *rank, const uint32_t *start,
-                             uint32_t *keys_sorted, uint32_t *order, Entries en)
+                             uint32_t *order, Entries en)
 {
     after_previous();
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, ENTRIES ? act : NULL, LEVELS_LISTED ? lev : NULL, info);
@@ -562,9 +566,10 @@ __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, co
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
         int64_t p = (int64_t)start[key] + rank[e];
-        if (ENTRIES || keys_sorted) keys_sorted[p] = key;
         if (ENTRIES)
-            put_entry(st, en, p, window_entry(d, e), K);
+            put_entry(st, en, p, window_entry(d, e), K, key);
+        else if (en.placed)
+            en.placed[p] = make_uint2((uint32_t)e, key);
         else
             order[p] = (uint32_t)e;
     }

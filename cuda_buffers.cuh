@@ -166,7 +166,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
      * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
      * state bounds only the slices a plan may take: up to ENTRY_MEMORY of it for entries (per entry,
-     * four 4-byte keys, three cells of count and start, and with K > 1 a slot and a midpoint), at most
+     * four 4-byte keys, three cells of count and start, and with K > 1 a slot, key and midpoint), at most
      * MAX_SLICES per disk. Entry and cell indices stay below 2^31. */
     size_t free_b = 0, total_b = 0;
     CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
@@ -219,7 +219,7 @@ static double buffer_bytes(const Cuda *c)
     b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
     b += 16.0 * (double)c->entry_cap + 8.0 * (double)c->cell_held;            /* entries and cells */
     b += 8.0 * (double)c->patch_cap;                                          /* the patches' pieces */
-    b += (double)c->copy_cap * (4 + sizeof(float4));                          /* entries' slots, mids */
+    b += (double)c->copy_cap * (sizeof(uint2) + sizeof(float4));              /* entries' slots, keys, mids */
     if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */
     if (c->out_dev) b += n * 4 * sizeof(real);                                /* the print buffer */
     return b + (double)c->scan_tmp_bytes + SCAN_TILES * 4;
@@ -235,7 +235,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->wc);
     cudaFree(c->keys);
     cudaFree(c->rank);
-    cudaFree(c->keys_sorted);
+    cudaFree(c->slot_of);
     cudaFree(c->order);
     cudaFree(c->count);
     cudaFree(c->start);
@@ -243,7 +243,7 @@ static void cuda_close(Cuda *c)
     cudaFree(c->tile_sums);
     cudaFree(c->pieces);
     cudaFree(c->patch_at);
-    cudaFree(c->en.slot);
+    cudaFree(c->en.placed);
     cudaFree(c->en.mid);
     cudaFree(c->wall_hi);
     cudaFree(c->best_hi);

@@ -7,7 +7,8 @@
  * keyed in sx columns, Grid.sx: the sx columns to each side of its own). Cell order is row by row, so the
  * row above lies wholly before p: what is left is the rest of p's own row (from p + 1 to the end of the
  * last column to its right) and the same columns of the row below, two contiguous runs of entries.
- * en.slot == NULL means entry == slot (K = 1). Entry and cell indices fit in 32 bits (cuda_open's limits).
+ * K > 1 finds each entry's slot in en.placed; K = 1, in en.slot, or where that is NULL, entry == slot.
+ * Entry and cell indices fit in 32 bits (cuda_open's limits).
  *
  * A dense scene gives each entry many candidates, and each thread walks its own, screening them with
  * near_path where K > 1 (the warp then tests those passed together). A sparse one (the gas)
@@ -149,7 +150,7 @@ static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, 
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
  * PERIODIC: the grid's box is periodic (Grid.periodic), as a constant of the search's build. SLOTS: the
  * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
- * the probe's slot. MID (K > 1): en's arrays are the slots' too, p an entry, en.slot each entry's; with
+ * the probe's slot. MID (K > 1): en's arrays are the slots' too, p an entry, en.placed each entry's; with
  * PROBE_LAZY the probe's disk is loaded here, for the few candidates near_path passes. */
 template <bool PERIODIC, bool SLOTS, bool MID>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
@@ -157,8 +158,9 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
                                                  int64_t cap, unsigned long long *found, uint64_t *best_hi,
                                                  const Probe *block = NULL, uint32_t p0 = 0)
 {
-    const uint32_t d = SLOTS || MID ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in en's arrays */
-    const uint32_t ps = MID ? (uint32_t)__ldg(&en.slot[p]) : p;          /* and p's, where MID */
+    const uint32_t d = MID ? __ldg(&en.placed[q].x) : SLOTS ? (uint32_t)__ldg(&en.slot[q]) : q; /* q's disk in
+                                                                                                   en's arrays */
+    const uint32_t ps = MID ? __ldg(&en.placed[p].x) : p; /* and p's, where MID */
     const bool lazy = MID && PROBE_LAZY;
     /* K = 1: a candidate among the block's own probes (slots p0 on), from their records (SHARED_CANDIDATES) */
     const Probe *mine = !MID && SHARED_CANDIDATES && block && d - p0 < THREADS ? &block[d - p0] : NULL;
@@ -420,7 +422,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * keys no disk out (bin_kernel), so the probes are slots 0 to end - 1 */
             /* a gathering step in patches (Entries.patches): the key from the disk, its place from its slot */
             const bool patched = !MID && SLOTS == 2;
-            uint32_t key = MID || (SLOTS && !patched)
+            uint32_t key = MID ? __ldg(&en.placed[p].y)
+                           : SLOTS && !patched
                                ? __ldg(&keys[p])
                                : cell_key<false>(*grid, __ldg(&en.disk[p].pos), __ldg(&en.disk[p].vel),
                                                  slice_mid(0, 0, 1), 0, NULL);
@@ -451,7 +454,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 pr.nb = __ldg(&start[row + gx + x1 + 1]) - pr.b0;
             }
             if (MID ? !PROBE_LAZY : !SLOTS || !PROBE_EARLY) /* MID: the entry's disk, in its slot */
-                probe_disk<PERIODIC>(pr, en, MID ? (uint32_t)__ldg(&en.slot[p]) : p);
+                probe_disk<PERIODIC>(pr, en, MID ? __ldg(&en.placed[p].x) : p);
             if (MID) pr.mid = __ldg(&en.mid[p]);
             else pr.edge = edge;
             if (MID)

@@ -112,15 +112,16 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->pieces, c->patch_at, pieces,
                                                  c->stream));
         step_kernel(c, blocks_for(c->n), THREADS, 0, place_patches_kernel, c->grid, c->n, c->keys, c->rank, c->start,
-                    c->patch_at, c->order, c->keys_sorted);
+                    c->patch_at, c->order, c->slot_of);
         return;
     }
-    uint32_t *sorted = act ? c->keys_sorted : NULL; /* act: NULL in steps of one slice alone */
+    Entries en = c->en;
+    if (!act) en.placed = NULL; /* act: NULL in steps of one slice alone, which place to c->order */
     bool fused = act && place_fused(c);
     auto place = fused ? (lev ? place_kernel<WINDOWS, true, true> : place_kernel<WINDOWS, false, true>)
                        : (lev ? place_kernel<WINDOWS, true, false> : place_kernel<WINDOWS, false, false>);
     step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
-                c->start, sorted, c->order, c->en);
+                c->start, c->order, en);
 }
 
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
@@ -154,12 +155,12 @@ template <bool PERIODIC>
 static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
 {
     int64_t one = blocks_for(pl->went[w]), tiles = loop_blocks(c, pl->went[w], LOOP_BLOCKS * DETECT_MIN_BLOCKS);
-    const uint32_t *keys = c->keys_sorted, *start = c->start;
+    const uint32_t *keys = c->keys, *start = c->start; /* keys: read by the slots' search alone (SLOTS 1) */
     if (pl->K == 1 && en.patches) /* a gathering step in patches (step_launch): places from the slots */
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 2>, en, c->keys, start, c->grid, w,
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 2>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
-        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 1>, en, c->keys, start, c->grid, w,
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 1>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->K == 1)
         step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 0>, en, keys, start, c->grid, w,
@@ -214,11 +215,12 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         DevState *d = &c->st[in];
         Entries en;
         en.disk = d->d, en.id = d->id;
-        en.slot = slots ? (int32_t *)c->order : patches ? (int32_t *)c->keys_sorted : NULL;
+        en.slot = slots ? (int32_t *)c->order : patches ? (int32_t *)c->slot_of : NULL;
         en.rank = c->rank;
         en.patches = patches ? c->patch_at : NULL;
         en.wall = c->wall_hi;
         en.mid = NULL;
+        en.placed = NULL;
         en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
         en.tally = pl->settle ? c->partner : NULL;
         phase_mark(c, ring, 0, 3);
@@ -242,7 +244,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
                 bin_place_launch<true>(c, pl, w, in, act, lev, ring, false);
             if (!place_fused(c))
                 step_kernel(c, window_blocks(c, pl, w), THREADS, 0, gather_entries_kernel, c->st[in], n, w, act,
-                            lev, c->info, c->order, c->start, grid, c->en);
+                            lev, c->info, c->start, grid, c->en);
             phase_mark(c, ring, w, 3);
             Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
             en.disk = c->st[in].d, en.id = c->st[in].id, en.wall = c->wall_hi;

@@ -139,17 +139,17 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         e = e < most_entries ? e : most_entries;
         e = e > entries ? e : entries;
         if (entries > c->entry_cap) {
-            cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
+            cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->slot_of), cudaFree(c->order);
             c->keys = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
             c->rank = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
-            c->keys_sorted = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
+            c->slot_of = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
             c->order = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
             c->entry_cap = e;
         }
         if (copies > c->copy_cap) {
-            cudaFree(c->en.slot), cudaFree(c->en.mid);
+            cudaFree(c->en.placed), cudaFree(c->en.mid);
             size_t ne = (size_t)e;
-            c->en.slot = (int32_t *)dev_alloc(ne * 4, "the entry copies");
+            c->en.placed = (uint2 *)dev_alloc(ne * sizeof(uint2), "the entry copies");
             c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
             c->copy_cap = e;
         }

@@ -521,7 +521,7 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(g->pc), cudaFree(g->wc), cudaFree(g->hcand);
     cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
     cudaFree(g->holes), cudaFree(g->fill_to), cudaFree(g->fill_from);
-    cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->keys_sorted), cudaFree(c->order);
+    cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->slot_of), cudaFree(c->order);
     cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
     cudaFree(c->pieces), cudaFree(c->patch_at);
     cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid), cudaFree(c->ahead);
@@ -952,6 +952,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.slot = g->slots ? (int32_t *)c->order : NULL;
             en.wall = c->wall_hi;
             en.mid = NULL;
+            en.placed = NULL;
             en.rank = c->rank;
             en.patches = NULL;
             en.best_lo = NULL;
