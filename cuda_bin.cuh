@@ -489,8 +489,8 @@ static __device__ __forceinline__ uint32_t window_end(const Grid *grid, int w, c
     return start[(int64_t)window_rows(grid->wb[w], grid->wb[w + 1], grid->levels) * grid->ncell];
 }
 
-/* Entry p of the cell order (K > 1): its disk's slot, and its midpoint in its slice as bin_kernel computes
- * it, with its velocity. */
+/* Entry p of the cell order (K > 1): its disk's slot and cell key, and its midpoint in its slice as
+ * bin_kernel computes it, with its velocity. */
 static __device__ __forceinline__ void put_entry(const DevState &st, const Entries &en, int64_t p, const WindowEntry &x,
                                                  int K, uint32_t key)
 {
@@ -553,7 +553,8 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
  * gathered with coalesced writes (gather_state_kernel, gather_entries_kernel). ENTRIES (K > 1 below
  * PLACE_FUSED_N disks, cuda_launch.cuh's place_fused): the gather of the entries (gather_entries_kernel) done here
  * too, each entry's slot, key and midpoint scattered to its place, the disk read in entry order (a
- * level list's order) rather than in cell order: a kernel and 8 bytes an entry fewer, 16 more scattered. */
+ * level list's order) rather than in cell order: a kernel and a pass over the entries fewer, the midpoints'
+ * 16 bytes an entry scattered. */
 template <bool WINDOWS, bool LEVELS_LISTED, bool ENTRIES>
 __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, const int32_t *act, const int32_t *lev,
                              const StepInfo *info, const uint32_t *keys, const uint32_t *rank, const uint32_t *start,
