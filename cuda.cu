@@ -79,7 +79,7 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #define NO_EVENT UINT64_MAX
 #define MAX_SLICES 256            /* time slices per step */
 #define ENTRY_MEMORY 0.5          /* share of the device memory left after the state that entries may take */
-#define ENTRY_BYTES (16 + 3 * 8 + sizeof(uint2) + sizeof(float4)) /* an entry's share (cuda_open) */
+#define ENTRY_BYTES (8 + 3 * 8 + sizeof(uint2) + sizeof(float4)) /* an entry's share (cuda_open) */
 #define EVENTS_PER_DISK 4         /* the first event list holds n / 4 (+ 4096) where steps have one slice
                                      (cuda_run; a gas of fraction 0.4 finds some n / 4.4 a step); a step that
                                      finds more is run again with room for them all */
@@ -199,7 +199,7 @@ typedef struct {
     uint32_t *keys, *rank;               /* per entry: cell key, rank within the cell */
     uint32_t *slot_of, *order;           /* steps of one slice: each place's entry in cell order (order); a
                                             gathering step in patches: each place's new slot, each new slot's
-                                            entry (place_patches_kernel) */
+                                            entry (place_patches_kernel). n places: K > 1 uses neither */
     uint32_t *count, *start;             /* per cell (+1): entries, and where they begin in cell order */
     void *scan_tmp;
     size_t scan_tmp_bytes;
@@ -215,6 +215,7 @@ typedef struct {
     Entries en;                          /* K > 1: the entries' slots and mids alone (step_launch) */
     GridLimits lim;
     int64_t entry_cap;   /* entries the key arrays hold (buffers_grow) */
+    int64_t order_cap;   /* places slot_of and order hold: the disks of a step of one slice */
     int64_t cell_held;   /* cells the cell table holds, its last (+1) included */
     int64_t copy_cap;    /* entries the copies (en) hold: none while every step has one slice */
     int slices_held;     /* the buffers of steps of several slices are there (wall_win, act, lev, level_of) */

@@ -166,7 +166,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     /* The scene's plans size the entries and cells (buffers_fit, below): a gas of one slice a step
      * takes one entry and at most CELLS_PER_DISK cells a disk. What is left of the device after the
      * state bounds only the slices a plan may take: up to ENTRY_MEMORY of it for entries (per entry,
-     * four 4-byte keys, three cells of count and start, and with K > 1 a slot, key and midpoint), at most
+     * two 4-byte keys, three cells of count and start, and with K > 1 a slot, key and midpoint), at most
      * MAX_SLICES per disk. Entry and cell indices stay below 2^31. */
     size_t free_b = 0, total_b = 0;
     CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
@@ -217,7 +217,7 @@ static double buffer_bytes(const Cuda *c)
     double n = (double)c->n;
     double b = n * (2 * (4 * sizeof(real) + 4) + 2 * 4 + 3 * 8 + 4);          /* states, pc, wc, keys, partner */
     b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
-    b += 16.0 * (double)c->entry_cap + 8.0 * (double)c->cell_held;            /* entries and cells */
+    b += 8.0 * (double)(c->entry_cap + c->order_cap) + 8.0 * (double)c->cell_held; /* entries, cells */
     b += 8.0 * (double)c->patch_cap;                                          /* the patches' pieces */
     b += (double)c->copy_cap * (sizeof(uint2) + sizeof(float4));              /* entries' slots, keys, mids */
     if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */

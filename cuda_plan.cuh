@@ -117,7 +117,7 @@ static bool buffers_fit(const Cuda *c, const Plan *pl)
 {
     int64_t entries, cells, copies;
     plan_needs(c, pl, &entries, &cells, &copies);
-    return entries <= c->entry_cap && cells <= c->cell_held && copies <= c->copy_cap &&
+    return entries <= c->entry_cap && cells <= c->cell_held && copies <= c->copy_cap && c->n <= c->order_cap &&
            (pl->K == 1 || c->slices_held);
 }
 
@@ -139,11 +139,9 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         e = e < most_entries ? e : most_entries;
         e = e > entries ? e : entries;
         if (entries > c->entry_cap) {
-            cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->slot_of), cudaFree(c->order);
+            cudaFree(c->keys), cudaFree(c->rank);
             c->keys = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
             c->rank = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
-            c->slot_of = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
-            c->order = (uint32_t *)dev_alloc((size_t)e * 4, "the cell keys");
             c->entry_cap = e;
         }
         if (copies > c->copy_cap) {
@@ -153,6 +151,12 @@ static void buffers_grow(Cuda *c, const Plan *pl)
             c->en.mid = (float4 *)dev_alloc(ne * sizeof(float4), "the entry copies");
             c->copy_cap = e;
         }
+    }
+    if (n > c->order_cap) { /* a step of one slice's places: n (mpi_cuda: its slots, grown as they are) */
+        cudaFree(c->slot_of), cudaFree(c->order);
+        c->slot_of = (uint32_t *)dev_alloc((size_t)n * 4, "the cell keys");
+        c->order = (uint32_t *)dev_alloc((size_t)n * 4, "the cell keys");
+        c->order_cap = n;
     }
     if (cells > c->cell_held) {
         double ahead = c->cell_held ? GROWTH : pl->K > 1 ? SLICES_AHEAD : 1;

@@ -69,7 +69,7 @@ for scene in $scenes; do
             continue
         fi
         "$p" "$DATA/$scene.in" --stats > "$DATA/out_$scene" 2> "$DATA/err"
-        grep -E 'phase|pair tests|faster|undecided|one slice found' "$DATA/err" | sed "s|^|$scene $name: |" >> "$OUT/phases.log"
+        grep -E 'phase|pair tests|faster|undecided|one slice found|device memory' "$DATA/err" | sed "s|^|$scene $name: |" >> "$OUT/phases.log"
         if [ "$p" = ./cuda ]; then cp "$DATA/out_$scene" "$DATA/ref_$scene"; fi
         cmp -s "$DATA/out_$scene" "$DATA/ref_$scene" || echo "$scene $name: OUTPUT DIFFERS from ./cuda"
     done
