@@ -391,11 +391,15 @@ do_goals() {
         esac
     done
     [ "${GOALS_SCENES:-}" = none ] && return
-    # the whole process with text in and out: the gas of 1e7, 50 steps
+    # the whole process with text in and out: the gas of 1e7, 50 steps, its 1.27 GB of output to a file.
+    # Each run starts after a sync: the GBs this script and the runs before wrote would otherwise still
+    # be on their way to the disk, and a run's writes wait on them (the same tree took 0.86 to 1.62 s so,
+    # bench/gpu_h100_goals.log)
     [ -s "$DATA/gas50_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas50_10000000.in"
     ./cuda "$DATA/gas50_10000000.in" > /dev/null 2>&1
     local t0 t1 best=999
     for _ in 1 2 3; do
+        sync
         t0=$(date +%s.%N)
         ./cuda "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
         t1=$(date +%s.%N)
@@ -405,6 +409,7 @@ do_goals() {
     if [ -n "${BASE:-}" ]; then
         best=999
         for _ in 1 2 3; do
+            sync
             t0=$(date +%s.%N)
             "$BASE/cuda" "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
             t1=$(date +%s.%N)
