@@ -392,13 +392,14 @@ do_goals() {
     done
     [ "${GOALS_SCENES:-}" = none ] && return
     # the whole process with text in and out: the gas of 1e7, 50 steps, its 1.27 GB of output to a file.
-    # Each run starts after a sync: the GBs this script and the runs before wrote would otherwise still
-    # be on their way to the disk, and a run's writes wait on them (the same tree took 0.86 to 1.62 s so,
-    # bench/gpu_h100_goals.log)
+    # Each run writes a new file, the last one removed and the disk synced before the clock starts: the
+    # shell's truncation of the last run's file had been timed with the run (one H200 host, the same tree:
+    # 1.5 to 1.75 s over an old file, 0.79 s to a new one; bench/gpu_h100_goals.log)
     [ -s "$DATA/gas50_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas50_10000000.in"
     ./cuda "$DATA/gas50_10000000.in" > /dev/null 2>&1
     local t0 t1 best=999
     for _ in 1 2 3; do
+        rm -f "$DATA/gas50.out"
         sync
         t0=$(date +%s.%N)
         ./cuda "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
@@ -409,6 +410,7 @@ do_goals() {
     if [ -n "${BASE:-}" ]; then
         best=999
         for _ in 1 2 3; do
+            rm -f "$DATA/gas50.out"
             sync
             t0=$(date +%s.%N)
             "$BASE/cuda" "$DATA/gas50_10000000.in" --quiet > "$DATA/gas50.out"
