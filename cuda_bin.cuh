@@ -467,7 +467,8 @@ __global__ void tile_scan_kernel(uint32_t *count, int64_t len, const uint32_t *s
  * contiguously (the few pairs they pass read the state through the slot). */
 typedef struct {
     Disk *disk;
-    int32_t *id, *slot; /* slot: K = 1 with the disks in their slots, each place's slot; else NULL */
+    int32_t *id, *slot; /* slot: K = 1, each place's slot (the disks in their slots, or a gathering step's
+                           new slots in patches: en.patches); else NULL */
     uint64_t *wall;
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
