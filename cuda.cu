@@ -60,6 +60,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <unistd.h>
 #include <utility>
@@ -525,17 +526,20 @@ static double bytes_needed(const Params *par, int print_buffer)
 
 /* With steps to run, the context is created while the particle lines are read; then a run that the
  * device cannot hold is stopped with the size it needs, as the input is still being read (nothing has
- * gone to stdout). _exit: the exit handlers would wait for this very thread. */
-static void cuda_prepare(const Params *par)
+ * gone to stdout), its message naming where N was read, as bad input's do. _exit: the exit handlers
+ * would wait for this very thread. */
+static void cuda_prepare(const Params *par, const char *where)
 {
     if (par->steps > 0 && !cuda_warm.joinable()) {
         double need = bytes_needed(par, par->print && par->steps > 1);
-        cuda_warm = std::thread([need, par]() {
+        long long n = (long long)par->n;
+        std::string at(where);
+        cuda_warm = std::thread([need, n, at]() {
             size_t free_b = 0, total_b = 0;
             if (cudaFree(0) != cudaSuccess || cudaMemGetInfo(&free_b, &total_b) != cudaSuccess) return;
             if (need <= (double)free_b) return;
-            fprintf(stderr, "%s: %lld disks need at least %.2f GB of GPU memory (%.0f bytes a disk); the GPU "
-                    "has %.2f GB free of %.2f GB\n", sim_program, (long long)par->n, need / 1e9, need / (double)par->n,
+            fprintf(stderr, "%s: %s: %lld disks need at least %.2f GB of GPU memory (%.0f bytes a disk); the GPU "
+                    "has %.2f GB free of %.2f GB\n", sim_program, at.c_str(), n, need / 1e9, need / (double)n,
                     (double)free_b / 1e9, (double)total_b / 1e9);
             fflush(stderr);
             _exit(1);

@@ -638,7 +638,11 @@ void input_read(const Options *opt, Params *par, Sim *sim, IoTimes *io, int prep
     double t1 = sim_clock();
     par->periodic = opt->periodic;
     read_header(&rd, par);
-    if (prepare && io_backend->prepare) io_backend->prepare(par);
+    if (prepare && io_backend->prepare) {
+        char where[4096];
+        snprintf(where, sizeof where, "%s:%ld", rd.label, rd.n_line);
+        io_backend->prepare(par, where);
+    }
     if (sim_alloc(sim, par->n))
         input_error(&rd, rd.n_line, "not enough memory for the particles (N = %lld)",
                     (long long)par->n);

@@ -311,7 +311,7 @@ int io_main(int argc, char **argv, const Backend *b)
         memset(&par, 0, sizeof par);
         memset(&sim, 0, sizeof sim);
         checkpoint_read(&opt, &par, &sim, &vir);
-        if (io_backend->prepare) io_backend->prepare(&par);
+        if (io_backend->prepare) io_backend->prepare(&par, opt.resume);
     } else {
         input_read(&opt, &par, &sim, &io, 1);
         par.first_step = 0;

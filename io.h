@@ -87,8 +87,9 @@ typedef struct {
      * step, counts included. Returns 0, or non-zero after printing its own error message. */
     int (*run)(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats);
     /* NULL, or called once the input's header is read, before its particle lines: slow set-up that
-     * runs beside the reading (cuda creates its context when there are steps to run). */
-    void (*prepare)(const Params *par);
+     * runs beside the reading (cuda creates its context when there are steps to run). where names N's
+     * source for a refusal's message, as bad input's name it: "FILE:LINE", or a checkpoint's path. */
+    void (*prepare)(const Params *par, const char *where);
     /* Calls task(ctx, k) once for each k in [0, tasks), on up to threads threads (0: the backend's
      * default; seq: one, in order). The tasks must not depend on each other's order: the input's
      * pieces and chunks and the output's blocks of lines go through it. */

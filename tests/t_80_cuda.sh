@@ -354,3 +354,16 @@ if [ -x ./cuda ]; then
 else
     skip "cuda --pressure rejected" "./cuda not built"
 fi
+
+# A run the GPU cannot hold is stopped while its input is still being read (cuda_prepare): 2e9 disks
+# (about 280 GB, more than any one GPU has), placed at random, with nothing on stdout and one line
+# naming where N was read and the size the run needs. The placement alone would take minutes: an exit
+# within the time limit is the check's second half.
+label="cuda: a run larger than the GPU refused as its input is read"
+if have_gpu; then
+    printf '2000000000\n1000000\n1\n10\nperf\n' > "$TMP/cuda_too_big.in"
+    expect_error "$label" "^cuda: $TMP/cuda_too_big.in:1: 2000000000 disks need at least [0-9.]+ GB of GPU memory" \
+        timeout 60 ./cuda "$TMP/cuda_too_big.in" --quiet
+else
+    skip "$label" "no GPU"
+fi
