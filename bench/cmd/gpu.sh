@@ -27,9 +27,10 @@
 #                            loop on the gas of 1e7 and (GOALS_BIG=1) of 1e8, the dense gas of 1e7, the
 #                            random scene at 32000 (200 steps) and 1e6 (10 steps); device memory a disk
 #                            (nvidia-smi's peak during the run less its reading before) at 1e7 and 1e8;
-#                            the whole process on the gas of 1e7 with S = 50 (text in and out).
-#                            BASE_SRC=FILE times an earlier cuda.cu beside each run; GOALS_SCENES picks
-#                            scenes (GOALS_SCENES=none GOALS_BIG=1: the gas of 1e8 alone)
+#                            a run too large for the GPU refused (too_big); the whole process on the gas
+#                            of 1e7 with S = 50 (text in and out). BASE_SRC=FILE times an earlier cuda.cu
+#                            beside each run; GOALS_SCENES picks scenes (GOALS_SCENES=none: the refusal
+#                            alone; with GOALS_BIG=1, and the gas of 1e8)
 #   ./bench.sh gpu-bytes   DRAM bytes a particle-step, kernel by kernel, under Nsight Compute, on the gas
 #                            of 1e7 (BYTES_N), beside the 80-byte floor
 #   ./bench.sh gpu-streams the memory streams of cuda's move of a gas alone (bench/cmd/streams.cu, N = 1e7):
@@ -390,6 +391,7 @@ do_goals() {
             goal "$f device memory, bytes a disk" "$(awk -v m="$mem" -v n="$n" 'BEGIN { printf "%.0f", m * 1048576 / n }')" 200 le ;;
         esac
     done
+    too_big
     [ "${GOALS_SCENES:-}" = none ] && return
     # the whole process with text in and out: the gas of 1e7, 50 steps
     [ -s "$DATA/gas50_10000000.in" ] || tools/gen 10000000 --fraction 0.2 --speed 0.5 --steps 50 > "$DATA/gas50_10000000.in"
@@ -401,6 +403,21 @@ do_goals() {
         whole_best "$BASE/cuda"
         echo "# gas_10000000 S = 50, whole process, cuda_base best: $best s" | tee -a "$CSV"
     fi
+}
+
+# A run the GPU cannot hold, 2e9 disks (some 300 GB) placed at random: refused as its input is read, with the
+# size it needs (cuda_prepare). The placement alone would take minutes: the seconds to the refusal show it
+# came first. Missed where the message, or an empty stdout, is not there.
+too_big() {
+    local t0 t1 secs
+    printf '2000000000\n1000000\n1\n10\nperf\n' > "$DATA/too_big.in"
+    t0=$(date +%s.%N)
+    timeout 300 ./cuda "$DATA/too_big.in" --quiet > "$DATA/too_big.out" 2> "$DATA/err" || true
+    t1=$(date +%s.%N)
+    secs=$(awk -v t0="$t0" -v t1="$t1" 'BEGIN { printf "%.2f", t1 - t0 }')
+    echo "# too_big: $(head -c 300 "$DATA/err")" | tee -a "$CSV"
+    grep -q "disks need at least .* GB of GPU memory" "$DATA/err" && [ ! -s "$DATA/too_big.out" ] || secs=999
+    goal "2e9 disks placed at random, refused with the size they need, seconds" "$secs" 10 le
 }
 
 # best: the best of 3 whole-process runs of PROG on the gas of 1e7 with S = 50, its 1.27 GB of output to a
