@@ -311,10 +311,19 @@ typedef struct {
 /* Creating CUDA's context takes a few hundred milliseconds: it is started beside the reading of the
  * input, and awaited by cuda_run (or at exit, before the thread object goes). */
 static std::thread cuda_warm;
+/* set where the process exits before cuda_run (bad input has printed its one line): the refusal for
+ * memory then stays silent, so that stderr keeps one line */
+static std::atomic<bool> cuda_exiting{false};
 
 static void cuda_warm_join(void)
 {
     if (cuda_warm.joinable()) cuda_warm.join();
+}
+
+static void cuda_warm_at_exit(void)
+{
+    cuda_exiting = true;
+    cuda_warm_join();
 }
 
 static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out, RunStats *stats)
@@ -537,14 +546,14 @@ static void cuda_prepare(const Params *par, const char *where)
         cuda_warm = std::thread([need, n, at]() {
             size_t free_b = 0, total_b = 0;
             if (cudaFree(0) != cudaSuccess || cudaMemGetInfo(&free_b, &total_b) != cudaSuccess) return;
-            if (need <= (double)free_b) return;
+            if (need <= (double)free_b || cuda_exiting) return;
             fprintf(stderr, "%s: %s: %lld disks need at least %.2f GB of GPU memory (%.0f bytes a disk); the GPU "
                     "has %.2f GB free of %.2f GB\n", sim_program, at.c_str(), n, need / 1e9, need / (double)n,
                     (double)free_b / 1e9, (double)total_b / 1e9);
             fflush(stderr);
             _exit(1);
         });
-        atexit(cuda_warm_join);
+        atexit(cuda_warm_at_exit);
     }
 }
 

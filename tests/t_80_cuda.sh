@@ -356,7 +356,7 @@ else
 fi
 
 # A run the GPU cannot hold is stopped while its input is still being read (cuda_prepare): 2e9 disks
-# (about 280 GB, more than any one GPU has), placed at random, with nothing on stdout and one line
+# (some 300 GB, more than any one GPU has), placed at random, with nothing on stdout and one line
 # naming where N was read and the size the run needs. The placement alone would take minutes: an exit
 # within the time limit is the check's second half.
 label="cuda: a run larger than the GPU refused as its input is read"
@@ -364,6 +364,12 @@ if have_gpu; then
     printf '2000000000\n1000000\n1\n10\nperf\n' > "$TMP/cuda_too_big.in"
     expect_error "$label" "^cuda: $TMP/cuda_too_big.in:1: 2000000000 disks need at least [0-9.]+ GB of GPU memory" \
         timeout 60 ./cuda "$TMP/cuda_too_big.in" --quiet
+    # the same header with a bad line after it: the parse fails before the context is up, and its one line
+    # is all (the refusal for memory, whose check comes later, stays silent as the process exits)
+    printf '2000000000\n1000000\n1\n10\nperf\n0 1 2 3\n' > "$TMP/cuda_too_big_bad.in"
+    expect_error "$label, after a bad line: that line's message alone" \
+        "^cuda: $TMP/cuda_too_big_bad.in:6: expected 5 fields" timeout 60 ./cuda "$TMP/cuda_too_big_bad.in" --quiet
 else
     skip "$label" "no GPU"
+    skip "$label, after a bad line" "no GPU"
 fi
