@@ -405,6 +405,10 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     Batch batch[2];
     int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
     int cur_at[RING];         /* the state buffer each step in flight starts from */
+    /* the first batch (one step, read back alone) keys the disks for the second's first step, which then
+     * needs no gather of its own, one step after the first's (step_launch); never after a refusal or a
+     * growth of the buffers, which the keys and the event keys it started live in */
+    bool keys_handed = false;
     while (next <= last || flying > 0) {
         /* the first batch is one step, read back before the next is launched: its counts set the
          * rounds of all later batches (a dense scene's first batches would otherwise leave the
@@ -415,7 +419,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
             pl = plan_for(&c, known * plan_scale[batches % 2], rounds, found, window);
             /* a plan that needs larger buffers waits for the batches in flight, which use them */
             if (!buffers_fit(&c, &pl)) {
-                if (flying == 0) buffers_grow(&c, &pl);
+                if (flying == 0) buffers_grow(&c, &pl), keys_handed = false;
                 else launch = false;
             }
         }
@@ -438,7 +442,9 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
                 bt->last = due * k; /* a print step in this batch can only be this one */
                 bt->ck = due;
             }
-            batch_launch(&c, &pl, b, bt->first, bt->last, cur_at);
+            bool keyed_in = keys_handed;
+            keys_handed = !prev_read.steps && bt->last < last && pl.K == 1 && c.ahead_slack > 0; /* it keys ahead */
+            batch_launch(&c, &pl, b, bt->first, bt->last, cur_at, keyed_in, keys_handed);
             if (bt->print || bt->ck) print_enqueue(&c, b);
             if (bt->ck) counts_enqueue(&c, b);
             CUDA_CHECK(cudaMemcpyAsync(&c.ctl_host[b], c.ctl, sizeof(Control), cudaMemcpyDeviceToHost,
@@ -467,6 +473,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
             }
             last_read.refused = 0;
             last_read.overflow = 0;
+            keys_handed = false;
             CUDA_CHECK(cudaMemcpyAsync(c.ctl, &last_read, sizeof last_read, cudaMemcpyHostToDevice, c.stream));
             CUDA_CHECK(cudaStreamSynchronize(c.stream));
             next = done + 1;

@@ -182,21 +182,25 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
 }
 
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
- * ring: the step's phase marks under --stats; first, last: whether it is its batch's first, last. In
- * steps of one slice where moves key ahead (MoveBin): keyed, the move of the step before keyed the
- * disks' cells for this one; key_ahead, this one's move keys them for the next. */
-static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last)
+ * ring: the step's phase marks under --stats; first, last: whether it is its batch's first, last;
+ * keyed_in: a first step that the batch before keyed (batch_launch); key_out: a last step that keys the
+ * next batch's first. In steps of one slice where moves key ahead (MoveBin): keyed, the move of the step
+ * before keyed the disks' cells for this one; key_ahead, this one's move keys them for the next. */
+static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last, bool keyed_in = false,
+                        bool key_out = false)
 {
     int64_t n = c->n;
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
-    bool ahead = pl->K == 1 && c->ahead_slack > 0, keyed = ahead && !first, key_ahead = ahead && !last;
+    bool ahead = pl->K == 1 && c->ahead_slack > 0;
+    bool keyed = ahead && (!first || keyed_in), key_ahead = ahead && (!last || key_out);
     /* a step the move before keyed searches the disks where that move left them, through the cell
      * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
      * gathers, so the disks return to cell order every BATCH steps (between them a gas's disks move a
      * few cells at most, and the search's loads stay near each other), and a step run again after a
-     * refusal starts from a gather. */
+     * refusal starts from a gather; but the second batch's first step, one step after the first batch's
+     * gather, is keyed by it (cuda_run, keys_handed). */
     bool slots = SLOT_STEPS && keyed;
     /* a gathering step in patches (PATCH_W): its placement gives each disk its slot in them, and the step
      * searches the disks in their slots */
@@ -270,11 +274,12 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
 /* What sets the kernels a batch launches, and in what order (step_launch): its steps, one slice or
  * several, the windows, the speed levels' lists, each window's choice rounds and way of scanning its
  * cell table, and whether a scan by cub left counts to clear. */
-static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
+static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps, bool keyed_in, bool key_out)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    enum { HEAD = 6 }; /* the fields before the windows' */
-    int64_t f[HEAD + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle};
+    enum { HEAD = 7 }; /* the fields before the windows' */
+    int64_t f[HEAD + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle,
+                                  2 * keyed_in + key_out};
     for (int w = 0; w < pl->W && w < WMAX; w++) {
         f[HEAD + 2 * w] = pl->rounds[w];
         f[HEAD + 1 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
@@ -291,16 +296,17 @@ static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps)
  * finished by then (the host read its batch back). Other batches launch kernel by kernel: making a
  * graph takes milliseconds, which a run of 10 steps at N = 1e6 does not win back (2.5e8 against 2.8e8
  * when every full batch made one), and so do --stats runs. bench/gpu_h100_variants.log 9h. */
-static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at)
+static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at,
+                         bool keyed_in, bool key_out)
 {
     if (c->scan_alternate) c->scan_tiles = b ? SCAN_TILES : 0; /* SIM_CUDA_SCAN_TILES=-1 */
-    uint64_t shape = batch_shape(c, pl, last - first + 1);
+    uint64_t shape = batch_shape(c, pl, last - first + 1, keyed_in, key_out);
     int graph = c->graphs && last - first + 1 == BATCH && shape == c->shape[b];
     c->shape[b] = shape;
     if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
     for (int64_t s = first; s <= last; s++) {
         cur_at[s % RING] = c->cur;
-        step_launch(c, pl, (int)(s % RING), s == first, s == last);
+        step_launch(c, pl, (int)(s % RING), s == first, s == last, keyed_in, key_out);
     }
     if (!graph) return;
     cudaGraph_t g;
