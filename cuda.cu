@@ -443,7 +443,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
                 bt->ck = due;
             }
             bool keyed_in = keys_handed;
-            keys_handed = !prev_read.steps && bt->last < last && pl.K == 1 && c.ahead_slack > 0; /* it keys ahead */
+            keys_handed = !prev_read.steps && bt->last < last && moves_key_ahead(&c, &pl);
             batch_launch(&c, &pl, b, bt->first, bt->last, cur_at, keyed_in, keys_handed);
             if (bt->print || bt->ck) print_enqueue(&c, b);
             if (bt->ck) counts_enqueue(&c, b);

@@ -181,6 +181,13 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
         detect_box<false>(c, pl, w, en);
 }
 
+/* Whether a step of plan pl keys the disks ahead in its move (MoveBin): steps of one slice, unless
+ * SIM_CUDA_BIN_AHEAD=0 */
+static bool moves_key_ahead(const Cuda *c, const Plan *pl)
+{
+    return pl->K == 1 && c->ahead_slack > 0;
+}
+
 /* Launches one step from the current state; if the step commits, the current state is then in c->cur.
  * ring: the step's phase marks under --stats; first, last: whether it is its batch's first, last;
  * keyed_in: a first step that the batch before keyed (batch_launch); key_out: a last step that keys the
@@ -193,7 +200,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     int in = c->cur;
     const Grid *grid = c->grid;
     c->step_windows[ring] = pl->W;
-    bool ahead = pl->K == 1 && c->ahead_slack > 0;
+    bool ahead = moves_key_ahead(c, pl);
     bool keyed = ahead && (!first || keyed_in), key_ahead = ahead && (!last || key_out);
     /* a step the move before keyed searches the disks where that move left them, through the cell
      * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
