@@ -187,6 +187,11 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                dense gas 5.67e9 -> 6.03e9, gas of 1e8 7.11e9 -> 7.61e9
                                (bench/gpu_h100_variants.log 18) */
 #endif
+#ifndef GATHER_SPAN
+#define GATHER_SPAN (BATCH + BATCH / 2) /* steps of one slice a gather serves at most: a batch's first step gathers
+                                           unless the batch before can key it and its last step would still be
+                                           within this many steps of the last gather (cuda_run, keys_handed) */
+#endif
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
 #endif
@@ -308,6 +313,29 @@ typedef struct {
     int64_t first, last, print, ck;
 } Batch;
 
+/* The batch of steps from `next` (sub-steps of k a step; the run's last is `last`): BATCH at most, one
+ * where it is the run's first (`first`); a printed whole step or a checkpoint due ends it there. */
+static Batch batch_from(const Params *par, const Output *out, int64_t next, int64_t last, int64_t k, bool first)
+{
+    Batch bt;
+    bt.first = next;
+    bt.last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
+    if (first) bt.last = next;
+    bt.print = 0;
+    bt.ck = 0;
+    int64_t shown = (next + k - 1) / k * k; /* the first whole step from next on */
+    if (par->print && shown < last && shown <= bt.last) {
+        bt.last = shown;
+        bt.print = shown / k;
+    }
+    int64_t due = io_checkpoint_next(out, (next + k - 1) / k);
+    if (due && due * k <= bt.last) {
+        bt.last = due * k; /* a print step in this batch can only be this one */
+        bt.ck = due;
+    }
+    return bt;
+}
+
 /* Creating CUDA's context takes a few hundred milliseconds: it is started beside the reading of the
  * input, and awaited by cuda_run (or at exit, before the thread object goes). */
 static std::thread cuda_warm;
@@ -405,10 +433,13 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     Batch batch[2];
     int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
     int cur_at[RING];         /* the state buffer each step in flight starts from */
-    /* the first batch (one step, read back alone) keys the disks for the second's first step, which then
-     * needs no gather of its own, one step after the first's (step_launch); never after a refusal or a
-     * growth of the buffers, which the keys and the event keys it started live in */
+    /* a batch keys the disks for the next batch's first step, which then needs no gather of its own
+     * (step_launch), where that batch would end within GATHER_SPAN steps of the last gather: the first
+     * batch (one step, read back alone) keys the second, and a short last batch runs on the gather before
+     * it; never after a refusal or a growth of the buffers, which the keys and the event keys it started
+     * live in */
     bool keys_handed = false;
+    int64_t gathered_at = next; /* the step of the last gather */
     while (next <= last || flying > 0) {
         /* the first batch is one step, read back before the next is launched: its counts set the
          * rounds of all later batches (a dense scene's first batches would otherwise leave the
@@ -427,23 +458,11 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
             int b = (head + flying) % 2;
             Batch *bt = &batch[b];
             batches++;
-            bt->first = next;
-            bt->last = next + BATCH - 1 < last ? next + BATCH - 1 : last;
-            if (!prev_read.steps) bt->last = next;
-            bt->print = 0;
-            bt->ck = 0;
-            int64_t shown = (next + k - 1) / k * k; /* the first whole step from next on */
-            if (par->print && shown < last && shown <= bt->last) {
-                bt->last = shown;
-                bt->print = shown / k;
-            }
-            int64_t due = io_checkpoint_next(out, (next + k - 1) / k);
-            if (due && due * k <= bt->last) {
-                bt->last = due * k; /* a print step in this batch can only be this one */
-                bt->ck = due;
-            }
+            *bt = batch_from(par, out, next, last, k, !prev_read.steps);
             bool keyed_in = keys_handed;
-            keys_handed = !prev_read.steps && bt->last < last && moves_key_ahead(&c, &pl);
+            if (!keyed_in) gathered_at = bt->first;
+            keys_handed = bt->last < last && moves_key_ahead(&c, &pl) &&
+                          batch_from(par, out, bt->last + 1, last, k, false).last - gathered_at < GATHER_SPAN;
             batch_launch(&c, &pl, b, bt->first, bt->last, cur_at, keyed_in, keys_handed);
             if (bt->print || bt->ck) print_enqueue(&c, b);
             if (bt->ck) counts_enqueue(&c, b);

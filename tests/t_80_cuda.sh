@@ -169,6 +169,32 @@ for name in $(pick "slow dense overlap" "slow dense"); do
     same_bytes "$label, no keys ahead" "$expected" env SIM_CUDA_BIN_AHEAD=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
 done
 
+# A batch keys the next batch's first step where that batch would end within GATHER_SPAN (12) steps of the
+# last gather (cuda.cu, cuda_run): print mode's batches of one step then gather once every 12 steps, not
+# every step (40 steps: gathers at 1, 13, 25 and 37, 36 steps keyed), and a perf run's short last batch runs
+# on the gather before it (20 steps: batches 1, 2-9, 10-17 and 18-20, gathers at 1 and 10). The bytes stay
+# seq's; fewer keyed steps than these, or none, would mean the batches gather as before.
+for run in "slow print 40 36" "slow perf 20 18"; do
+    read -r name mode steps want <<< "$run"
+    label="cuda/$name $mode, $steps steps: batches keyed by the batch before"
+    if ! have_gpu; then
+        skip "$label" "no GPU"
+        continue
+    fi
+    in=$TMP/cuda_${name}_${mode}_$steps.in
+    sed "4s/.*/$steps/" "$TMP/cuda_${name}_$mode.in" > "$in"
+    ./seq "$in" --quiet > "$in.expected"
+    same_bytes "$label" "$in.expected" ./cuda "$in" --quiet --stats
+    line=$(grep "keyed by the move before" "$TMP/err")
+    # a keyed step whose disks outgrew the cells they were keyed on bins anew: both came after a move that keyed
+    if [[ $line =~ before\ them:\ ([0-9]+),\ binned\ anew.*:\ ([0-9]+) ]] &&
+        [ $((BASH_REMATCH[1] + BASH_REMATCH[2])) -ge "$want" ]; then
+        pass "$label: $((BASH_REMATCH[1] + BASH_REMATCH[2])) of $steps steps keyed"
+    else
+        fail "$label: at least $want of $steps steps keyed" "stats: ${line:-no line}"
+    fi
+done
+
 # Steps of one slice settle the pair events that are the only one of both their disks before the choice's
 # rounds (cuda_choose.cuh, settle_kernel) where a disk has few events a step; SIM_CUDA_SETTLE sets how few.
 # Every step settles at 1e30 and none at 0, and both print seq's bytes; --stats counts the events the steps
