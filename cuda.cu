@@ -190,7 +190,11 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #ifndef GATHER_SPAN
 #define GATHER_SPAN (BATCH + BATCH / 2) /* steps of one slice a gather serves at most: a batch's first step gathers
                                            unless the batch before can key it and its last step would still be
-                                           within this many steps of the last gather (cuda_run, keys_handed) */
+                                           within this many steps of the last gather (cuda_run, keys_handed).
+                                           A short last batch so gathers no more: gas of 1e7, 20 steps, on one
+                                           H200 9.17e9 -> 9.30e9 particle-steps/s, of 1e8, 10 steps, 8.91e9 ->
+                                           9.13e9; batches of 12, gathering each, ran within 1% of 8
+                                           (bench/gpu_h100_variants.log 33a, 27k) */
 #endif
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */

@@ -206,8 +206,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
      * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
      * gathers, so the disks return to cell order every BATCH steps (between them a gas's disks move a
      * few cells at most, and the search's loads stay near each other), and a step run again after a
-     * refusal starts from a gather; but the second batch's first step, one step after the first batch's
-     * gather, is keyed by it (cuda_run, keys_handed). */
+     * refusal starts from a gather; but a batch's first step is keyed by the batch before where the
+     * batch ends within GATHER_SPAN steps of the last gather (cuda_run, keys_handed): the second batch's,
+     * one step after the first batch's gather, and a short last batch's. */
     bool slots = SLOT_STEPS && keyed;
     /* a gathering step in patches (PATCH_W): its placement gives each disk its slot in them, and the step
      * searches the disks in their slots */
