@@ -439,9 +439,9 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     int cur_at[RING];         /* the state buffer each step in flight starts from */
     /* a batch keys the disks for the next batch's first step, which then needs no gather of its own
      * (step_launch), where that batch would end within GATHER_SPAN steps of the last gather: the first
-     * batch (one step, read back alone) keys the second, and a short last batch runs on the gather before
-     * it; never after a refusal or a growth of the buffers, which the keys and the event keys it started
-     * live in */
+     * batch (one step, read back alone) keys the second; a last batch of up to 4 steps after a full one,
+     * and batches cut short by print steps or checkpoints, run on the gather before them; never after a
+     * refusal or a growth of the buffers, which the keys and the event keys it started live in */
     bool keys_handed = false;
     int64_t gathered_at = next; /* the step of the last gather */
     while (next <= last || flying > 0) {

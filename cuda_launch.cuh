@@ -204,11 +204,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
     bool keyed = ahead && (!first || keyed_in), key_ahead = ahead && (!last || key_out);
     /* a step the move before keyed searches the disks where that move left them, through the cell
      * order (SLOT_STEPS), and that move started their event keys: no gather. A batch's first step
-     * gathers, so the disks return to cell order every BATCH steps (between them a gas's disks move a
-     * few cells at most, and the search's loads stay near each other), and a step run again after a
-     * refusal starts from a gather; but a batch's first step is keyed by the batch before where the
-     * batch ends within GATHER_SPAN steps of the last gather (cuda_run, keys_handed): the second batch's,
-     * one step after the first batch's gather, and a short last batch's. */
+     * gathers, so the disks return to cell order every BATCH to GATHER_SPAN steps (between them a gas's
+     * disks move a few cells at most, and the search's loads stay near each other), and a step run again
+     * after a refusal starts from a gather; but a batch's first step is keyed by the batch before where
+     * the batch ends within GATHER_SPAN steps of the last gather (cuda_run, keys_handed). */
     bool slots = SLOT_STEPS && keyed;
     /* a gathering step in patches (PATCH_W): its placement gives each disk its slot in them, and the step
      * searches the disks in their slots */
