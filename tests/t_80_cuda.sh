@@ -173,8 +173,9 @@ done
 # last gather (cuda.cu, cuda_run): print mode's batches of one step then gather once every 12 steps, not
 # every step (40 steps: gathers at 1, 13, 25 and 37, 36 steps keyed), and a perf run's short last batch runs
 # on the gather before it (20 steps: batches 1, 2-9, 10-17 and 18-20, gathers at 1 and 10). The bytes stay
-# seq's; other counts would mean the batches gather as before (2 and 17 keyed) or too seldom. The counts
-# follow from the batches' extents alone, which no refused step may change here.
+# seq's; other counts would mean the batches gather as before (print mode: a gather nearly every step; perf:
+# 17 keyed) or too seldom. The counts follow from the batches' extents alone, which no refused step may
+# change here.
 for run in "slow print 40 36" "slow perf 20 18"; do
     read -r name mode steps want <<< "$run"
     label="cuda/$name $mode, $steps steps: batches keyed by the batch before"
