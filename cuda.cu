@@ -188,13 +188,12 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                (bench/gpu_h100_variants.log 18) */
 #endif
 #ifndef GATHER_SPAN
-#define GATHER_SPAN (BATCH + BATCH / 2) /* steps of one slice a gather serves at most: a batch's first step gathers
-                                           unless the batch before can key it and its last step would still be
-                                           within this many steps of the last gather (cuda_run, keys_handed).
-                                           A short last batch so gathers no more: gas of 1e7, 20 steps, on one
-                                           H200 9.17e9 -> 9.30e9 particle-steps/s, of 1e8, 10 steps, 8.91e9 ->
-                                           9.13e9; batches of 12, gathering each, ran within 1% of 8
-                                           (bench/gpu_h100_variants.log 33a, 27k) */
+#define GATHER_SPAN (2 * BATCH + 1) /* steps of one slice a gather serves at most: a batch's first step gathers
+                                     unless the batch before can key it and its last step would still be within
+                                     this many steps of the last gather (keyed_on): a long run gathers every
+                                     16 steps, not 8. Gas of 1e7 on one H200, 50 steps, against a span of 12:
+                                     9.50e9-9.53e9 -> 9.59e9-9.60e9 particle-steps/s, dense gas 6.89e9 ->
+                                     6.92e9-6.94e9 (bench/gpu_h100_variants.log 34b) */
 #endif
 #ifndef BIN_AHEAD
 #define BIN_AHEAD 1.125     /* a move keys for the next step on cells fitted to this many times its speed */
@@ -310,6 +309,17 @@ static void phase_report(const Cuda *c, const Control *h)
 #include "cuda_plan.cuh"
 #include "cuda_launch.cuh"
 #include "cuda_output.cuh"
+
+/* Whether the batch of steps s..e runs on the gather of step g rather than gathering itself (the batch before
+ * keys it, cuda_run), in a run ending at step `last`: where it ends within GATHER_SPAN steps of g, unless a
+ * gather at s would serve the whole rest of the run while g cannot, so that the run's last gather does not
+ * serve a short last batch alone. 20 steps so gather at 1 and 10, not at 1 and 18: the gas of 1e7 on one
+ * H200 at 9.28e9-9.32e9 particle-steps/s, against 9.17e9-9.22e9 gathering at 18 (bench/gpu_h100_variants.log
+ * 34a, 34b). */
+static bool keyed_on(int64_t g, int64_t s, int64_t e, int64_t last)
+{
+    return e - g < GATHER_SPAN && (last - g < GATHER_SPAN || last - s >= GATHER_SPAN);
+}
 
 /* Steps first..last of one plan, launched together; print: the whole step printed after the last;
  * ck: the whole step saved as a checkpoint after the last. */
@@ -438,9 +448,8 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
     int head = 0, flying = 0; /* batch[head] is the oldest of `flying` batches launched and not yet read */
     int cur_at[RING];         /* the state buffer each step in flight starts from */
     /* a batch keys the disks for the next batch's first step, which then needs no gather of its own
-     * (step_launch), where that batch would end within GATHER_SPAN steps of the last gather: the first
-     * batch (one step, read back alone) keys the second; a last batch of up to 4 steps after a full one,
-     * and batches cut short by print steps or checkpoints, run on the gather before them; never after a
+     * (step_launch), where that batch runs on the last gather (keyed_on): the first batch (one step, read
+     * back alone) keys the second, and in a long run every other full batch the one after it; never after a
      * refusal or a growth of the buffers, which the keys and the event keys it started live in */
     bool keys_handed = false;
     int64_t gathered_at = next; /* the step of the last gather */
@@ -466,7 +475,8 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
             bool keyed_in = keys_handed;
             if (!keyed_in) gathered_at = bt->first;
             keys_handed = bt->last < last && moves_key_ahead(&c, &pl) &&
-                          batch_from(par, out, bt->last + 1, last, k, false).last - gathered_at < GATHER_SPAN;
+                          keyed_on(gathered_at, bt->last + 1, batch_from(par, out, bt->last + 1, last, k, false).last,
+                                   last);
             batch_launch(&c, &pl, b, bt->first, bt->last, cur_at, keyed_in, keys_handed);
             if (bt->print || bt->ck) print_enqueue(&c, b);
             if (bt->ck) counts_enqueue(&c, b);

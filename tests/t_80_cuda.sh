@@ -169,14 +169,13 @@ for name in $(pick "slow dense overlap" "slow dense"); do
     same_bytes "$label, no keys ahead" "$expected" env SIM_CUDA_BIN_AHEAD=0 ./cuda "$TMP/cuda_${name}_perf.in" --quiet
 done
 
-# A batch keys the next batch's first step where that batch would end within GATHER_SPAN (12) steps of the
-# last gather (cuda.cu, cuda_run): print mode's batches of one step then gather once every 12 steps, not
-# every step (40 steps: gathers at 1, 13, 25 and 37, 36 steps keyed), and a perf run's short last batch runs
-# on the gather before it (20 steps: batches 1, 2-9, 10-17 and 18-20, gathers at 1 and 10). The bytes stay
-# seq's; other counts would mean the batches gather as before (print mode: a gather nearly every step; perf:
-# 17 keyed) or too seldom. The counts follow from the batches' extents alone, which no refused step may
-# change here.
-for run in "slow print 40 36" "slow perf 20 18"; do
+# A batch keys the next batch's first step where that batch runs on the last gather (cuda.cu, keyed_on: it
+# ends within GATHER_SPAN, 17, steps of that gather, unless gathering at its start serves the rest of the
+# run): print mode's batches of one step then gather at 1, 18 and 24 of 40 steps, 37 steps keyed, not
+# nearly every step; a perf run of 20 steps (batches 1, 2-9, 10-17 and 18-20) gathers at 1 and 10, not at
+# 18 for 3 steps. The bytes stay seq's; other counts would mean the batches gather more often or too
+# seldom. The counts follow from the batches' extents alone, which no refused step may change here.
+for run in "slow print 40 37" "slow perf 20 18"; do
     read -r name mode steps want <<< "$run"
     label="cuda/$name $mode, $steps steps: batches keyed by the batch before"
     if ! have_gpu; then
