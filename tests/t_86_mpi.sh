@@ -29,7 +29,7 @@ else
         for c in $counts; do
             p=${c%x*} t=1
             [ "$c" != "$p" ] && t=${c#*x}
-            if ! run_mpi "$p" "$t" "$@" --quiet > "$M/out" 2> "$M/err" < "${STDIN_FILE:-/dev/null}"; then
+            if ! mpi_stdin "${STDIN_FILE:-/dev/null}" run_mpi "$p" "$t" "$@" --quiet > "$M/out" 2> "$M/err"; then
                 bad="$bad $c:exit($(head -c 150 "$M/err"))"
             elif ! cmp -s "$M/out" "$expected"; then
                 bad="$bad $c:differs"
@@ -93,7 +93,7 @@ else
     ranks "random placement --seed 7" "$M/random.ref" "$(pick "3 4x2" "3")" "$M/random.in" --seed 7
     # standard input reaches rank 0 only where mpirun passes it on with its end (Open MPI 5.0's mpirun
     # kept an MPI program's standard input open here: the program waited for more)
-    if timeout 15 mpirun -np 1 ./mpi - --quiet < "$M/one_disk.in" 2> /dev/null | cmp -s - "$M/one_disk.ref"; then
+    if mpi_stdin "$M/one_disk.in" timeout 15 mpirun -np 1 ./mpi - --quiet 2> /dev/null | cmp -s - "$M/one_disk.ref"; then
         STDIN_FILE=$M/fast_print.in ranks "standard input" "$M/fast_print.ref" "3" -
     else
         skip "mpi standard input" "this mpirun does not pass on the end of its standard input"
@@ -185,7 +185,7 @@ else
             }
         if (n != 4) print "found " n " phases"; else if (bad != "") print "longer than the input:" bad; else print "ok"
     }')
-    run_mpi 2 1 - --quiet --stats < "$M/mid_dense.in" > /dev/null 2> "$M/in_stdin.err"
+    mpi_stdin "$M/mid_dense.in" run_mpi 2 1 - --quiet --stats > /dev/null 2> "$M/in_stdin.err"
     if [ "$verdict" = ok ] && grep -q "input read and sent to the strips [0-9.]* s; step 0" "$M/in_stdin.err"; then
         pass "mpi --stats: the input's phases from a file, none from standard input"
     else
