@@ -216,7 +216,10 @@ typedef struct {
     uint32_t *pieces, *patch_at;         /* PATCH_W: the patches' pieces, where each begins (patch_count_kernel) */
     int64_t patch_cap;                   /* pieces they hold */
     int64_t scan_tiles;                  /* tables of as many tiles at most are scanned so (else cub) */
-    int64_t dirty;                       /* counts left behind by cub's scans: count[0, dirty) may be non-zero */
+    int64_t dirty;                       /* words of counts left behind by cub's scans: count[0, dirty) may be
+                                            non-zero */
+    int narrow;                          /* 8-bit cell counts where they apply (narrow_counts); 0 in a GPU
+                                            rank, with SIM_CUDA_NARROW=0, and after a crowded cell */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
     int64_t fused_n;                     /* placement fused below this many disks (place_fused) */
     double settle_events;                /* steps of one slice settle below this many events a disk (Plan) */
@@ -258,7 +261,9 @@ typedef struct {
     cudaEvent_t mark[RING][WMAX][PHASES + 1]; /* per window: bin .. finish; the last window's: move */
     int step_windows[RING];
     double phase_ms[PHASES];
-    int64_t refusals;                 /* steps refused: their pair events overflowed the list */
+    int64_t refusals;                 /* steps refused: their pair events overflowed the list, or a cell its
+                                         8-bit count (crowdings of them) */
+    int64_t crowdings;
 } Cuda;
 
 static const char *const phase_names[PHASES] = {"bin", "scan", "place", "detect", "rounds", "finish", "move"};
@@ -301,7 +306,9 @@ static void phase_report(const Cuda *c, const Control *h)
     fprintf(stderr, "\ncuda: steps keyed by the move before them: %llu, binned anew (those cells too fine for "
             "their speed): %llu", h->ahead[0], h->ahead[1]);
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
-            "(event list now %lld)\n", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
+            "(event list now %lld)", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
+    if (c->crowdings) fprintf(stderr, "; one for a cell past 255 disks: 32-bit cell counts since");
+    fputc('\n', stderr);
 }
 
 /* the host's buffers, plans, launches and output, each building on the ones before */
@@ -498,14 +505,16 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
              * committed state, with room for every pair event */
             CUDA_CHECK(cudaStreamSynchronize(c.stream));
             c.refusals++;
-            {
+            if (last_read.overflow) {
                 int64_t cap = (int64_t)last_read.overflow + (int64_t)(last_read.overflow / 2);
                 cudaFree(c.ev[0]);
                 cudaFree(c.ev[1]);
                 events_alloc(&c, cap);
             }
+            if (last_read.crowded) c.narrow = 0, c.crowdings++; /* a cell passed 255 disks: 32-bit counts */
             last_read.refused = 0;
             last_read.overflow = 0;
+            last_read.crowded = 0;
             keys_handed = false;
             CUDA_CHECK(cudaMemcpyAsync(c.ctl, &last_read, sizeof last_read, cudaMemcpyHostToDevice, c.stream));
             CUDA_CHECK(cudaStreamSynchronize(c.stream));

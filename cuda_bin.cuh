@@ -73,6 +73,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->events = 0;
     info->tests = 0;
     info->outside = 0;
+    info->crowded = 0;
     for (int r = 0; r < WMAX * (MAX_ROUNDS + 1); r++) counts[r] = 0;
     info->faster = ctl->vmax > plan_vmax; /* counted when the step commits */
 }
@@ -194,11 +195,29 @@ static __device__ __forceinline__ ChunkItem chunk_item(const WindowDisks &d, con
     return c;
 }
 
+/* A cell's count raised by `add`, returning the count before. crowded NULL: 32-bit counts, count[key]. Else
+ * (narrow_counts) 8-bit counts, four to a word of count: a gas's table of 1.5 cells a disk then takes a
+ * quarter of the bytes to clear, count and scan. A cell passing 255 keys carries into the next cell's count
+ * of its word; it sets *crowded, and that step is refused (move_kernel) before anything reads the table
+ * but the placement and the search, which keep within their arrays whatever the table holds. */
+#ifndef NARROW_COUNTS
+#define NARROW_COUNTS 1 /* 0: 32-bit cell counts throughout */
+#endif
+static __device__ __forceinline__ uint32_t count_add(uint32_t *count, uint32_t key, uint32_t add,
+                                                     unsigned long long *crowded)
+{
+    if (!crowded) return atomicAdd(&count[key], add);
+    const unsigned shift = (key & 3u) * 8u;
+    uint32_t before = (atomicAdd(&count[key >> 2], add << shift) >> shift) & 0xffu;
+    if (before + add > 0xffu) *(volatile unsigned long long *)crowded = 1;
+    return before;
+}
+
 template <bool COLUMNS>
 static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid &gr, const WindowDisks &d,
                                                  const uint32_t *ib, int64_t u, const uint64_t *wall_hi,
                                                  uint32_t *keys, uint32_t *rank, uint32_t *count,
-                                                 const StepInfo *info)
+                                                 const StepInfo *info, unsigned long long *crowded)
 {
     const ChunkItem c = chunk_item(d, ib, u);
     const real2 pos = st.d[c.s].pos, vel = st.d[c.s].vel;
@@ -215,7 +234,7 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
     }
 #pragma unroll
     for (int t = 0; t < BIN_CHUNK; t++)
-        if (key[t] != KEY_OUT) r[t] = atomicAdd(&count[key[t]], 1u);
+        if (key[t] != KEY_OUT) r[t] = count_add(count, key[t], 1u, crowded);
 #pragma unroll
     for (int t = 0; t < BIN_CHUNK; t++) {
         int kl = c.kl0 + t;
@@ -237,7 +256,7 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
 template <bool WINDOWS, bool LEVELS_LISTED, bool COLUMNS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
                            const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
-                           uint32_t *rank, uint32_t *count, int keyed_before)
+                           uint32_t *rank, uint32_t *count, int keyed_before, unsigned long long *crowded)
 {
     after_previous();
     const Grid gr = *grid;
@@ -248,7 +267,8 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, act, LEVELS_LISTED ? lev : NULL, info);
     if constexpr (WINDOWS && BIN_CHUNK > 1) {
         uint32_t ib[LEVELS + 1];
-        GRID_LOOP(u, chunk_items(d, ib)) bin_chunk<COLUMNS>(st, gr, d, ib, u, wall_hi, keys, rank, count, info);
+        GRID_LOOP(u, chunk_items(d, ib)) bin_chunk<COLUMNS>(st, gr, d, ib, u, wall_hi, keys, rank, count, info,
+                                                                       crowded);
     } else ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         const WindowEntry x = window_entry(d, e);
         const int64_t s = x.s, k = x.k;
@@ -262,7 +282,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         }
         uint32_t key = cell_key<COLUMNS>(gr, st.d[s].pos, vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
-        rank[e] = atomicAdd(&count[key], 1u);
+        rank[e] = count_add(count, key, 1u, crowded);
     }
 }
 
@@ -384,7 +404,8 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
  * thread a key. The keys lie nearly in cell order (the disks were gathered so a few steps before), so
  * neighbouring lanes often share a cell: each run of equal keys in a warp takes its ranks with one atomic,
  * its first lane's. */
-__global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count)
+__global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count,
+                             unsigned long long *crowded)
 {
     after_previous();
     if (!grid->keyed) return;
@@ -398,7 +419,7 @@ __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, 
     unsigned upto = 0xffffffffu >> (31 - lane), later = heads & ~upto;
     unsigned head = 31 - __clz(heads & upto), next = later ? __ffs(later) - 1 : 32 - __clz(live);
     uint32_t base = 0;
-    if (head == lane) base = atomicAdd(&count[key], next - lane);
+    if (head == lane) base = count_add(count, key, next - lane, crowded);
     rank[e] = __shfl_sync(live, base, head) + (lane - head);
 }
 
@@ -544,6 +565,7 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
     if (e >= n || grid->cells == 0) return;
     uint32_t key = keys[e];
     int64_t p = (int64_t)start[key] + rank[e], to = p + patch_shift(grid->g, key, start, patch_at);
+    if ((uint64_t)p >= (uint64_t)n || (uint64_t)to >= (uint64_t)n) return; /* a crowded table's (count_add) */
     order[to] = (uint32_t)e;
     slot_of[p] = (uint32_t)to;
 }
@@ -572,7 +594,7 @@ __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, co
             put_entry(st, en, p, window_entry(d, e), K, key);
         else if (en.placed)
             en.placed[p] = make_uint2((uint32_t)e, key);
-        else
+        else if (p < n) /* else a crowded table's (count_add) */
             order[p] = (uint32_t)e;
     }
 }

@@ -141,6 +141,9 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
      * never; the tests take both ways) */
     const char *settle = getenv("SIM_CUDA_SETTLE");
     c->settle_events = settle ? atof(settle) : SETTLE_EVENTS;
+    /* SIM_CUDA_NARROW=0: 32-bit cell counts throughout (narrow_counts; the tests take both ways) */
+    const char *narrow = getenv("SIM_CUDA_NARROW");
+    c->narrow = NARROW_COUNTS && !(narrow && atoi(narrow) == 0);
     ahead_open(c);
     c->checkpoints = checkpoints;
     if (timed)

@@ -445,7 +445,10 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                                    : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
                                            : p + 1; /* its entry's next */
             pr.c = MID ? c : after;
-            pr.na = __ldg(&start[row + x1 + 1]) - after;
+            /* after lies within its row but where a crowded table of 8-bit counts (count_add) left the
+             * step's ranks wrong: its run then stays empty, the step being refused */
+            const uint32_t row_end = __ldg(&start[row + x1 + 1]);
+            pr.na = row_end > after ? row_end - after : 0;
             uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */
             if (PERIODIC && g >= 3) {
                 edge = edge_runs(start, row, kl * gr.ncell + (cy + 1 < g ? (cy + 1) * g : 0), cx, g, &pr.b0, &pr.nb);

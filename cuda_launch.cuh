@@ -62,16 +62,23 @@ static bool scan_short(const Cuda *c, int64_t len)
     return (len + SCAN_TILE - 1) / SCAN_TILE <= c->scan_tiles;
 }
 
+/* Whether window w's table counts in 8 bits (count_add): a step of one slice whose table cub scans, in cuda's
+ * run until a cell passes 255 disks (Cuda.narrow). */
+static bool narrow_counts(const Cuda *c, const Plan *pl, int w)
+{
+    return c->narrow && pl->K == 1 && !scan_short(c, pl->wcells[w] + 1);
+}
+
 /* The cell counts of window w's table cleared where the last scan left them (the short scans clear the
  * counts behind them; after cub's, they are cleared before binning); returns whether the table is
  * scanned by the two short kernels. */
 static bool bin_clear(Cuda *c, const Plan *pl, int w)
 {
-    int64_t len = pl->wcells[w] + 1;
+    int64_t len = pl->wcells[w] + 1, words = narrow_counts(c, pl, w) ? (len + 3) / 4 : len;
     bool short_scan = scan_short(c, len);
     c->scans[short_scan]++;
     if (!short_scan || c->dirty > 0) {
-        int64_t clear = len > c->dirty ? len : c->dirty;
+        int64_t clear = words > c->dirty ? words : c->dirty;
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)clear * sizeof(uint32_t), c->stream));
         c->dirty = 0;
     }
@@ -100,6 +107,11 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
     if (short_scan) {
         step_kernel(c, tiles, THREADS, 0, tile_sum_kernel, c->count, len, c->tile_sums);
         step_kernel(c, tiles, THREADS, 0, tile_scan_kernel, c->count, len, c->tile_sums, c->start);
+    } else if (narrow_counts(c, pl, w)) {
+        CUDA_CHECK(cub::DeviceScan::ExclusiveScan(c->scan_tmp, c->scan_tmp_bytes, (const uint8_t *)c->count,
+                                                  c->start, cuda::std::plus<uint32_t>(), (uint32_t)0, len,
+                                                  c->stream));
+        c->dirty = (len + 3) / 4;
     } else {
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->count, c->start, len,
                                                  c->stream));
@@ -134,16 +146,18 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
 {
     int64_t blocks = window_blocks(c, pl, w);
     bool short_scan = bin_clear(c, pl, w);
+    unsigned long long *crowded = narrow_counts(c, pl, w) ? &c->info->crowded : NULL;
     if (keyed) { /* one slice */
         step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n,
-                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1);
-        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count);
+                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1, crowded);
+        step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count,
+                    crowded);
     } else {
         /* the gate's K is at most the plan's: a plan of one column has a grid of one */
         auto bin = lev ? (pl->gsx > 1 ? bin_kernel<WINDOWS, true, true> : bin_kernel<WINDOWS, true, false>)
                        : (pl->gsx > 1 ? bin_kernel<WINDOWS, false, true> : bin_kernel<WINDOWS, false, false>);
         step_kernel(c, blocks, THREADS, 0, bin, c->st[in], c->n, c->grid, w, act, lev, c->info, c->wall_hi, c->keys,
-                    c->rank, c->count, 1);
+                    c->rank, c->count, 1, crowded);
     }
     phase_mark(c, ring, w, 1);
     scan_place_launch<WINDOWS>(c, pl, w, act, lev, ring, short_scan, in, in_patches);

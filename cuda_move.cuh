@@ -134,9 +134,10 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     if (refused(ctl)) return;
     unsigned long long most = 0;
     for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
-    if (most > (unsigned long long)cap) {
+    if (most > (unsigned long long)cap || info->crowded) {
         if (blockIdx.x == 0 && threadIdx.x == 0) {
-            ctl->overflow = most;
+            ctl->overflow = most > (unsigned long long)cap ? most : 0;
+            ctl->crowded = info->crowded;
             ctl->refused = 1;
         }
         return;

@@ -156,6 +156,9 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         cudaFree(c->slot_of), cudaFree(c->order);
         c->slot_of = (uint32_t *)dev_alloc((size_t)n * 4, "the cell keys");
         c->order = (uint32_t *)dev_alloc((size_t)n * 4, "the cell keys");
+        /* slots all: a step refused for a crowded cell (count_add) may leave places unwritten */
+        CUDA_CHECK(cudaMemsetAsync(c->slot_of, 0, (size_t)n * 4, c->stream));
+        CUDA_CHECK(cudaMemsetAsync(c->order, 0, (size_t)n * 4, c->stream));
         c->order_cap = n;
     }
     if (cells > c->cell_held) {
@@ -176,6 +179,10 @@ static void buffers_grow(Cuda *c, const Plan *pl)
         }
         c->scan_tmp_bytes = 0;
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, scanned, c->stream));
+        size_t narrow_bytes = 0; /* the scan of 8-bit counts (narrow_counts) */
+        CUDA_CHECK(cub::DeviceScan::ExclusiveScan(NULL, narrow_bytes, (const uint8_t *)c->count, c->start,
+                                                  cuda::std::plus<uint32_t>(), (uint32_t)0, nc, c->stream));
+        c->scan_tmp_bytes = narrow_bytes > c->scan_tmp_bytes ? narrow_bytes : c->scan_tmp_bytes;
         c->scan_tmp = dev_alloc(c->scan_tmp_bytes, "the cell table");
         CUDA_CHECK(cudaMemsetAsync(c->count, 0, (size_t)nc * 4, c->stream));
         c->dirty = 0;

@@ -49,6 +49,8 @@ typedef struct {
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
     unsigned long long outside; /* a slab grid's (GridLimits): disks binned outside its rows (never) */
+    unsigned long long crowded; /* 1: a cell of a table of 8-bit counts (count_add) passed 255 keys: the
+                                   step is refused, and the run counts in 32 bits from then on */
     unsigned long long ahead[2]; /* 1 in [0]: the step takes the keys the move before it gave; in [1]: it
                                     bins anew, their cells being too fine for its speed */
 } StepInfo;
@@ -60,6 +62,7 @@ typedef struct {
     unsigned long long steps;    /* steps committed */
     unsigned long long refused;  /* 1: a step was refused; no step launched after it commits */
     unsigned long long overflow; /* pair events the refused step found, when they overflowed the list */
+    unsigned long long crowded;  /* 1: the refused step's 8-bit cell counts overflowed (StepInfo.crowded) */
     unsigned long long faster;   /* steps whose disks were faster than their plan's speed */
     unsigned long long tests, events;             /* sums over committed steps */
     unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */

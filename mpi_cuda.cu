@@ -668,11 +668,11 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
     if (keyed_before)
         step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
-                    c->rank + first, c->count, 1);
+                    c->rank + first, c->count, 1, (unsigned long long *)NULL);
     else
         step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
-                    c->rank + first, c->count, 0);
+                    c->rank + first, c->count, 0, (unsigned long long *)NULL);
 }
 
 /* A step's gate (gate_kernel) at its plan's speed, for one slice: ahead, keyed and ahead_slack as it
@@ -702,7 +702,8 @@ static void bin_early(GpuRank *g, double vmax)
     g->early_short = bin_clear(c, pl, 0);
     if (keyed > 0) {
         bin_slots(g, c->st[c->cur], 0, keyed, 1);
-        step_kernel(c, blocks_for(keyed), THREADS, 0, count_kernel, c->grid, keyed, c->keys, c->rank, c->count);
+        step_kernel(c, blocks_for(keyed), THREADS, 0, count_kernel, c->grid, keyed, c->keys, c->rank, c->count,
+                    (unsigned long long *)NULL);
     }
     bin_slots(g, c->st[c->cur], keyed, g->own - keyed, 0);
     g->keyed = 0;

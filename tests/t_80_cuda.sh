@@ -376,6 +376,40 @@ while read -r name cmd; do
     done
 done <<< "$(periodic_scenes)"
 
+# 8-bit cell counts (count_add): where cub scans the table of a step of one slice (SIM_CUDA_SCAN_TILES=0
+# sends every table there), a cell of more than 255 disks refuses its step, which runs again counting in
+# 32 bits: 300 disks start on one point among 1200 others. The bytes stay seq's in graphs and kernel by
+# kernel, --stats names the crowded cell, and the slow gas, counted in 8 bits throughout, refuses nothing.
+label="cuda: 8-bit cell counts"
+if have_gpu; then
+    awk 'BEGIN { srand(21); print 1500; print 200; print 1; print 12; print "perf"
+        for (i = 0; i < 1500; i++) {
+            x = i < 300 ? 100 : 2 + rand() * 196; y = i < 300 ? 100 : 2 + rand() * 196
+            printf "%d %.6f %.6f %.6f %.6f\n", i, x, y, rand() - 0.5, rand() - 0.5
+        } }' > "$TMP/cuda_crowd.in"
+    ./seq "$TMP/cuda_crowd.in" --quiet > "$TMP/cuda_crowd.expected"
+    same_bytes "$label, a cell of 300 disks, in graphs" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 \
+        ./cuda "$TMP/cuda_crowd.in" --quiet
+    same_bytes "$label, a cell of 300 disks" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 \
+        ./cuda "$TMP/cuda_crowd.in" --quiet --stats
+    if grep -q "one for a cell past 255 disks" "$TMP/err"; then
+        pass "$label: the crowded cell's step refused, then 32 bits"
+    else
+        fail "$label: the crowded cell's step refused" "stats: $(grep refused "$TMP/err")"
+    fi
+    same_bytes "$label, 32 bits throughout" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 SIM_CUDA_NARROW=0 \
+        ./cuda "$TMP/cuda_crowd.in" --quiet
+    same_bytes "$label, the slow gas" "$TMP/cuda_slow_perf.expected" env SIM_CUDA_SCAN_TILES=0 \
+        ./cuda "$TMP/cuda_slow_perf.in" --quiet --stats
+    if grep -q " 0 steps refused" "$TMP/err" && ! grep -q "past 255" "$TMP/err"; then
+        pass "$label, the slow gas: no step refused"
+    else
+        fail "$label, the slow gas: no step refused" "stats: $(grep refused "$TMP/err")"
+    fi
+else
+    skip "$label" "no GPU"
+fi
+
 # --pressure is not offered by cuda: one line on stderr, nothing on stdout, non-zero exit
 if [ -x ./cuda ]; then
     expect_error "cuda --pressure rejected with one line" "--pressure" ./cuda "inputs/$(ls inputs | head -1)" --pressure
