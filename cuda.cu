@@ -6,9 +6,9 @@
  * speed, a batch or two old, it plans the launch sizes: the most time slices and the finest grid a
  * step may use. Each step's first kernel
  * fits its grid to the largest speed of its own disks within that plan, so the grid is always valid.
- * A step whose pair events overflow the event list is refused before it writes the state; the steps
- * launched after it then get an empty grid, write only scratch buffers and commit nothing, and the
- * host runs them again with a larger list. A step:
+ * A step whose pair events overflow the event list, or a cell its 8-bit count, is refused before it
+ * writes the state; the steps launched after it then get an empty grid, write only scratch buffers and
+ * commit nothing, and the host runs them again with a larger list or 32-bit counts. A step:
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
@@ -262,8 +262,8 @@ typedef struct {
     int step_windows[RING];
     double phase_ms[PHASES];
     int64_t refusals;                 /* steps refused: their pair events overflowed the list, or a cell its
-                                         8-bit count (crowdings of them) */
-    int64_t crowdings;
+                                         8-bit count */
+    int64_t crowdings;                /* of those, for a cell's count (one at most: 32 bits after it) */
 } Cuda;
 
 static const char *const phase_names[PHASES] = {"bin", "scan", "place", "detect", "rounds", "finish", "move"};
@@ -502,7 +502,7 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
         if (c.timed) phase_collect(&c, bt->first, done < bt->last ? done : bt->last);
         if (last_read.refused) {
             /* everything launched after the refused step did nothing: run again from the last
-             * committed state, with room for every pair event */
+             * committed state, with room for every pair event, or counting cells in 32 bits */
             CUDA_CHECK(cudaStreamSynchronize(c.stream));
             c.refusals++;
             if (last_read.overflow) {

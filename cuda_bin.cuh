@@ -201,8 +201,9 @@ static __device__ __forceinline__ ChunkItem chunk_item(const WindowDisks &d, con
  * counting 5.84 -> 4.80 ms over 50 steps, the scan 2.39 -> 2.13; 9.53e9-9.55e9 -> 9.78e9-9.79e9
  * particle-steps/s, over 20 steps 9.21e9-9.26e9 -> 9.46e9-9.50e9; dense gas 6.88e9-6.90e9 -> 6.94e9
  * (bench/gpu_h100_variants.log 35a). A cell passing 255 keys carries into the next cell's count of its
- * word; it sets *crowded, and that step is refused (move_kernel) before anything reads the table but the
- * placement and the search, which keep within their arrays whatever the table holds. */
+ * word; it sets *crowded, and that step is refused (move_kernel) before it writes the state. What reads the
+ * table before (the placements, the patches' pieces, the gather, the search) keeps within its arrays
+ * whatever the table holds. */
 #ifndef NARROW_COUNTS
 #define NARROW_COUNTS 1 /* 0: 32-bit cell counts throughout */
 #endif

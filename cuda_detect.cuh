@@ -441,12 +441,14 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             } else {
                 pr.k = kl + k0;
             }
-            const uint32_t after = patched ? (uint32_t)(p - patch_shift(gr.g, key, start, en.patches)) + 1
-                                   : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
-                                           : p + 1; /* its entry's next */
+            /* after lies within its cell, but a crowded table of 8-bit counts (count_add) can put it
+             * anywhere (a step then refused): the run stays between its cell's start and its row's end,
+             * empty where after lies past that end */
+            uint32_t after = patched ? (uint32_t)(p - patch_shift(gr.g, key, start, en.patches)) + 1
+                             : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
+                                     : p + 1; /* its entry's next */
+            if (patched) after = max(after, __ldg(&start[key]) + 1);
             pr.c = MID ? c : after;
-            /* after lies within its row but where a crowded table of 8-bit counts (count_add) left the
-             * step's ranks wrong: its run then stays empty, the step being refused */
             const uint32_t row_end = __ldg(&start[row + x1 + 1]);
             pr.na = row_end > after ? row_end - after : 0;
             uint4 edge = make_uint4(0, 0, 0, 0); /* periodic: the runs across the box's edges */

@@ -56,7 +56,8 @@ typedef struct {
 } StepInfo;
 
 /* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
- * step is: steps + 1. A step is refused only when its pair events overflow the list. */
+ * step is: steps + 1. A step is refused only when its pair events overflow the list or a cell its 8-bit
+ * count (StepInfo.crowded). */
 typedef struct {
     unsigned long long vmax;     /* bits of the largest |vx| or |vy| of the current state (double) */
     unsigned long long steps;    /* steps committed */

@@ -378,27 +378,45 @@ done <<< "$(periodic_scenes)"
 
 # 8-bit cell counts (count_add): where cub scans the table of a step of one slice (SIM_CUDA_SCAN_TILES=0
 # sends every table there), a cell of more than 255 disks refuses its step, which runs again counting in
-# 32 bits: 300 disks start on one point among 1200 others. The bytes stay seq's in graphs and kernel by
-# kernel, --stats names the crowded cell, and the slow gas, counted in 8 bits throughout, refuses nothing.
+# 32 bits. "point": 300 of 1500 disks start on one point (the first step, alone in its batch, crowded);
+# "ring": 1200 of 2700 tiny disks converge on one point, in perf and print mode (a step inside a batch,
+# keyed by the move before it, in graphs without --stats). The bytes stay seq's, --stats names the crowded
+# cell, and the slow gas, counted in 8 bits throughout, refuses nothing. Each run is timed out: a fallback
+# that never took would refuse the same step forever.
 label="cuda: 8-bit cell counts"
+crowd_scene() { # NAME MODE: the scene's input on stdout
+    awk -v name="$1" -v mode="$2" 'BEGIN {
+        n = name == "point" ? 1500 : 2700; print n; print 200; print name == "point" ? 1 : 0.0002; print 12
+        print mode; srand(name == "point" ? 21 : 5)
+        for (i = 0; i < n; i++) {
+            if (name == "point" && i < 300) {
+                x = 100; y = 100; vx = rand() - 0.5; vy = rand() - 0.5
+            } else if (name == "ring" && i < 1200) {
+                a = 2 * 3.14159265358979 * i / 1200; x = 100.37 + 4.7 * cos(a); y = 100.41 + 4.7 * sin(a)
+                vx = -cos(a); vy = -sin(a)
+            } else {
+                x = 2 + rand() * 196; y = 2 + rand() * 196; vx = rand() - 0.5; vy = rand() - 0.5
+            }
+            printf "%d %.9f %.9f %.9f %.9f\n", i, x, y, vx, vy
+        } }'
+}
 if have_gpu; then
-    awk 'BEGIN { srand(21); print 1500; print 200; print 1; print 12; print "perf"
-        for (i = 0; i < 1500; i++) {
-            x = i < 300 ? 100 : 2 + rand() * 196; y = i < 300 ? 100 : 2 + rand() * 196
-            printf "%d %.6f %.6f %.6f %.6f\n", i, x, y, rand() - 0.5, rand() - 0.5
-        } }' > "$TMP/cuda_crowd.in"
-    ./seq "$TMP/cuda_crowd.in" --quiet > "$TMP/cuda_crowd.expected"
-    same_bytes "$label, a cell of 300 disks, in graphs" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 \
-        ./cuda "$TMP/cuda_crowd.in" --quiet
-    same_bytes "$label, a cell of 300 disks" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 \
-        ./cuda "$TMP/cuda_crowd.in" --quiet --stats
-    if grep -q "one for a cell past 255 disks" "$TMP/err"; then
-        pass "$label: the crowded cell's step refused, then 32 bits"
-    else
-        fail "$label: the crowded cell's step refused" "stats: $(grep refused "$TMP/err")"
-    fi
-    same_bytes "$label, 32 bits throughout" "$TMP/cuda_crowd.expected" env SIM_CUDA_SCAN_TILES=0 SIM_CUDA_NARROW=0 \
-        ./cuda "$TMP/cuda_crowd.in" --quiet
+    for run in "point perf" "ring perf" "ring print"; do
+        read -r name mode <<< "$run"
+        in=$TMP/cuda_crowd_${name}_$mode.in
+        crowd_scene "$name" "$mode" > "$in"
+        ./seq "$in" --quiet > "$in.expected"
+        same_bytes "$label, $name $mode" "$in.expected" env SIM_CUDA_SCAN_TILES=0 timeout 120 ./cuda "$in" --quiet
+        same_bytes "$label, $name $mode, --stats" "$in.expected" env SIM_CUDA_SCAN_TILES=0 timeout 120 \
+            ./cuda "$in" --quiet --stats
+        if grep -q "one for a cell past 255 disks" "$TMP/err"; then
+            pass "$label, $name $mode: the crowded cell's step refused, then 32 bits"
+        else
+            fail "$label, $name $mode: the crowded cell's step refused" "stats: $(grep refused "$TMP/err")"
+        fi
+    done
+    same_bytes "$label, point, 32 bits throughout" "$TMP/cuda_crowd_point_perf.in.expected" env SIM_CUDA_SCAN_TILES=0 \
+        SIM_CUDA_NARROW=0 timeout 120 ./cuda "$TMP/cuda_crowd_point_perf.in" --quiet
     same_bytes "$label, the slow gas" "$TMP/cuda_slow_perf.expected" env SIM_CUDA_SCAN_TILES=0 \
         ./cuda "$TMP/cuda_slow_perf.in" --quiet --stats
     if grep -q " 0 steps refused" "$TMP/err" && ! grep -q "past 255" "$TMP/err"; then
