@@ -298,9 +298,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
 static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps, bool keyed_in, bool key_out)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    enum { HEAD = 7 }; /* the fields before the windows' */
+    enum { HEAD = 8 }; /* the fields before the windows' */
     int64_t f[HEAD + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle,
-                                  2 * keyed_in + key_out};
+                                  2 * keyed_in + key_out, c->narrow}; /* narrow: narrow_counts */
     for (int w = 0; w < pl->W && w < WMAX; w++) {
         f[HEAD + 2 * w] = pl->rounds[w];
         f[HEAD + 1 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */
