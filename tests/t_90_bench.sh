@@ -1,6 +1,28 @@
 # bench.sh --quick runs on this machine and writes well-formed CSVs: provenance lines, the column header,
 # rows with the header's field count and sane numbers, and a summary with one row per point. The whole
-# suite only: half a minute of benchmark runs.
+# suite only: half a minute of benchmark runs. First, in both suites, tools/ncu_kernels.py (gpu-bytes,
+# gpu-kernels) on a made-up Nsight Compute report whose window of launches starts and ends inside a step.
+{
+    echo '"ID","Kernel Name","gpu__time_duration.sum","dram__bytes_read.sum","dram__bytes_write.sum"'
+    echo '"","","usecond","byte","byte"'
+    i=0
+    for k in "detect_kernel 10 100 4" "move_kernel 20 50 60" "commit_kernel 1 0 0" "gate_kernel 1 0 0" \
+        "detect_kernel 10 100 4" "move_kernel 20 50 60" "commit_kernel 1 0 0" "gate_kernel 1 0 0" "detect_kernel 10 100 4"; do
+        read -r name us rd wr <<< "$k"
+        echo "\"$i\",\"void $name(int)\",\"$us\",\"$rd\",\"$wr\""
+        i=$((i + 1))
+    done
+} > "$TMP/ncu_raw.csv"
+ncu_rows=$(python3 tools/ncu_kernels.py "$TMP/ncu_raw.csv" 2 2>&1)
+if ! command -v python3 > /dev/null 2>&1; then
+    skip "ncu_kernels.py" "no python3"
+elif grep -qx 'detect_kernel,1,10.0,10.00,31.2%,50.0,2.0' <<< "$ncu_rows" &&
+    grep -qx 'all,4,32.0,32.00,100%,75.0,32.0' <<< "$ncu_rows" &&
+    grep -qx '# step 1 of the window: 107 bytes a particle-step (detect 52 move 55)' <<< "$ncu_rows"; then
+    pass "ncu_kernels.py: the whole step inside a window cut mid-step, 75 bytes read and 32 written a particle-step"
+else
+    fail "ncu_kernels.py: a window cut mid-step" "$(tr '\n' ' ' <<< "$ncu_rows" | head -c 400)"
+fi
 if ! all_suite; then
     skip "bench.sh smoke runs" "make test-all runs them"
     return

@@ -31,8 +31,10 @@
 #                            of 1e7 with S = 50 (text in and out). BASE_SRC=FILE times an earlier cuda.cu
 #                            beside each run; GOALS_SCENES picks scenes (GOALS_SCENES=none: the refusal
 #                            alone; with GOALS_BIG=1, and the gas of 1e8)
-#   ./bench.sh gpu-bytes   DRAM bytes a particle-step, kernel by kernel, under Nsight Compute, on the gas
-#                            of 1e7 (BYTES_N), beside the 80-byte floor
+#   ./bench.sh gpu-bytes   DRAM bytes a particle-step, kernel by kernel and step by step, under Nsight
+#                            Compute, on the goals' gas of 1e7 (BYTES_N) over 20 steps, beside the 80-byte
+#                            floor: the launches from the first (BYTES_SKIP) to the 260th (BYTES_COUNT), the
+#                            whole steps among them (a gather at steps 1 and 10)
 #   ./bench.sh gpu-streams the memory streams of cuda's move of a gas alone (bench/cmd/streams.cu, N = 1e7):
 #                            the time its bytes take, the move's floor
 #   ./bench.sh gpu-all     check, then perf
@@ -273,11 +275,11 @@ do_bytes() {
     local n=${BYTES_N:-10000000} ncu
     ncu=$(command -v ncu || echo /usr/local/cuda/bin/ncu)
     [ -x "$ncu" ] || { echo "ncu not found"; return 1; }
-    [ -s "$DATA/bytes_$n.in" ] || tools/gen "$n" --fraction 0.2 --speed 0.5 --steps 5 > "$DATA/bytes_$n.in"
+    [ -s "$DATA/bytes20_$n.in" ] || tools/gen "$n" --fraction 0.2 --speed 0.5 --steps 20 > "$DATA/bytes20_$n.in"
     SIM_CUDA_GRAPH=0 "$ncu" --csv --page raw --cache-control all --clock-control none \
         --metrics gpu__time_duration.sum,dram__bytes_read.sum,dram__bytes_write.sum \
-        --launch-skip "${BYTES_SKIP:-40}" --launch-count "${BYTES_COUNT:-60}" \
-        --log-file "$DATA/bytes.raw" ./cuda "$DATA/bytes_$n.in" --quiet > /dev/null 2> "$OUT/bytes_ncu.err" \
+        --launch-skip "${BYTES_SKIP:-0}" --launch-count "${BYTES_COUNT:-260}" \
+        --log-file "$DATA/bytes.raw" ./cuda "$DATA/bytes20_$n.in" --quiet > /dev/null 2> "$OUT/bytes_ncu.err" \
         || { tail -5 "$OUT/bytes_ncu.err" "$DATA/bytes.raw"; return 1; }
     sed -n '/"ID"/,$p' "$DATA/bytes.raw" > "$OUT/bytes_raw.csv"
     python3 tools/ncu_kernels.py "$OUT/bytes_raw.csv" "$n" | tee "$OUT/bytes.csv"
