@@ -28,10 +28,10 @@ def main():
     head = next(i for i, r in enumerate(rows) if "Kernel Name" in r)
     names, units, data = rows[head], rows[head + 1], rows[head + 2:]
     col = {n: i for i, n in enumerate(names)}
-    k = col["Kernel Name"]
-    ends = [i for i, r in enumerate(data) if r[k].split("(")[0].replace("void ", "") == "commit_kernel"]
+    kernel = [r[col["Kernel Name"]].split("(")[0].split("<")[0].replace("void ", "") for r in data]
+    ends = [i for i, name in enumerate(kernel) if name == "commit_kernel"]
     if len(ends) >= 2:
-        data = data[ends[0] + 1:ends[-1] + 1]
+        data, kernel = data[ends[0] + 1:ends[-1] + 1], kernel[ends[0] + 1:ends[-1] + 1]
     metrics = [n for n in names if n in SHOWN]
     summed = [n for n in names if n in SUMMED]
     byte_scale = {"byte": 1, "Kbyte": 1e3, "Mbyte": 1e6, "Gbyte": 1e9}
@@ -39,10 +39,10 @@ def main():
     scale = {"ns": 1e-3, "usecond": 1, "us": 1, "msecond": 1e3, "ms": 1e3, "nsecond": 1e-3}.get(units[t], 1)
     agg = {}
     each, step = [], []  # each whole step's kernels: (name, bytes)
-    for r in data:
-        name = r[k].split("(")[0].split("<")[0].replace("void ", "")
+    for r, name in zip(data, kernel):
         us = float(r[t].replace(",", "")) * scale
-        step.append((name, sum(float(r[col[m]].replace(",", "")) * byte_scale.get(units[col[m]], 1) for m in summed)))
+        b = {m: float(r[col[m]].replace(",", "")) * byte_scale.get(units[col[m]], 1) for m in summed}
+        step.append((name, sum(b.values())))
         if name == "commit_kernel":
             each.append(step)
             step = []
@@ -50,7 +50,7 @@ def main():
         a["n"] += 1
         a["us"] += us
         for m in summed:
-            a["b"][m] += float(r[col[m]].replace(",", "")) * byte_scale.get(units[col[m]], 1)
+            a["b"][m] += b[m]
         for m in metrics:
             try:
                 a["m"][m] += float(r[col[m]].replace(",", "")) * us
