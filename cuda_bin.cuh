@@ -310,15 +310,31 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
 #define WALL_PENDING 1 /* 0: -1 for both, and cuda's move loads every disk's wall key (move_load) */
 #endif
 
+/* cuda's move writes a disk's wall key only where it has a wall event within the next step (most disks of
+ * a large box have none), the others' slots keeping older keys: the next step's readers first tell the two
+ * apart by the partner that the move starts, PARTNER_WALL or -1 (slot_init; the search's tallies keep its
+ * two low bits), and the choice restarts a disk's best key from NO_EVENT rather than its wall key, as the
+ * search keeps only pair events before both disks' wall events (a wall key is then never a disk's smallest
+ * while it has an event). 8 of the move's 104 bytes a disk fewer; the search reads the partner's 4 bytes
+ * for the wall key's 8. The move likewise leaves a partner that already holds its new value (before: the
+ * partner it loaded), as most disks' -1 does. 0: every wall key and partner written, every wall key read. */
+#ifndef GATED_WALLS
+#define GATED_WALLS 1
+#endif
+static_assert(WALL_PENDING || !GATED_WALLS, "GATED_WALLS: a disk with a wall event is told by its partner");
+
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. best_lo
- * NULL: the search starts the second keys of the disks it finds events of (LO_AT_EVENT, Entries). */
+ * NULL: the search starts the second keys of the disks it finds events of (LO_AT_EVENT, Entries). gated:
+ * the wall key written only where there is one (GATED_WALLS). */
 static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
-                                                 uint64_t *best_lo, int32_t *partner)
+                                                 uint64_t *best_lo, int32_t *partner, bool gated = false,
+                                                 int32_t before = 0)
 {
-    wall_hi[s] = w;
+    if (!gated || w != NO_EVENT) wall_hi[s] = w;
     best_hi[s] = w;
     if (best_lo) best_lo[s] = NO_EVENT;
-    partner[s] = WALL_PENDING && w != NO_EVENT ? PARTNER_WALL : -1;
+    int32_t p = WALL_PENDING && w != NO_EVENT ? PARTNER_WALL : -1;
+    if (!gated || p != before) partner[s] = p;
 }
 
 /* K = 1 (cuda's step, not a GPU rank's): a batch's first step gathers the disks in patches of PATCH_W x
@@ -495,6 +511,8 @@ typedef struct {
     int32_t *id, *slot; /* slot: K = 1, each place's slot (the disks in their slots, or a gathering step's
                            new slots in patches: en.patches); else NULL */
     uint64_t *wall;
+    const int32_t *wall_gate; /* cuda's steps in the slots: the partners, by which a slot's wall key is read
+                                 only where the move kept it (GATED_WALLS); else NULL */
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
     const uint32_t *patches; /* K = 1, a gathering step in patches (PATCH_W): where each piece begins in the

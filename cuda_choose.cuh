@@ -88,7 +88,10 @@ static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t
     uint64_t wa[ILP] = {}, wb[ILP] = {};
     ILP_EACH(u) e[u] = ev[i + u * stride];
     ILP_EACH(u) live[u] = partner[e[u].a] < 0 && partner[e[u].b] < 0;
-    ILP_EACH(u) if (live[u]) wa[u] = wall_hi[e[u].a], wb[u] = wall_hi[e[u].b];
+    /* wall_hi NULL (GATED_WALLS): every event is before both its disks' wall events, so a live disk's best key
+     * after the next min_hi is its smallest event with or without its wall key */
+    ILP_EACH(u) if (live[u] && wall_hi) wa[u] = wall_hi[e[u].a], wb[u] = wall_hi[e[u].b];
+    ILP_EACH(u) if (live[u] && !wall_hi) wa[u] = wb[u] = NO_EVENT;
     ILP_EACH(u) if (live[u]) {
         unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
         if ((int64_t)at < cap) out[at] = e[u];

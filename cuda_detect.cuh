@@ -128,23 +128,30 @@ typedef struct {
     unsigned long long base;
 } BlockEvents;
 
-/* The wall key of the disk in slot s: loaded, where the periodic box has none. (Computed again from the
- * probe's state, which slot_init's callers key it from, the gas's search took 9% longer: gas of 1e7 on one
- * H200, 20.54 -> 22.41 ms over 50 steps; bench/gpu_h100_variants.log 25h.) */
-template <bool PERIODIC>
+/* The wall key of the disk in slot s: loaded, where the periodic box has none; GATED: only where its
+ * partner says the move kept one (GATED_WALLS), read as the search's tallies change it. (Computed again
+ * from the probe's state, which slot_init's callers key it from, the gas's search took 9% longer: gas of
+ * 1e7 on one H200, 20.54 -> 22.41 ms over 50 steps; bench/gpu_h100_variants.log 25h.) */
+template <bool PERIODIC, bool GATED = false>
 static __device__ __forceinline__ uint64_t slot_wall(const Entries &en, uint32_t s)
 {
-    return PERIODIC ? NO_EVENT : __ldg(&en.wall[s]);
+    if (PERIODIC) return NO_EVENT;
+    if (GATED) {
+        int32_t p;
+        asm volatile("ld.relaxed.gpu.global.s32 %0, [%1];" : "=r"(p) : "l"(en.wall_gate + s));
+        if ((p & 3) != (PARTNER_WALL & 3)) return NO_EVENT;
+    }
+    return __ldg(&en.wall[s]);
 }
 
 /* Probe pr's disk, from slot ps. */
-template <bool PERIODIC>
+template <bool PERIODIC, bool GATED = false>
 static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, uint32_t ps)
 {
     pr.pos = __ldg(&en.disk[ps].pos);
     pr.vel = __ldg(&en.disk[ps].vel);
     pr.id = __ldg(&en.id[ps]);
-    pr.wall = slot_wall<PERIODIC>(en, ps);
+    pr.wall = slot_wall<PERIODIC, GATED>(en, ps);
 }
 
 /* The pair test of entry p (probe pr) and entry q > p: appends the pair event if there is one.
@@ -152,7 +159,7 @@ static __device__ __forceinline__ void probe_disk(Probe &pr, const Entries &en, 
  * disks stay in their slots, en.slot holds each entry's (en's arrays are the slots'; K = 1), and p is
  * the probe's slot. MID (K > 1): en's arrays are the slots' too, p an entry, en.placed each entry's; with
  * PROBE_LAZY the probe's disk is loaded here, for the few candidates near_path passes. */
-template <bool PERIODIC, bool SLOTS, bool MID>
+template <bool PERIODIC, bool SLOTS, bool MID, bool GATED = false>
 static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &gr, const Probe &pr, uint32_t p,
                                                  uint32_t q, real sigma2, BlockEvents *be, PairEvent *ev,
                                                  int64_t cap, unsigned long long *found, uint64_t *best_hi,
@@ -177,7 +184,8 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     PairEvent e;
     e.hi = time_key(t) | 1;
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
-    if (!(e.hi < wall1 && e.hi < (mine ? mine->wall : slot_wall<PERIODIC>(en, d)))) return; /* a wall's first */
+    if (!(e.hi < wall1 && e.hi < (mine ? mine->wall : slot_wall<PERIODIC, GATED>(en, d))))
+        return; /* a wall's first */
     int32_t id1 = lazy ? __ldg(&en.id[ps]) : pr.id, id2 = mine ? mine->id : __ldg(&en.id[d]); /* only a pair
                                                                                      with an event needs */
     bool first = id1 < id2;
@@ -381,7 +389,8 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t i
  * constant of each build: with the box's wrapping in the walled box's search too, that search took
  * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
  * gas of 1e7's spilled). SLOTS (test_pair): 1, the disks in their slots; 2, a gathering step's in patches
- * (Entries.patches), a build of its own, as testing the pointer took registers the search spills. */
+ * (Entries.patches), a build of its own, as testing the pointer took registers the search spills; 3, as 1,
+ * cuda's steps, whose wall keys the move kept only where there is one (GATED_WALLS). */
 template <bool TILES, bool MID, bool PERIODIC, int SLOTS>
 __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS_ONE)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,
@@ -391,6 +400,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
     after_previous();
     typedef cub::BlockScan<uint32_t, THREADS> Scan;
     __shared__ typename Scan::TempStorage scan_tmp;
+    constexpr bool GATED = !MID && SLOTS == 3;
     __shared__ Probe probes[THREADS];
     /* !MID deals candidates out: where each thread's begin, and the thread whose entry each dealt pair is;
      * MID: each thread's column of runs (probe_runs' shape) */
@@ -414,7 +424,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         uint32_t p = p0 + threadIdx.x, seen = 0; /* seen: MID, the probe's candidates */
         Probe pr = {};
         if (p < end) {
-            if (!MID && SLOTS && PROBE_EARLY) probe_disk<PERIODIC>(pr, en, p);
+            if (!MID && SLOTS && PROBE_EARLY) probe_disk<PERIODIC, GATED>(pr, en, p);
             /* MID: the entry's key as placed; one slice: the disk's key as its binning found it, from the
              * disk itself (a pass of 8 bytes a disk fewer: place_kernel); SLOTS: p is a slot, whose key and
              * place in its cell (en.rank) the binning left (the loads of a block's slots coalesce, where
@@ -543,8 +553,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 if ((threadIdx.x & 31) == 0) atomicAdd(&tests, sum);
                 const Probe po = probes[threadIdx.x]; /* a copy: the loop keeps it in registers */
                 for (uint32_t i = 0; i < count; i++)
-                    test_pair<PERIODIC, SLOTS, false>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be, ev, cap,
-                                                      found, best_hi, probes, p0);
+                    test_pair<PERIODIC, SLOTS, false, GATED>(en, gr, po, p, candidate<PERIODIC>(po, i), sigma2, &be,
+                                                             ev, cap, found, best_hi, probes, p0);
             } else {
                 if (threadIdx.x == 0) tests = total;
                 first[threadIdx.x] = offset;
@@ -553,8 +563,8 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                 for (uint32_t j = threadIdx.x; j < total; j += THREADS) {
                     uint32_t o = owner[j], i = j - first[o];
                     const Probe po = probes[o];
-                    test_pair<PERIODIC, SLOTS, false>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2, &be, ev,
-                                                      cap, found, best_hi, probes, p0);
+                    test_pair<PERIODIC, SLOTS, false, GATED>(en, gr, po, p0 + o, candidate<PERIODIC>(po, i), sigma2,
+                                                             &be, ev, cap, found, best_hi, probes, p0);
                 }
             }
         }

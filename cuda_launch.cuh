@@ -173,7 +173,10 @@ static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
     if (pl->K == 1 && en.patches) /* a gathering step in patches (step_launch): places from the slots */
         step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 2>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
-    else if (pl->K == 1 && en.slot) /* the disks in their slots (step_launch): their keys by slot */
+    else if (pl->K == 1 && en.slot && en.wall_gate) /* cuda's, the disks in their slots (step_launch) */
+        step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 3>, en, keys, start, c->grid, w,
+                    c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
+    else if (pl->K == 1 && en.slot) /* the disks in their slots: their keys by slot */
         step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 1>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->K == 1)
@@ -244,13 +247,14 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.rank = c->rank;
         en.patches = patches ? c->patch_at : NULL;
         en.wall = c->wall_hi;
+        en.wall_gate = GATED_WALLS && slots ? c->partner : NULL; /* the move before kept some wall keys alone */
         en.mid = NULL;
         en.placed = NULL;
         en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
         en.tally = pl->settle ? c->partner : NULL;
         phase_mark(c, ring, 0, 3);
         detect_launch(c, pl, 0, en);
-        choose_launch(c, pl, 0, c->wall_hi, ring);
+        choose_launch(c, pl, 0, en.wall_gate ? NULL : c->wall_hi, ring);
     } else {
         for (int w = 0; w < pl->W; w++) {
             phase_mark(c, ring, w, 0);
@@ -278,10 +282,11 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
     }
     RankMove none = {};
-    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0}; /* read by move_kernel<false, true, *> alone */
+    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0, 0}; /* read by move_kernel<false, true, *> alone */
     if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.partner = c->partner;
     if (SLOT_STEPS && !LO_AT_EVENT) mb.best_lo = c->best_lo;
     mb.ids_alike = slots;
+    mb.gated = GATED_WALLS; /* its keys are taken by a step in the slots, which reads them so (GATED_WALLS) */
     auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
                           : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);
     int64_t move_blocks = MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n);

@@ -77,6 +77,7 @@ typedef struct {
     /* this step's disks stayed in their slots: the gather before wrote out's indices and the move after
      * it in's, slot for slot, so out holds them already */
     int ids_alike;
+    int gated; /* the wall keys written only where there is one (GATED_WALLS) */
 } MoveBin;
 
 /* The move (cuda's and a GPU rank's) launches MOVE_LOOP blocks a multiprocessor (as many as its registers
@@ -150,6 +151,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
          * too (their keys started) */
         if (RANK && s < n && o == PARTNER_COPY && !rm.again) out.id[s] = RANK_HOLE;
         if (s < n && (!RANK || (o != PARTNER_COPY && (!rm.again || out.id[s] == RANK_HOLE)))) {
+            const int32_t o_in = o; /* the partner as loaded (slot_init) */
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
             if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : o == PARTNER_WALL) o = (int32_t)s;
@@ -219,7 +221,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 /* slot s's keys are read by this thread alone in this kernel, above */
                 if (mb.wall_hi)
                     slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
-                              mb.partner);
+                              mb.partner, mb.gated, o_in);
             }
             real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
             vabs = ax < ay ? (ay > vabs ? ay : vabs) : (ax > vabs ? ax : vabs);
