@@ -317,21 +317,28 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
  * search keeps only pair events before both disks' wall events (a wall key is then never a disk's smallest
  * while it has an event). 8 of the move's 104 bytes a disk fewer; the search reads the partner's 4 bytes
  * for the wall key's 8. The move likewise leaves a partner that already holds its new value (before: the
- * partner it loaded), as most disks' -1 does. 0: every wall key and partner written, every wall key read. */
+ * partner it loaded), as most disks' -1 does, and after a step that settled (Plan.settle), whose partners
+ * mark every disk that had an event (settle_kernel), a best key that is NO_EVENT and stays so: a partner of
+ * -1 there means no wall event and no pair event, so the key is the NO_EVENT it was started with. 0: every
+ * wall key, best key and partner written, every wall key read. */
 #ifndef GATED_WALLS
 #define GATED_WALLS 1
 #endif
 static_assert(WALL_PENDING || !GATED_WALLS, "GATED_WALLS: a disk with a wall event is told by its partner");
+#ifndef SKIP_BEST
+#define SKIP_BEST 1 /* 0: the best keys written after settled steps too (GATED_WALLS' last part) */
+#endif
 
 /* Per-disk start of the choice: its wall event is its best event so far, and it has none accepted. best_lo
  * NULL: the search starts the second keys of the disks it finds events of (LO_AT_EVENT, Entries). gated:
- * the wall key written only where there is one (GATED_WALLS). */
+ * the wall key written only where there is one, the partner where it is not already before, the best key
+ * where it is not already NO_EVENT (marked: before is a settled step's partner; GATED_WALLS). */
 static __device__ __forceinline__ void slot_init(int64_t s, uint64_t w, uint64_t *wall_hi, uint64_t *best_hi,
                                                  uint64_t *best_lo, int32_t *partner, bool gated = false,
-                                                 int32_t before = 0)
+                                                 int32_t before = 0, bool marked = false)
 {
     if (!gated || w != NO_EVENT) wall_hi[s] = w;
-    best_hi[s] = w;
+    if (!(gated && marked && before == -1 && w == NO_EVENT)) best_hi[s] = w;
     if (best_lo) best_lo[s] = NO_EVENT;
     int32_t p = WALL_PENDING && w != NO_EVENT ? PARTNER_WALL : -1;
     if (!gated || p != before) partner[s] = p;

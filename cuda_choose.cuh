@@ -153,10 +153,11 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
  * contested, go on to the rounds. The search lowered each event's disks'
  * partners by PARTNER_TALLY (test_pair), from -1 or PARTNER_WALL, which the two low bits still tell
  * apart: a partner of -1 - 4k or PARTNER_WALL - 4k has k events. A contested event's disks get their
- * partners back and their second keys started, for min_lo; the rounds see the contested events alone,
- * as no other event shares a disk with a settled one. An event reading a tally another event's
- * settling has already restored reads 0 events, so it too is contested, as it should be: a tally of one
- * is final (the settling only restores, to 0). */
+ * partners back less two tallies (free to the rounds, a wall event told by the low bits as before, and
+ * the move told that the disk had events: MoveBin.marked) and their second keys started, for min_lo; the
+ * rounds see the contested events alone, as no other event shares a disk with a settled one. An event
+ * reading a tally another event's settling has already set reads 2 events, so it too is contested, as it
+ * should be: a tally of one is final (the settling never sets one). */
 static __device__ __forceinline__ int32_t tally_base(int32_t p)
 {
     return (p & 3) == 3 ? -1 : PARTNER_WALL;
@@ -182,8 +183,8 @@ __global__ void settle_kernel(const PairEvent *ev, const unsigned long long *cou
             } else {
                 unsigned long long at = list_append(count_out); /* < cap: a part of the list it came from */
                 if ((int64_t)at < cap) out[at] = e[u];
-                partner[e[u].a] = ba;
-                partner[e[u].b] = bb;
+                partner[e[u].a] = ba - 2 * PARTNER_TALLY;
+                partner[e[u].b] = bb - 2 * PARTNER_TALLY;
                 best_lo[e[u].a] = NO_EVENT;
                 best_lo[e[u].b] = NO_EVENT;
             }

@@ -282,11 +282,12 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
     }
     RankMove none = {};
-    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0, 0}; /* read by move_kernel<false, true, *> alone */
+    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0, 0, 0}; /* read by move_kernel<false, true, *> */
     if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.partner = c->partner;
     if (SLOT_STEPS && !LO_AT_EVENT) mb.best_lo = c->best_lo;
     mb.ids_alike = slots;
     mb.gated = GATED_WALLS; /* its keys are taken by a step in the slots, which reads them so (GATED_WALLS) */
+    mb.marked = SKIP_BEST && pl->settle;
     auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
                           : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);
     int64_t move_blocks = MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n);

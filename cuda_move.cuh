@@ -77,7 +77,8 @@ typedef struct {
     /* this step's disks stayed in their slots: the gather before wrote out's indices and the move after
      * it in's, slot for slot, so out holds them already */
     int ids_alike;
-    int gated; /* the wall keys written only where there is one (GATED_WALLS) */
+    int gated;  /* the wall keys written only where there is one (GATED_WALLS) */
+    int marked; /* the step settled, its partners marking the disks that had events (slot_init) */
 } MoveBin;
 
 /* The move (cuda's and a GPU rank's) launches MOVE_LOOP blocks a multiprocessor (as many as its registers
@@ -154,7 +155,9 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             const int32_t o_in = o; /* the partner as loaded (slot_init) */
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
-            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : o == PARTNER_WALL) o = (int32_t)s;
+            /* a wall event left pending, by -3 or a settling's mark of it (settle_kernel) */
+            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : o < 0 && (o & 3) == (PARTNER_WALL & 3))
+                o = (int32_t)s;
             /* the index counts collisions, orders a pair and goes with the disk where its slot changes:
              * a disk flying free in a step that keeps the slots needs none (4 of the move's 104 bytes) */
             if (RANK || !BIN || !mb.ids_alike || o >= 0) id = in.id[s];
@@ -221,7 +224,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 /* slot s's keys are read by this thread alone in this kernel, above */
                 if (mb.wall_hi)
                     slot_init(s, wall_key(pos1.x, pos1.y, vel1.x, vel1.y, par), mb.wall_hi, mb.best_hi, mb.best_lo,
-                              mb.partner, mb.gated, o_in);
+                              mb.partner, mb.gated, o_in, mb.marked);
             }
             real ax = SIM_FABS(vx), ay = SIM_FABS(vy);
             vabs = ax < ay ? (ay > vabs ? ay : vabs) : (ax > vabs ? ax : vabs);

@@ -1073,7 +1073,7 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
             CUDA_CHECK(cudaMemsetAsync(&g->counter[1], 0, sizeof(unsigned long long), c->stream));
         }
         /* the kept disks keyed on the grid bin_early's gate fitted ahead, their event keys started */
-        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, c->best_lo, c->partner, 0, 0};
+        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, c->best_lo, c->partner, 0, 0, 0};
         auto move = c->ahead_slack > 0 ? (MOVE_LOOP ? move_kernel<true, true, true> : move_kernel<true, true, false>)
                                        : (MOVE_LOOP ? move_kernel<true, false, true> : move_kernel<true, false, false>);
         step_kernel(c, MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n), THREADS, 0, move, c->st[in],
