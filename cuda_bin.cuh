@@ -310,17 +310,21 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
 #define WALL_PENDING 1 /* 0: -1 for both, and cuda's move loads every disk's wall key (move_load) */
 #endif
 
-/* cuda's move writes a disk's wall key only where it has a wall event within the next step (most disks of
- * a large box have none), the others' slots keeping older keys: the next step's readers first tell the two
- * apart by the partner that the move starts, PARTNER_WALL or -1 (slot_init; the search's tallies keep its
- * two low bits), and the choice restarts a disk's best key from NO_EVENT rather than its wall key, as the
- * search keeps only pair events before both disks' wall events (a wall key is then never a disk's smallest
- * while it has an event). 8 of the move's 104 bytes a disk fewer; the search reads the partner's 4 bytes
- * for the wall key's 8. The move likewise leaves a partner that already holds its new value (before: the
- * partner it loaded), as most disks' -1 does, and after a step that settled (Plan.settle), whose partners
- * mark every disk that had an event (settle_kernel), a best key that is NO_EVENT and stays so: a partner of
- * -1 there means no wall event and no pair event, so the key is the NO_EVENT it was started with. 0: every
- * wall key, best key and partner written, every wall key read. */
+/* cuda's move writes only what the next step would not find already there (a gas's move: 104 -> 88-90 DRAM
+ * bytes a disk):
+ * - a wall key only where the disk has a wall event within the next step (most disks of a large box have
+ *   none). That step's readers tell a kept key from an older one by the partner the move starts,
+ *   PARTNER_WALL or -1 (slot_init; the search's tallies keep its two low bits), and its choice restarts a
+ *   live disk's best key from NO_EVENT rather than its wall key: the search keeps only pair events before
+ *   both disks' wall events, so a wall key is never the smallest key of a disk with an event;
+ * - a partner only where it changes (before: the one the move loaded), as most disks' -1 does not;
+ * - after a step that settled (Plan.settle; SKIP_BEST), whose partners mark every disk that had an event
+ *   (settle_kernel), no best key where the partner is -1: no wall event and no pair event, so the key is
+ *   still the NO_EVENT it was started with.
+ * Gas of 1e7 on one H200: 9.84e9 -> 1.006e10 particle-steps/s, the move 14.87 -> 13.88 ms over 50 steps;
+ * dense gas 6.97e9 -> 7.10e9 (bench/gpu_h100_variants.log 37b, 37c); the best keys: the move 13.93 -> 13.72
+ * ms (37d). No wall keys at all, the search computing a found pair's from the states, lost more in the
+ * search than the move gained (37a). 0: every key and partner written, every wall key read. */
 #ifndef GATED_WALLS
 #define GATED_WALLS 1
 #endif
