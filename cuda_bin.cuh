@@ -291,8 +291,9 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
 }
 
 /* A disk's partner before the choice: none, and a wall event within the step (PARTNER_WALL) or none (-1).
- * A disk the choice leaves so has had its wall event accepted, if it has one (cuda's move then needs no
- * wall key, move_kernel). Every "taken" test of the choice is partner >= 0. */
+ * A disk the choice leaves so (or so less two tallies, where a settling marked it: settle_kernel) has had
+ * its wall event accepted, if it has one (cuda's move then needs no wall key, move_kernel; the low two
+ * bits tell the two apart). Every "taken" test of the choice is partner >= 0. */
 #define PARTNER_WALL (-3)
 #define PARTNER_TALLY 4 /* a disk's partner lowered by this for each of its events (SETTLE, settle_kernel) */
 /* Steps of one slice accept the events that are the only one of both their disks before the grid-wide

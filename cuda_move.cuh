@@ -102,7 +102,8 @@ typedef struct {
 
 /* Slot s's disk for the move: its state, its accepted partner and, for a GPU rank (WALL), its wall event
  * (its index is loaded where the move needs it, move_kernel). cuda's move knows an accepted wall event by
- * the partner (PARTNER_WALL) and loads its key for those disks alone: 8 bytes fewer for each of the others.
+ * the partner (PARTNER_WALL, or a settling's mark of it) and loads its key for those disks alone: 8 bytes
+ * fewer for each of the others.
  * On one H200 the gas of 1e7's move 18.31 -> 17.70 ms over 50 steps, the dense gas's 21.77 -> 20.95; the key
  * computed again from the state instead, as fast there, cost the random scene's move 12%, its fast disks
  * meeting walls often (bench/gpu_h100_variants.log 25g). */
