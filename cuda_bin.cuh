@@ -217,6 +217,26 @@ static __device__ __forceinline__ uint32_t count_add(uint32_t *count, uint32_t k
     return before;
 }
 
+/* An entry's rank in its cell, kept in rank's words or, where the counts are 8-bit (narrow: count_add's crowded
+ * given), in a byte each: the ranks then take a quarter of the bytes to write (counting) and to read (placement,
+ * search). A crowded table's ranks lose their high bits; its step is refused, and the readers keep within their
+ * arrays whatever the ranks hold (place_kernel, detect_kernel). */
+#ifndef RANK8
+#define RANK8 1 /* 0: 32-bit ranks throughout */
+#endif
+static __device__ __forceinline__ void rank_put(uint32_t *rank, int64_t e, uint32_t r, bool narrow)
+{
+    if (RANK8 && narrow)
+        ((uint8_t *)rank)[e] = (uint8_t)r;
+    else
+        rank[e] = r;
+}
+
+static __device__ __forceinline__ uint32_t rank_get(const uint32_t *rank, int64_t e, bool narrow)
+{
+    return RANK8 && narrow ? (uint32_t)__ldg((const uint8_t *)rank + e) : __ldg(rank + e);
+}
+
 template <bool COLUMNS>
 static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid &gr, const WindowDisks &d,
                                                  const uint32_t *ib, int64_t u, const uint64_t *wall_hi,
@@ -245,7 +265,7 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
         if (kl >= c.rows) continue;
         int64_t e = c.base + (int64_t)kl * c.nl + c.i;
         keys[e] = key[t];
-        if (key[t] != KEY_OUT) rank[e] = r[t];
+        if (key[t] != KEY_OUT) rank_put(rank, e, r[t], crowded != NULL);
     }
 }
 
@@ -286,7 +306,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         }
         uint32_t key = cell_key<COLUMNS>(gr, st.d[s].pos, vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
-        rank[e] = count_add(count, key, 1u, crowded);
+        rank_put(rank, e, count_add(count, key, 1u, crowded), crowded != NULL);
     }
 }
 
@@ -452,7 +472,7 @@ __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, 
     unsigned head = 31 - __clz(heads & upto), next = later ? __ffs(later) - 1 : 32 - __clz(live);
     uint32_t base = 0;
     if (head == lane) base = count_add(count, key, next - lane, crowded);
-    rank[e] = __shfl_sync(live, base, head) + (lane - head);
+    rank_put(rank, e, __shfl_sync(live, base, head) + (lane - head), crowded != NULL);
 }
 
 /* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with
@@ -527,6 +547,7 @@ typedef struct {
                                  only where the move kept it (GATED_WALLS); else NULL */
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
+    int rank8;            /* and those ranks are 8-bit (rank_get) */
     const uint32_t *patches; /* K = 1, a gathering step in patches (PATCH_W): where each piece begins in the
                                 slots (patch_at), from which a slot's place comes (patch_shift); else NULL */
     uint64_t *best_lo;    /* cuda's steps of one slice: the choice's second keys, started for each event's disks
@@ -592,13 +613,13 @@ static __device__ __forceinline__ int64_t patch_shift(int64_t g, uint32_t key, c
  * nothing is written. */
 __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t *keys, const uint32_t *rank,
                                    const uint32_t *start, const uint32_t *patch_at, uint32_t *order,
-                                   uint32_t *slot_of)
+                                   uint32_t *slot_of, int rank8)
 {
     after_previous();
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= n || grid->cells == 0) return;
     uint32_t key = keys[e];
-    int64_t p = (int64_t)start[key] + rank[e], to = p + patch_shift(grid->g, key, start, patch_at);
+    int64_t p = (int64_t)start[key] + rank_get(rank, e, rank8), to = p + patch_shift(grid->g, key, start, patch_at);
     if ((uint64_t)p >= (uint64_t)n || (uint64_t)to >= (uint64_t)n) return; /* a crowded table's (count_add) */
     order[to] = (uint32_t)e;
     slot_of[p] = (uint32_t)to;
@@ -615,7 +636,7 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
 template <bool WINDOWS, bool LEVELS_LISTED, bool ENTRIES>
 __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, const int32_t *act, const int32_t *lev,
                              const StepInfo *info, const uint32_t *keys, const uint32_t *rank, const uint32_t *start,
-                             uint32_t *order, Entries en)
+                             uint32_t *order, Entries en, int rank8)
 {
     after_previous();
     const WindowDisks d = window_disks<WINDOWS>(grid, w, n, ENTRIES ? act : NULL, LEVELS_LISTED ? lev : NULL, info);
@@ -623,7 +644,7 @@ __global__ void place_kernel(DevState st, const Grid *grid, int w, int64_t n, co
     ENTRY_LOOP(WINDOWS, e, window_entries(d)) {
         uint32_t key = keys[e];
         if (key == KEY_OUT) continue;
-        int64_t p = (int64_t)start[key] + rank[e];
+        int64_t p = (int64_t)start[key] + rank_get(rank, e, rank8);
         if (ENTRIES)
             put_entry(st, en, p, window_entry(d, e), K, key);
         else if (en.placed)

@@ -455,7 +455,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
              * anywhere (a step then refused): the run stays between its cell's start and its row's end,
              * empty where after lies past that end */
             uint32_t after = patched ? (uint32_t)(p - patch_shift(gr.g, key, start, en.patches)) + 1
-                             : SLOTS ? __ldg(&start[key]) + __ldg(&en.rank[p]) + 1
+                             : SLOTS ? __ldg(&start[key]) + rank_get(en.rank, p, en.rank8) + 1
                                      : p + 1; /* its entry's next */
             if (patched) after = max(after, __ldg(&start[key]) + 1);
             pr.c = MID ? c : after;

@@ -124,7 +124,7 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(c->scan_tmp, c->scan_tmp_bytes, c->pieces, c->patch_at, pieces,
                                                  c->stream));
         step_kernel(c, blocks_for(c->n), THREADS, 0, place_patches_kernel, c->grid, c->n, c->keys, c->rank, c->start,
-                    c->patch_at, c->order, c->slot_of);
+                    c->patch_at, c->order, c->slot_of, (int)narrow_counts(c, pl, w));
         return;
     }
     Entries en = c->en;
@@ -133,7 +133,7 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
     auto place = fused ? (lev ? place_kernel<WINDOWS, true, true> : place_kernel<WINDOWS, false, true>)
                        : (lev ? place_kernel<WINDOWS, true, false> : place_kernel<WINDOWS, false, false>);
     step_kernel(c, blocks, THREADS, 0, place, c->st[in], c->grid, w, c->n, act, lev, c->info, c->keys, c->rank,
-                c->start, c->order, en);
+                c->start, c->order, en, (int)narrow_counts(c, pl, w));
 }
 
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
@@ -245,6 +245,7 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.disk = d->d, en.id = d->id;
         en.slot = slots ? (int32_t *)c->order : patches ? (int32_t *)c->slot_of : NULL;
         en.rank = c->rank;
+        en.rank8 = narrow_counts(c, pl, 0);
         en.patches = patches ? c->patch_at : NULL;
         en.wall = c->wall_hi;
         en.wall_gate = GATED_WALLS && slots ? c->partner : NULL; /* the move before kept some wall keys alone */

@@ -956,6 +956,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.mid = NULL;
             en.placed = NULL;
             en.rank = c->rank;
+            en.rank8 = 0; /* a GPU rank counts in 32 bits (Cuda.narrow) */
             en.patches = NULL;
             en.best_lo = NULL;
             en.tally = NULL;
