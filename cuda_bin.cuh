@@ -455,7 +455,14 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
 /* A step whose gate took the keys the move before it gave (MoveBin): their ranks in their cells, a
  * thread a key. The keys lie nearly in cell order (the disks were gathered so a few steps before), so
  * neighbouring lanes often share a cell: each run of equal keys in a warp takes its ranks with one atomic,
- * its first lane's. */
+ * its first lane's. With 8-bit counts (crowded given, count_add) a run is one of equal count words, four
+ * cells: its first lane adds each cell's lanes in their bytes of the word at once, and a lane's rank is its
+ * cell's byte before plus its cell's lanes before it in the run (cells of the same word are the same cell
+ * where their low two bits agree). A gas of about 1.5 cells a disk has a cell a lane and a word for three
+ * or four, so a warp takes a third of the atomics, all on addresses of their own. */
+#ifndef COUNT_WORDS
+#define COUNT_WORDS 1 /* 0: a run of equal keys takes an atomic, with 8-bit counts too */
+#endif
 __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *rank, uint32_t *count,
                              unsigned long long *crowded)
 {
@@ -466,13 +473,34 @@ __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, 
      * as __activemask would not promise */
     unsigned live = __ballot_sync(0xffffffffu, e < n), lane = threadIdx.x & 31;
     if (e >= n) return;
-    uint32_t key = keys[e], before = __shfl_up_sync(live, key, 1);
-    unsigned heads = __ballot_sync(live, lane == 0 || before != key); /* the lanes that begin a run */
+    const bool words = COUNT_WORDS && crowded;
+    uint32_t key = keys[e], unit = words ? key >> 2 : key, before = __shfl_up_sync(live, unit, 1);
+    unsigned heads = __ballot_sync(live, lane == 0 || before != unit); /* the lanes that begin a run */
     unsigned upto = 0xffffffffu >> (31 - lane), later = heads & ~upto;
     unsigned head = 31 - __clz(heads & upto), next = later ? __ffs(later) - 1 : 32 - __clz(live);
     uint32_t base = 0;
-    if (head == lane) base = count_add(count, key, next - lane, crowded);
-    rank_put(rank, e, __shfl_sync(live, base, head) + (lane - head), crowded != NULL);
+    if (!words) {
+        if (head == lane) base = count_add(count, key, next - lane, crowded);
+        rank_put(rank, e, __shfl_sync(live, base, head) + (lane - head), crowded != NULL);
+        return;
+    }
+    const unsigned run = (next < 32 ? (1u << next) - 1 : 0xffffffffu) & ~((1u << head) - 1), byte = key & 3u;
+    unsigned cell[4];
+#pragma unroll
+    for (unsigned b = 0; b < 4; b++) cell[b] = __ballot_sync(live, byte == b) & run; /* the run's lanes by cell */
+    if (head == lane) {
+        uint32_t add = 0;
+#pragma unroll
+        for (unsigned b = 0; b < 4; b++) add |= (uint32_t)__popc(cell[b]) << (8 * b);
+        base = atomicAdd(&count[unit], add);
+#pragma unroll
+        for (unsigned b = 0; b < 4; b++) /* a cell past 255 carries into the next: the step is refused */
+            if (((base >> (8 * b)) & 0xffu) + (uint32_t)__popc(cell[b]) > 0xffu)
+                *(volatile unsigned long long *)crowded = 1;
+    }
+    const unsigned mine = byte == 0 ? cell[0] : byte == 1 ? cell[1] : byte == 2 ? cell[2] : cell[3];
+    base = __shfl_sync(live, base, head);
+    rank_put(rank, e, ((base >> (8 * byte)) & 0xffu) + (uint32_t)__popc(mine & ((1u << lane) - 1)), true);
 }
 
 /* The exclusive sum of a short cell table (SCAN_TILES tiles at most) in two kernels of a step (with
