@@ -218,9 +218,11 @@ static __device__ __forceinline__ uint32_t count_add(uint32_t *count, uint32_t k
 }
 
 /* An entry's rank in its cell, kept in rank's words or, where the counts are 8-bit (narrow: count_add's crowded
- * given), in a byte each: the ranks then take a quarter of the bytes to write (counting) and to read (placement,
- * search). A crowded table's ranks lose their high bits; its step is refused, and the readers keep within their
- * arrays whatever the ranks hold (place_kernel, detect_kernel). */
+ * given), in a byte each: the counting writes, and the placement and the search read, 3 bytes an entry fewer.
+ * Gas of 1e7 on one H200: the counting 4.71 -> 4.48 ms over 50 steps, the placement 4.91 -> 4.72, 1.01e10 ->
+ * 1.02e10 particle-steps/s (bench/gpu_h100_variants.log 38a). A crowded table's ranks lose their high bits; its
+ * step is refused, and the readers keep within their arrays whatever the ranks hold (place_kernel,
+ * detect_kernel). */
 #ifndef RANK8
 #define RANK8 1 /* 0: 32-bit ranks throughout */
 #endif
@@ -458,8 +460,10 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
  * its first lane's. With 8-bit counts (crowded given, count_add) a run is one of equal count words, four
  * cells: its first lane adds each cell's lanes in their bytes of the word at once, and a lane's rank is its
  * cell's byte before plus its cell's lanes before it in the run (cells of the same word are the same cell
- * where their low two bits agree). A gas of about 1.5 cells a disk has a cell a lane and a word for three
- * or four, so a warp takes a third of the atomics, all on addresses of their own. */
+ * where their low two bits agree). In a gas of about 1.5 cells a disk most lanes have a cell of their own and
+ * a word serves three or four: the warp takes about a third of the atomics. Gas of 1e7 on one H200: the
+ * counting 4.49 -> 4.25 ms over 50 steps, 1.020e10 -> 1.024e10 particle-steps/s (bench/gpu_h100_variants.log
+ * 38b). */
 #ifndef COUNT_WORDS
 #define COUNT_WORDS 1 /* 0: a run of equal keys takes an atomic, with 8-bit counts too */
 #endif
@@ -647,7 +651,8 @@ __global__ void place_patches_kernel(const Grid *grid, int64_t n, const uint32_t
     int64_t e = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (e >= n || grid->cells == 0) return;
     uint32_t key = keys[e];
-    int64_t p = (int64_t)start[key] + rank_get(rank, e, rank8), to = p + patch_shift(grid->g, key, start, patch_at);
+    int64_t p = (int64_t)start[key] + rank_get(rank, e, rank8);
+    int64_t to = p + patch_shift(grid->g, key, start, patch_at);
     if ((uint64_t)p >= (uint64_t)n || (uint64_t)to >= (uint64_t)n) return; /* a crowded table's (count_add) */
     order[to] = (uint32_t)e;
     slot_of[p] = (uint32_t)to;
