@@ -309,6 +309,23 @@ static __device__ __forceinline__ unsigned long long list_append(unsigned long l
     return g.shfl(base, 0) + g.thread_rank();
 }
 
+/* Slots in a list shared by the whole grid for k items of each thread of the block, one atomic on the list's
+ * count per block: every thread of the block calls it, at the same point; returns the first of this thread's.
+ * A grid-wide pass that appends by warps (list_append) puts thousands of atomics a step on the one count, each
+ * waiting for the one before it. */
+static __device__ __forceinline__ unsigned long long block_append(unsigned long long *count, unsigned k)
+{
+    __shared__ unsigned taken;
+    __shared__ unsigned long long base;
+    if (threadIdx.x == 0) taken = 0;
+    __syncthreads();
+    unsigned at = k ? atomicAdd(&taken, k) : 0;
+    __syncthreads();
+    if (threadIdx.x == 0 && taken) base = atomicAdd(count, (unsigned long long)taken);
+    __syncthreads();
+    return base + at;
+}
+
 #define GRID_LOOP(i, len) \
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
 
