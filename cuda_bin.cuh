@@ -460,8 +460,8 @@ __global__ void gather_state_kernel(DevState in, DevState out, const uint32_t *o
  * its first lane's. With 8-bit counts (crowded given, count_add) a run is one of equal count words, four
  * cells: its first lane adds each cell's lanes in their bytes of the word at once, and a lane's rank is its
  * cell's byte before plus its cell's lanes before it in the run (cells of the same word are the same cell
- * where their low two bits agree). In a gas of about 1.5 cells a disk most lanes have a cell of their own and
- * a word serves three or four: the warp takes about a third of the atomics. Gas of 1e7 on one H200: the
+ * where their low two bits agree). In a gas of about 1.5 cells a disk most lanes have a cell of their own, and
+ * a word's four cells hold about 2.7 disks: the warp takes about a third of the atomics. Gas of 1e7 on one H200: the
  * counting 4.49 -> 4.25 ms over 50 steps, 1.020e10 -> 1.024e10 particle-steps/s (bench/gpu_h100_variants.log
  * 38b). */
 #ifndef COUNT_WORDS
