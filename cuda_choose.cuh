@@ -187,11 +187,7 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
         PairEvent e[ILP] = {};
         bool live[ILP] = {};
         unsigned kept = compact_take<ILP>(ev, i, stride, len, partner, wall_hi, best_hi, best_lo, e, live);
-        unsigned long long at = block_append(count_out, kept); /* < cap: no list outgrows the one it came from */
-        ILP_EACH(u) if (live[u]) {
-            if ((int64_t)at < cap) out[at] = e[u];
-            at++;
-        }
+        block_put<ILP>(out, count_out, cap, e, live, kept); /* within cap: no list outgrows the one it came from */
     }
 }
 
@@ -242,13 +238,7 @@ __global__ void settle_kernel(const PairEvent *ev, const unsigned long long *cou
                 best_lo[e[u].b] = NO_EVENT;
             }
         }
-        if (BLOCK_APPEND) {
-            unsigned long long at = block_append(count_out, k);
-            ILP_EACH(u) if (contested[u]) {
-                if ((int64_t)at < cap) out[at] = e[u];
-                at++;
-            }
-        }
+        if (BLOCK_APPEND) block_put<ILP>(out, count_out, cap, e, contested, k);
     }
 }
 

@@ -326,6 +326,21 @@ static __device__ __forceinline__ unsigned long long block_append(unsigned long 
     return base + at;
 }
 
+/* This thread's k events e[u] where keep[u], appended to the list out (count, cap) with the block's others at
+ * once (block_append): every thread of the block calls it. Past cap an event is counted and not stored. */
+template <int ILP>
+static __device__ __forceinline__ void block_put(PairEvent *out, unsigned long long *count, int64_t cap,
+                                                 const PairEvent (&e)[ILP], const bool (&keep)[ILP], unsigned k)
+{
+    unsigned long long at = block_append(count, k);
+#pragma unroll
+    for (int u = 0; u < ILP; u++)
+        if (keep[u]) {
+            if ((int64_t)at < cap) out[at] = e[u];
+            at++;
+        }
+}
+
 #define GRID_LOOP(i, len) \
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
 
