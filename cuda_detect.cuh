@@ -21,7 +21,8 @@
 #ifndef DETECT_MIN_BLOCKS_ONE
 #define DETECT_MIN_BLOCKS_ONE 6 /* K = 1: 40 registers, a few spilled, against 48 at 5: gas of 1e7 on one H200,
                                    7.05e9 -> 7.21e9 particle-steps/s, dense gas 5.54e9 -> 5.68e9 (at 7, more
-                                   spilled, slower; bench/gpu_h100_variants.log 13c) */
+                                   spilled, slower; bench/gpu_h100_variants.log 13c; at 7 and 8 with room for
+                                   them in shared memory, the gas no faster, the dense gas 2-3% slower: 39b) */
 #endif
 #ifndef DETECT_MIN_BLOCKS_MID
 #define DETECT_MIN_BLOCKS_MID 4 /* K > 1: 60 registers; at 5 (48) no faster, at 4 levels only 4 blocks fit */
@@ -121,7 +122,9 @@ static __device__ __forceinline__ bool near_path(float4 m, float4 c, float dt, f
 /* The pair events a block found, appended to the step's list together: one atomic on the list's count
  * per block. One per warp that found an event, all on that one address, took most of the gas's search
  * time (64 against 27 ms per 50 steps at N = 1e7). More than BLOCK_EVENTS go straight to the list. */
-#define BLOCK_EVENTS 256
+#ifndef BLOCK_EVENTS
+#define BLOCK_EVENTS 256 /* 64 (the gas finds about 16 a block): no faster (bench/gpu_h100_variants.log 39b) */
+#endif
 typedef struct {
     PairEvent e[BLOCK_EVENTS];
     unsigned long long n; /* 64 bits: a block of a dense pile can find more than 2^32 */
