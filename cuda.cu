@@ -144,7 +144,8 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      8.85e9 at 1.5 (2.75 pair tests a disk), 8.77e9 at 1.75, 8.74e9 at 2
                                      (2.56); gas of 1e8: 8.25e9 at 2, 8.47e9 at 1.5. The dense gas's and the
                                      random scene's cells are set by their disks' reach
-                                     (bench/gpu_h100_variants.log 26f) */
+                                     (bench/gpu_h100_variants.log 26f; with counts and ranks in bytes,
+                                     1.5 still best: 39c) */
 #endif
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
