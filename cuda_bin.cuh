@@ -318,6 +318,13 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
  * bits tell the two apart). Every "taken" test of the choice is partner >= 0. */
 #define PARTNER_WALL (-3)
 #define PARTNER_TALLY 4 /* a disk's partner lowered by this for each of its events (SETTLE, settle_kernel) */
+
+/* Whether a partner that is no disk says its wall event is pending: PARTNER_WALL, less the search's tallies
+ * or a settling's mark, which keep its two low bits (the search's gated wall keys, slot_wall; the move). */
+static __device__ __forceinline__ bool wall_pending(int32_t p)
+{
+    return p < 0 && (p & 3) == (PARTNER_WALL & 3);
+}
 /* Steps of one slice accept the events that are the only one of both their disks before the grid-wide
  * rounds (settle_kernel), where a disk has fewer than SETTLE_EVENTS events a step on average (Plan.settle):
  * on one H200 the gas of 1e7 (0.14 events a disk, 14% of them contested) 8.84e9 -> 9.38e9 particle-steps/s,

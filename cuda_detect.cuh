@@ -143,7 +143,7 @@ static __device__ __forceinline__ uint64_t slot_wall(const Entries &en, uint32_t
     if (GATED) {
         int32_t p;
         asm volatile("ld.relaxed.gpu.global.s32 %0, [%1];" : "=r"(p) : "l"(en.wall_gate + s));
-        if ((p & 3) != (PARTNER_WALL & 3)) return NO_EVENT;
+        if (!wall_pending(p)) return NO_EVENT;
     }
     return __ldg(&en.wall[s]);
 }

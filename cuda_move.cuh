@@ -157,7 +157,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
             /* a wall event left pending, by -3 or a settling's mark of it (settle_kernel) */
-            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : o < 0 && (o & 3) == (PARTNER_WALL & 3))
+            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : wall_pending(o))
                 o = (int32_t)s;
             /* the index counts collisions, orders a pair and goes with the disk where its slot changes:
              * a disk flying free in a step that keeps the slots needs none (4 of the move's 104 bytes) */
