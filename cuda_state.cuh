@@ -16,7 +16,9 @@ typedef double2 real2;
  * velocity kept apart took two. Random scene, N = 1e6, on one H200: 4.91e8 -> 5.07e8 particle-steps/s; but the
  * gas of 1e7's search, whose probes' coalesced loads of their own disks now each touch twice the sectors they
  * use, 20.68 -> 21.24 ms over 50 steps: the gas 8.75e9 -> 8.69e9, the dense gas 6.59e9 -> 6.50e9
- * (bench/gpu_h100_variants.log 26c). */
+ * (bench/gpu_h100_variants.log 26c; again at f7e4121, 40a). Apart, a move rewriting each disk in its own slot
+ * would write a free disk's position alone, 16 of its 32 bytes; but a pair's two threads must then meet before
+ * either disk is written, and that move took more than twice as long (40a, 40b). */
 typedef struct {
     real2 pos, vel;
 } Disk;
