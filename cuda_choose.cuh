@@ -191,7 +191,8 @@ __global__ void compact_kernel(const PairEvent *ev, const unsigned long long *co
     }
 }
 
-/* SETTLE (cuda's steps of one slice): an event the only one of both its disks is the smallest of both (the
+/* SETTLE (cuda's steps of one slice, a GPU rank's steps: mpi_cuda.cu, whose copies of other ranks' disks take
+ * every event as contested): an event the only one of both its disks is the smallest of both (the
  * search keeps no pair event at or after either disk's wall event), and accepted at once; the others,
  * contested, go on to the rounds. The search lowered each event's disks'
  * partners by PARTNER_TALLY (test_pair), from -1 or PARTNER_WALL, which the two low bits still tell

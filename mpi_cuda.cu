@@ -26,7 +26,7 @@
 #include "mpi_cuda.h"
 
 #define CHUNK ((int64_t)1 << 20) /* records a copy to or from the host takes at a time (64 MB pinned) */
-#define COUNTERS 6              /* GpuRank's counter */
+#define COUNTERS 7              /* GpuRank's counter */
 
 struct GpuRank {
     Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
@@ -69,7 +69,8 @@ struct GpuRank {
     double *halo_host;      /* pinned: the halo's records as received (gpu_rank_halo_in) */
     int64_t halo_host_cap;
     int64_t rec_cap, rec_host_cap;
-    /* the move's appends: [1], [2] (RankMove), the holes' fill [0], [5]; the rounds' lists: [3], [4] */
+    /* the move's appends: [1], [2] (RankMove), the holes' fill [0], [5]; the rounds' lists: [3], [4], and
+     * the settling's contested events [6] */
     unsigned long long *counter, *counter_host;
     /* the move's leavers' slots (rec_cap) and the fill's pairs of slots, holes and the kept disks above
        the kept count (fill_cap): rank_holes_kernel */
@@ -96,6 +97,11 @@ struct GpuRank {
     int64_t left_last;                 /* the leavers of the last move */
     int64_t leavers_room; /* SIM_MPI_CUDA_LEAVERS_ROOM=K (tests): a move's first pass takes K leavers at most */
     int64_t events_room;  /* SIM_MPI_CUDA_EVENTS=K (tests): each step's event list K events at most at first */
+    /* this step settles the events the only one of both their disks before the rounds, as cuda's steps of one
+     * slice do (Plan.settle, settle_kernel), where the last step found few events a disk (found_last) */
+    bool settle;
+    int64_t found_last;
+    unsigned long long settled[2]; /* --stats: pair events found in steps that settled, and left to the rounds */
     int list, round;        /* the rounds: the current list c.ev[list] and its length's counter */
     const unsigned long long *len;
     /* the peer path (mpi_cuda.h, GpuPeer): this rank's region, xcap records then twice xcap keys; the
@@ -217,6 +223,17 @@ __global__ void rank_keys_in_kernel(const GpuKey *keys, int64_t halo, int64_t ow
     best_hi[p] = key.hi;
     best_lo[p] = key.lo;
     if (key.decided && partner[p] < 0) partner[p] = (int32_t)p;
+}
+
+/* A step that settles (GpuRank.settle): each copy's partner lowered by two tallies after the search, so that
+ * settle_kernel takes every event of a copy as contested. A copy's tally counts only the events this rank
+ * found, not those of its owner's other neighbours; its owner, whose search finds each of the copy's events
+ * (the halo reaches every disk near enough), settles it or leaves it to the rounds, and the rounds' keys bring
+ * its decision here. Its low two bits stay (tally_base). */
+__global__ void rank_tally_copies_kernel(const uint32_t *where, int64_t own, int64_t halo, int32_t *partner)
+{
+    int64_t k = (int64_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (k < halo) partner[where ? where[own + k] : own + k] -= 2 * PARTNER_TALLY;
 }
 
 /* After the rounds: the copies' places (where after the own slots; NULL: in the slots) marked for the
@@ -442,12 +459,13 @@ const double *gpu_rank_times(const GpuRank *g)
     return g->secs;
 }
 
-void gpu_rank_reused(const GpuRank *g, uint64_t reused[6])
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[8])
 {
     reused[0] = g->keyed_steps[0], reused[1] = g->keyed_steps[1];
     reused[2] = g->halo_listed[0], reused[3] = g->halo_listed[1];
     reused[4] = g->moved_again;
     reused[5] = g->searched_again;
+    reused[6] = g->settled[0], reused[7] = g->settled[1];
 }
 
 GpuRank *gpu_rank_open(const Params *par, int local)
@@ -467,6 +485,8 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     (void)cudaDeviceSetLimit(cudaLimitStackSize, 64); /* cuda_open's reason */
     cudaGetLastError();
     c->scan_tiles = SCAN_TILES; /* the host waits for every step: no graphs, no programmatic launches */
+    const char *settle = getenv("SIM_CUDA_SETTLE"); /* as cuda_open reads it */
+    c->settle_events = settle ? atof(settle) : SETTLE_EVENTS;
     /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
      * of the box's disks, wherever its strip lies; the table holds the strip's cells (gpu_rank_slab) */
     GridLimits *lim = &c->lim;
@@ -883,6 +903,16 @@ static void round_launch(GpuRank *g, int first)
 {
     Cuda *c = &g->c;
     int64_t blocks = g->pl.choose_blocks[0];
+    if (first && g->settle) { /* the contested events into the other list, counted in counter[6] */
+        if (g->halo > 0)
+            step_kernel(c, blocks_for(g->halo), THREADS, 0, rank_tally_copies_kernel, slot_where(g), g->own, g->halo,
+                        c->partner);
+        CUDA_CHECK(cudaMemsetAsync(&g->counter[6], 0, sizeof g->counter[6], c->stream));
+        step_kernel(c, blocks, THREADS, 0, settle_kernel, c->ev[0], g->len, c->ev_cap, c->ev[1], &g->counter[6],
+                    c->partner, c->best_lo);
+        g->list = 1;
+        g->len = &g->counter[6];
+    }
     if (!first) {
         unsigned long long *next = &g->counter[3 + (g->round & 1)];
         CUDA_CHECK(cudaMemsetAsync(next, 0, sizeof *next, c->stream));
@@ -930,6 +960,8 @@ void gpu_rank_detect(GpuRank *g, double vmax)
     if (g->early && !early && c->dirty < g->early_len) c->dirty = g->early_len; /* counts to clear first */
     g->early = false;
     int in = c->cur;
+    /* as cuda's plan decides (Plan.settle), from the events a disk the last step found */
+    g->settle = SETTLE && 2 * (double)g->found_last < c->settle_events * (double)(n > 0 ? n : 1);
     for (;;) {
         if (!early) rank_gate(g, NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */
@@ -959,7 +991,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.rank8 = 0; /* a GPU rank counts in 32 bits (Cuda.narrow) */
             en.patches = NULL;
             en.best_lo = NULL;
-            en.tally = NULL;
+            en.tally = g->settle ? c->partner : NULL; /* the first round settles (round_launch) */
             detect_launch(c, pl, 0, en);
         }
         g->started = false; /* the first round's passes below change them */
@@ -977,6 +1009,8 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         if (found <= c->ev_cap) {
             g->keyed_steps[0] += g->info_host->ahead[0];
             g->keyed_steps[1] += g->info_host->ahead[1];
+            g->found_last = found;
+            if (g->settle) g->settled[0] += (unsigned long long)found, g->settled[1] += g->counter_host[3];
             pl->choose_blocks[0] = choose_blocks_for(c, (double)found);
             break;
         }

@@ -11,7 +11,8 @@
 #   at the step's own speed or with no keying (SIM_CUDA_BIN_AHEAD=1, 0); the halos taken from the moves'
 #   lists of own disks near the cuts (--stats); moves done twice, their leavers overflowing the device's
 #   room (SIM_MPI_CUDA_LEAVERS_ROOM=0), their collisions counted once; searches done twice, their events
-#   overflowing the list (SIM_MPI_CUDA_EVENTS=2);
+#   overflowing the list (SIM_MPI_CUDA_EVENTS=2); the lone events settled before the rounds (--stats),
+#   always, with searches done twice, and never (SIM_CUDA_SETTLE=1e30, 0);
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -157,6 +158,36 @@ else
     else
         fail "mpi_cuda searches done twice" "${twice:-nothing said} of 30; $(head -c 200 "$G/err")"
     fi
+    # the lone events (the only one of both their disks) settled before the rounds, as cuda's steps of one
+    # slice settle them, wherever a disk has fewer than SIM_CUDA_SETTLE events a step (a copy's events never:
+    # its owner settles them); always (1e30), with a search done twice (its tallies started anew), and never
+    (export SIM_CUDA_SETTLE=1e30; run_gpu 3 "$G/gas.in" --quiet --stats > "$G/out" 2> "$G/err" < /dev/null)
+    settled=$(sed -nE 's/.*settled first found ([0-9]+) pair events and left ([0-9]+) of them.*/\1 \2/p' "$G/err")
+    if cmp -s "$G/out" "$G/gas.ref" && [ "${settled%% *}" -gt "${settled#* }" ] 2> /dev/null; then
+        pass "mpi_cuda settles lone events first: ${settled%% *} found, ${settled#* } left to the rounds$(
+            ) (--stats), seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda settling lone events" "${settled:-nothing said}; $(head -c 200 "$G/err")"
+    fi
+    (export SIM_CUDA_SETTLE=1e30 SIM_MPI_CUDA_EVENTS=2
+        run_gpu 3 "$G/gas.in" --quiet > "$G/out" 2> "$G/err" < /dev/null)
+    if cmp -s "$G/out" "$G/gas.ref"; then
+        pass "mpi_cuda settling with every search done twice (SIM_MPI_CUDA_EVENTS=2): seq's bytes at 3 ranks"
+    else
+        fail "mpi_cuda settling with every search done twice" "$(head -c 200 "$G/err")"
+    fi
+    caller_settle=${SIM_CUDA_SETTLE-unset}
+    for e in 1e30 0; do
+        export SIM_CUDA_SETTLE=$e
+        gpu_ranks "SIM_CUDA_SETTLE=$e: mixed scene" "$G/mixed.ref" "$(pick "2 4" "4")" "$G/mixed.in"
+        gpu_ranks "SIM_CUDA_SETTLE=$e: a gas in one corner of the box" "$G/corner.ref" "$(pick "1 3" "3")" \
+            "$G/corner.in"
+    done
+    export SIM_CUDA_SETTLE=1e30
+    pin0=$(ls inputs/periodic/*.in | head -1)
+    gpu_ranks "SIM_CUDA_SETTLE=1e30: periodic/$(basename "$pin0" .in)" "outputs/periodic/$(basename "$pin0" .in).out" \
+        "$(pick "2 4" "2")" "$pin0" --periodic
+    if [ "$caller_settle" = unset ]; then unset SIM_CUDA_SETTLE; else export SIM_CUDA_SETTLE=$caller_settle; fi
     caller_ahead=${SIM_CUDA_BIN_AHEAD-unset}
     for s in 1 0; do
         export SIM_CUDA_BIN_AHEAD=$s
