@@ -110,10 +110,7 @@ static __device__ __forceinline__ void pass_compact(const PairEvent *ev, int64_t
     PairEvent e[ILP] = {};
     bool live[ILP] = {};
     compact_take<ILP>(ev, i, stride, len, partner, wall_hi, best_hi, best_lo, e, live);
-    ILP_EACH(u) if (live[u]) {
-        unsigned long long at = list_append(count_out); /* < cap: no list outgrows the one it came from */
-        if ((int64_t)at < cap) out[at] = e[u];
-    }
+    warp_put<ILP>(out, count_out, cap, e, live); /* within cap: no list outgrows the one it came from */
 }
 
 static __device__ __forceinline__ int64_t list_len(const unsigned long long *count, int64_t cap)
@@ -229,17 +226,16 @@ __global__ void settle_kernel(const PairEvent *ev, const unsigned long long *cou
             } else {
                 contested[u] = true;
                 k++;
-                if (!BLOCK_APPEND) {
-                    unsigned long long at = list_append(count_out); /* < cap: a part of the list it came from */
-                    if ((int64_t)at < cap) out[at] = e[u];
-                }
                 partner[e[u].a] = ba - 2 * PARTNER_TALLY;
                 partner[e[u].b] = bb - 2 * PARTNER_TALLY;
                 best_lo[e[u].a] = NO_EVENT;
                 best_lo[e[u].b] = NO_EVENT;
             }
         }
-        if (BLOCK_APPEND) block_put<ILP>(out, count_out, cap, e, contested, k);
+        if (BLOCK_APPEND) /* within cap: a part of the list it came from */
+            block_put<ILP>(out, count_out, cap, e, contested, k);
+        else
+            warp_put<ILP>(out, count_out, cap, e, contested);
     }
 }
 

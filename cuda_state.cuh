@@ -343,6 +343,20 @@ static __device__ __forceinline__ void block_put(PairEvent *out, unsigned long l
         }
 }
 
+/* As block_put, each event appended by its warp (list_append): for passes whose threads do not all call one
+ * point alike (the finish's one block; BLOCK_APPEND 0). */
+template <int ILP>
+static __device__ __forceinline__ void warp_put(PairEvent *out, unsigned long long *count, int64_t cap,
+                                                const PairEvent (&e)[ILP], const bool (&keep)[ILP])
+{
+#pragma unroll
+    for (int u = 0; u < ILP; u++)
+        if (keep[u]) {
+            unsigned long long at = list_append(count);
+            if ((int64_t)at < cap) out[at] = e[u];
+        }
+}
+
 #define GRID_LOOP(i, len) \
     for (int64_t i = (int64_t)blockIdx.x * blockDim.x + threadIdx.x; i < (len); i += (int64_t)gridDim.x * blockDim.x)
 
