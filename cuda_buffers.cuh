@@ -34,6 +34,14 @@ static void state_free(DevState *d)
     cudaFree(d->id);
 }
 
+/* SIM_CUDA_SETTLE=E: steps of one slice settle where a disk has fewer than E events on average (0: never; the
+ * tests take both ways), in cuda and in a GPU rank (settles) */
+static double settle_events_env(void)
+{
+    const char *settle = getenv("SIM_CUDA_SETTLE");
+    return settle ? atof(settle) : SETTLE_EVENTS;
+}
+
 static void events_alloc(Cuda *c, int64_t cap)
 {
     c->ev_cap = cap;
@@ -137,10 +145,7 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     /* SIM_CUDA_FUSED_N=N: placement fused below N disks (0: never; the tests take both ways) */
     const char *fused_n = getenv("SIM_CUDA_FUSED_N");
     c->fused_n = fused_n ? atoll(fused_n) : PLACE_FUSED_N;
-    /* SIM_CUDA_SETTLE=E: steps of one slice settle where a disk has fewer than E events on average (0:
-     * never; the tests take both ways) */
-    const char *settle = getenv("SIM_CUDA_SETTLE");
-    c->settle_events = settle ? atof(settle) : SETTLE_EVENTS;
+    c->settle_events = settle_events_env();
     /* SIM_CUDA_NARROW=0: 32-bit cell counts throughout (narrow_counts; the tests take both ways) */
     const char *narrow = getenv("SIM_CUDA_NARROW");
     c->narrow = NARROW_COUNTS && !(narrow && atoi(narrow) == 0);

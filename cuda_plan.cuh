@@ -57,6 +57,14 @@ static int64_t choose_blocks_for(const Cuda *c, double found)
     return b < most ? (int64_t)b : (int64_t)most;
 }
 
+/* Whether a step of one slice settles the lone events first (settle_kernel): where the step before found fewer
+ * than c->settle_events events a disk (`found` pair events, each two disks', over n disks); cuda's plans and a
+ * GPU rank's steps (mpi_cuda.cu) alike. */
+static bool settles(const Cuda *c, double found, double n)
+{
+    return SETTLE && 2 * found < c->settle_events * n;
+}
+
 static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double *found, int F)
 {
     Plan pl;
@@ -95,7 +103,7 @@ static Plan plan_for(const Cuda *c, double vmax, const int *rounds, const double
     }
     /* settling pays where few events are contested: about 1 - exp(-e) of them, where e = 2 found / n is
      * a disk's events in a step (0.14 of 0.14 in the gas of 1e7, 0.43 of 0.47 in the dense gas) */
-    pl.settle = SETTLE && LO_AT_EVENT && pl.K == 1 && 2 * found[0] < c->settle_events * (double)c->n;
+    pl.settle = LO_AT_EVENT && pl.K == 1 && settles(c, found[0], (double)c->n);
     return pl;
 }
 

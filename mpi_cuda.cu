@@ -485,8 +485,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     (void)cudaDeviceSetLimit(cudaLimitStackSize, 64); /* cuda_open's reason */
     cudaGetLastError();
     c->scan_tiles = SCAN_TILES; /* the host waits for every step: no graphs, no programmatic launches */
-    const char *settle = getenv("SIM_CUDA_SETTLE"); /* as cuda_open reads it */
-    c->settle_events = settle ? atof(settle) : SETTLE_EVENTS;
+    c->settle_events = settle_events_env();
     /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
      * of the box's disks, wherever its strip lies; the table holds the strip's cells (gpu_rank_slab) */
     GridLimits *lim = &c->lim;
@@ -960,8 +959,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
     if (g->early && !early && c->dirty < g->early_len) c->dirty = g->early_len; /* counts to clear first */
     g->early = false;
     int in = c->cur;
-    /* as cuda's plan decides (Plan.settle), from the events a disk the last step found */
-    g->settle = SETTLE && 2 * (double)g->found_last < c->settle_events * (double)(n > 0 ? n : 1);
+    g->settle = settles(c, (double)g->found_last, (double)(n > 0 ? n : 1)); /* from the last step's events */
     for (;;) {
         if (!early) rank_gate(g, NULL, 0, 0.0); /* no keys ahead: the halo comes between two steps */
         if (n > 0 && early) { /* the copies after the own disks binned early, into the same counts */

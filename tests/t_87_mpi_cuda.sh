@@ -184,9 +184,9 @@ else
             "$G/corner.in"
     done
     export SIM_CUDA_SETTLE=1e30
-    pin0=$(ls inputs/periodic/*.in | head -1)
-    gpu_ranks "SIM_CUDA_SETTLE=1e30: periodic/$(basename "$pin0" .in)" "outputs/periodic/$(basename "$pin0" .in).out" \
-        "$(pick "2 4" "2")" "$pin0" --periodic
+    pin=$(ls inputs/periodic/*.in | head -1) # a periodic input, for the runs below too
+    gpu_ranks "SIM_CUDA_SETTLE=1e30: periodic/$(basename "$pin" .in)" "outputs/periodic/$(basename "$pin" .in).out" \
+        "$(pick "2 4" "2")" "$pin" --periodic
     if [ "$caller_settle" = unset ]; then unset SIM_CUDA_SETTLE; else export SIM_CUDA_SETTLE=$caller_settle; fi
     caller_ahead=${SIM_CUDA_BIN_AHEAD-unset}
     for s in 1 0; do
@@ -195,7 +195,6 @@ else
         gpu_ranks "SIM_CUDA_BIN_AHEAD=$s: mixed scene" "$G/mixed.ref" "3" "$G/mixed.in"
     done
     export SIM_CUDA_BIN_AHEAD=1
-    pin=$(ls inputs/periodic/*.in | head -1)
     gpu_ranks "SIM_CUDA_BIN_AHEAD=1: periodic/$(basename "$pin" .in)" "outputs/periodic/$(basename "$pin" .in).out" \
         "3" "$pin" --periodic
     if [ "$caller_ahead" = unset ]; then unset SIM_CUDA_BIN_AHEAD; else export SIM_CUDA_BIN_AHEAD=$caller_ahead; fi
@@ -212,7 +211,6 @@ else
     export SIM_MPI_CUDA_REGION_SLACK=1
     gpu_ranks "regions grown step after step: gas of 20000" "$G/gas.ref" "$(pick "2 3 4" "4")" "$G/gas.in"
     gpu_ranks "regions grown step after step: mixed scene" "$G/mixed.ref" "3" "$G/mixed.in"
-    pin=$(ls inputs/periodic/*.in | head -1)
     gpu_ranks "regions grown step after step: periodic/$(basename "$pin" .in)" \
         "outputs/periodic/$(basename "$pin" .in).out" "2" "$pin" --periodic
     unset SIM_MPI_CUDA_REGION_SLACK
