@@ -42,6 +42,19 @@ static double settle_events_env(void)
     return settle ? atof(settle) : SETTLE_EVENTS;
 }
 
+/* How the cell tables are counted and scanned, in cuda and in a GPU rank. SIM_CUDA_SCAN_TILES=T: tables of
+ * more than T tiles go to cub (0: all), -1: the batches of one slot (batch_launch) to cub, of the other to the
+ * short scan; SIM_CUDA_NARROW=0: 32-bit cell counts throughout (narrow_counts). The tests take every way. */
+static void counts_env(Cuda *c)
+{
+    const char *scan_tiles = getenv("SIM_CUDA_SCAN_TILES");
+    c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
+    c->scan_alternate = c->scan_tiles < 0;
+    if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
+    const char *narrow = getenv("SIM_CUDA_NARROW");
+    c->narrow = NARROW_COUNTS && !(narrow && atoi(narrow) == 0);
+}
+
 static void events_alloc(Cuda *c, int64_t cap)
 {
     c->ev_cap = cap;
@@ -136,19 +149,11 @@ static void cuda_open(Cuda *c, const Sim *sim, const Params *par, double vmax, i
     int major = 0;
     CUDA_CHECK(cudaDeviceGetAttribute(&major, cudaDevAttrComputeCapabilityMajor, 0));
     c->pdl = PDL && major >= 9 && !(pdl && atoi(pdl) == 0);
-    /* SIM_CUDA_SCAN_TILES=T: cell tables of more than T tiles go to cub (0: all), -1: the batches of
-     * one slot (batch_launch) to cub, of the other to the short scan (the tests take both ways) */
-    const char *scan_tiles = getenv("SIM_CUDA_SCAN_TILES");
-    c->scan_tiles = scan_tiles ? atoll(scan_tiles) : SCAN_TILES;
-    c->scan_alternate = c->scan_tiles < 0;
-    if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
+    counts_env(c);
     /* SIM_CUDA_FUSED_N=N: placement fused below N disks (0: never; the tests take both ways) */
     const char *fused_n = getenv("SIM_CUDA_FUSED_N");
     c->fused_n = fused_n ? atoll(fused_n) : PLACE_FUSED_N;
     c->settle_events = settle_events_env();
-    /* SIM_CUDA_NARROW=0: 32-bit cell counts throughout (narrow_counts; the tests take both ways) */
-    const char *narrow = getenv("SIM_CUDA_NARROW");
-    c->narrow = NARROW_COUNTS && !(narrow && atoi(narrow) == 0);
     ahead_open(c);
     c->checkpoints = checkpoints;
     if (timed)

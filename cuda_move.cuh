@@ -100,10 +100,10 @@ typedef struct {
 #define COUNT_RED 1
 #endif
 
-/* Slot s's disk for the move: its state, its accepted partner and, for a GPU rank (WALL), its wall event
- * (its index is loaded where the move needs it, move_kernel). cuda's move knows an accepted wall event by
- * the partner (PARTNER_WALL, or a settling's mark of it) and loads its key for those disks alone: 8 bytes
- * fewer for each of the others.
+/* Slot s's disk for the move: its state, its accepted partner and, where WALL (WALL_PENDING 0), its wall
+ * event (its index is loaded where the move needs it, move_kernel). The move (cuda's and a GPU rank's) knows an
+ * accepted wall event by the partner (PARTNER_WALL, or a settling's mark of it) and loads its key for those
+ * disks alone: 8 bytes fewer for each of the others.
  * On one H200 the gas of 1e7's move 18.31 -> 17.70 ms over 50 steps, the dense gas's 21.77 -> 20.95; the key
  * computed again from the state instead, as fast there, cost the random scene's move 12%, its fast disks
  * meeting walls often (bench/gpu_h100_variants.log 25g). */
@@ -133,7 +133,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
     int32_t id = 0, o = -1;
     uint64_t wall = NO_EVENT;
     if (s < n) /* loaded before the checks below, so that their loads overlap */
-        move_load<RANK || !WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
+        move_load<!WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
     if (refused(ctl)) return;
     unsigned long long most = 0;
     for (int w = 0; w < WMAX; w++) most = info->found[w] > most ? info->found[w] : most;
@@ -157,7 +157,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
             real lo = par.lo, hi = par.hi;
             real x = pos.x, y = pos.y, vx = vel.x, vy = vel.y;
             /* a wall event left pending, by -3 or a settling's mark of it (settle_kernel) */
-            if (RANK || !WALL_PENDING ? o < 0 && wall != NO_EVENT : wall_pending(o))
+            if (!WALL_PENDING ? o < 0 && wall != NO_EVENT : wall_pending(o))
                 o = (int32_t)s;
             /* the index counts collisions, orders a pair and goes with the disk where its slot changes:
              * a disk flying free in a step that keeps the slots needs none (4 of the move's 104 bytes) */
@@ -166,7 +166,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
                 x = x + vx;
                 y = y + vy;
             } else if (o == s) {
-                if (!RANK && WALL_PENDING) wall = wall_hi[s];
+                if (WALL_PENDING) wall = wall_hi[s];
                 real t1 = key_time(wall);
                 wall_bounce(&x, &y, &vx, &vy, t1, lo, hi);
                 finish_step(&x, &y, vx, vy, t1, lo, hi);
@@ -233,7 +233,7 @@ __global__ void move_kernel(DevState in, DevState out, int64_t n, Params par, co
         if (!LOOP) break;
         s += (int64_t)gridDim.x * blockDim.x;
         if (s >= n) break;
-        move_load<RANK || !WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
+        move_load<!WALL_PENDING>(in, partner, wall_hi, s, pos, vel, o, wall);
     }
     typedef cub::BlockReduce<real, THREADS> ReduceR;
     typedef cub::BlockReduce<unsigned long long, THREADS> ReduceU;

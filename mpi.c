@@ -1466,9 +1466,9 @@ int main(int argc, char **argv)
     memcpy(gpu_times, gpu_rank_times(r.gpu), GPU_CALLS * sizeof *gpu_times);
     gpu_times[GPU_CALLS] = r.halo_secs;
     MPI_Reduce(gpu_times, gpu_most, GPU_CALLS + 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
-    uint64_t reused[8], reused_sum[8];
+    uint64_t reused[9], reused_sum[9];
     gpu_rank_reused(r.gpu, reused);
-    MPI_Reduce(reused, reused_sum, 8, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(reused, reused_sum, 9, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     gpu_rank_unmap(r.gpu);
     MPI_Barrier(MPI_COMM_WORLD); /* no rank frees its region while another has it mapped */
     gpu_rank_close(r.gpu);
@@ -1533,9 +1533,10 @@ int main(int argc, char **argv)
                     (unsigned long long)reused_sum[0], (unsigned long long)reused_sum[1]);
             fprintf(stderr, "%s: rank-steps whose halo looked only at the own disks the move before listed near "
                     "the cuts: %llu, at every own disk: %llu; moves done twice (more leavers than room): %llu; "
-                    "searches done twice (more events than the list held): %llu\n", sim_program,
-                    (unsigned long long)reused_sum[2], (unsigned long long)reused_sum[3],
-                    (unsigned long long)reused_sum[4], (unsigned long long)reused_sum[5]);
+                    "searches done twice (more events than the list held): %llu; searches done again for a cell "
+                    "past 255 disks (8-bit counts): %llu\n", sim_program, (unsigned long long)reused_sum[2],
+                    (unsigned long long)reused_sum[3], (unsigned long long)reused_sum[4],
+                    (unsigned long long)reused_sum[5], (unsigned long long)reused_sum[8]);
             fprintf(stderr, "%s: rank-steps that settled first found %llu pair events and left %llu of them to the "
                     "rounds (the others, the only event of both disks)\n", sim_program,
                     (unsigned long long)reused_sum[6], (unsigned long long)reused_sum[7]);

@@ -5,7 +5,8 @@
  *   detect   bin, scan, place and the pair search over the own disks and the copies, on the grid cuda
  *            would fit to the whole box of N disks, its table of cells cut to the strip's columns
  *            (GridLimits' slab) (a copy is a disk like any other here); the search reads the disks in
- *            their slots through the cell order, and every BATCH steps they are gathered into it;
+ *            their slots through the cell order, and every BATCH steps they are gathered into it; the
+ *            cells counted in 8 bits, as cuda counts them, until one passes 255 disks;
  *   rounds   cuda's rounds of the choice, each with one exchange between its min and accept passes:
  *            the smallest live keys of the own disks that other ranks hold copies of go out, and the
  *            copies' keys from their owners replace those found here, which lack the copies' events
@@ -14,7 +15,8 @@
  *            which only delays (mpi.c, choose). The rounds end when no rank has a live event;
  *   move     cuda's move for the own disks (a pair with a copy from the copy's state at the step's
  *            start, as cuda moves both partners from the old buffer); the own disks still in the strip
- *            keep their slots and start their event keys there, as cuda's move does, the others
+ *            keep their slots and start their event keys there, as cuda's move does (writing only the
+ *            keys that change: GATED_WALLS, SKIP_BEST, LO_AT_EVENT), the others
  *            (leavers) go into records for their new ranks, and the holes they and the copies leave
  *            below the kept disks' count are filled from the slots above it.
  * Event keys compare by value (t, kind, i, j), so the order of the slots and of the copies does not
@@ -27,6 +29,10 @@
 
 #define CHUNK ((int64_t)1 << 20) /* records a copy to or from the host takes at a time (64 MB pinned) */
 #define COUNTERS 7              /* GpuRank's counter */
+#ifndef RANK_GATHER_EVERY
+#define RANK_GATHER_EVERY BATCH /* a rank's steps gather the disks into cell order once in so many (16: no
+                                   faster, one rank on a gas of 1e7; bench/mpi_h100_gpu_ranks.log) */
+#endif
 
 struct GpuRank {
     Cuda c;                 /* cuda.cu's buffers; c.n: a step's slots (own + halo), c.cur: the state */
@@ -39,7 +45,7 @@ struct GpuRank {
     bool started;
     uint32_t *where;        /* slot before the gather -> its cell place: the halo's sent slots and the copies */
     /* this step searches the disks in their slots through the cell order, as cuda's gas does (SLOT_STEPS):
-     * no gather, where is each slot itself; steps since the last gather (a rank gathers every BATCH) */
+     * no gather, where is each slot itself; steps since the last gather (one in RANK_GATHER_EVERY gathers) */
     bool slots;
     int since_gather;
     int32_t *cand;          /* gpu_rank_halo_out's own slots with a copy to send (cap) */
@@ -94,6 +100,7 @@ struct GpuRank {
     unsigned long long halo_listed[2]; /* halos that looked at the move's list, and at every own disk */
     unsigned long long moved_again;    /* moves done twice, their leavers overflowing the room */
     unsigned long long searched_again; /* searches done again, their events overflowing the list */
+    unsigned long long crowdings;      /* and for a cell past 255 disks (one at most: 32-bit counts after it) */
     int64_t left_last;                 /* the leavers of the last move */
     int64_t leavers_room; /* SIM_MPI_CUDA_LEAVERS_ROOM=K (tests): a move's first pass takes K leavers at most */
     int64_t events_room;  /* SIM_MPI_CUDA_EVENTS=K (tests): each step's event list K events at most at first */
@@ -276,7 +283,8 @@ __global__ void rank_holes_kernel(DevState out, int64_t own, int64_t halo, const
 
 /* The holes below the kept count filled from the slots above it (rank_holes_kernel), each moved disk's
  * event keys started and its cell key (keys, where the move keyed them) moved with it; those within
- * reach of the cuts listed for the next halo, as the move lists them. */
+ * reach of the cuts listed for the next halo, as the move lists them. The move kept a wall key only where
+ * the partner it started says there is one (GATED_WALLS): elsewhere the key is an older step's. */
 __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t *from, int64_t room, RankMove rm,
                                  uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
                                  uint32_t *keys)
@@ -290,7 +298,7 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
         Disk disk = out.d[b];
         out.d[a] = disk;
         out.id[a] = out.id[b];
-        slot_init(a, wall_hi[b], wall_hi, best_hi, best_lo, partner);
+        slot_init(a, wall_pending(partner[b]) ? wall_hi[b] : NO_EVENT, wall_hi, best_hi, best_lo, partner);
         if (keys) keys[a] = keys[b];
         rank_list_near(rm, (double)disk.pos.x, a);
     }
@@ -459,13 +467,14 @@ const double *gpu_rank_times(const GpuRank *g)
     return g->secs;
 }
 
-void gpu_rank_reused(const GpuRank *g, uint64_t reused[8])
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[9])
 {
     reused[0] = g->keyed_steps[0], reused[1] = g->keyed_steps[1];
     reused[2] = g->halo_listed[0], reused[3] = g->halo_listed[1];
     reused[4] = g->moved_again;
     reused[5] = g->searched_again;
     reused[6] = g->settled[0], reused[7] = g->settled[1];
+    reused[8] = g->crowdings;
 }
 
 GpuRank *gpu_rank_open(const Params *par, int local)
@@ -484,7 +493,9 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     CUDA_CHECK(cudaStreamCreateWithFlags(&c->stream, cudaStreamNonBlocking));
     (void)cudaDeviceSetLimit(cudaLimitStackSize, 64); /* cuda_open's reason */
     cudaGetLastError();
-    c->scan_tiles = SCAN_TILES; /* the host waits for every step: no graphs, no programmatic launches */
+    /* the host waits for every step: no graphs, no programmatic launches; SIM_CUDA_SCAN_TILES=-1 (one of
+     * cuda's batch slots to cub) is as unset here */
+    counts_env(c);
     c->settle_events = settle_events_env();
     /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
      * of the box's disks, wherever its strip lies; the table holds the strip's cells (gpu_rank_slab) */
@@ -512,7 +523,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     g->leavers_room = room && *room ? atoll(room) : -1;
     room = getenv("SIM_MPI_CUDA_EVENTS");
     g->events_room = room && *room && atoll(room) > 0 ? atoll(room) : -1;
-    g->since_gather = BATCH; /* the first step gathers */
+    g->since_gather = RANK_GATHER_EVERY; /* the first step gathers */
     CUDA_CHECK(cudaMallocHost((void **)&g->info_host, sizeof(StepInfo)));
     CUDA_CHECK(cudaMallocHost((void **)&g->stage, (size_t)CHUNK * D_LEN * sizeof(double)));
     CUDA_CHECK(cudaEventCreateWithFlags(&g->halo_ready, cudaEventDisableTiming));
@@ -675,6 +686,13 @@ static void view_reserve(GpuRank *g, int np)
     g->view_np = np;
 }
 
+/* Where a step's cells are counted in 8 bits (narrow_counts: a table that cub scans, until a cell passes 255
+ * disks), the flag count_add raises for a cell past 255; else NULL, 32-bit counts. */
+static unsigned long long *rank_crowded(GpuRank *g)
+{
+    return narrow_counts(&g->c, &g->pl, 0) ? &g->c.info->crowded : NULL;
+}
+
 /* Slots first to first + n of st binned on the step's grid (keyed_before: unless the gate took the keys
  * the move before gave them, bin_kernel), into the cell counts. keyed_before: few blocks, looping, as
  * cuda's bin_place_launch, since they mostly return at once: a block a thread's slot, each returning,
@@ -684,14 +702,17 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
     Cuda *c = &g->c;
     if (n <= 0) return;
     st.d += first, st.id += first;
+    unsigned long long *crowded = rank_crowded(g);
+    /* 8-bit counts' ranks take a byte an entry (rank_put), which bin_kernel writes through the pointer */
+    uint32_t *rank = crowded && RANK8 ? (uint32_t *)((uint8_t *)c->rank + first) : c->rank + first;
     if (keyed_before)
         step_kernel(c, loop_blocks(c, n, 16), THREADS, 0, bin_kernel<true, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
-                    c->rank + first, c->count, 1, (unsigned long long *)NULL);
+                    rank, c->count, 1, crowded);
     else
         step_kernel(c, blocks_for(n), THREADS, 0, bin_kernel<false, false, false>, st, n, c->grid, 0,
                     (const int32_t *)NULL, (const int32_t *)NULL, c->info, c->wall_hi + first, c->keys + first,
-                    c->rank + first, c->count, 0, (unsigned long long *)NULL);
+                    rank, c->count, 0, crowded);
 }
 
 /* A step's gate (gate_kernel) at its plan's speed, for one slice: ahead, keyed and ahead_slack as it
@@ -722,7 +743,7 @@ static void bin_early(GpuRank *g, double vmax)
     if (keyed > 0) {
         bin_slots(g, c->st[c->cur], 0, keyed, 1);
         step_kernel(c, blocks_for(keyed), THREADS, 0, count_kernel, c->grid, keyed, c->keys, c->rank, c->count,
-                    (unsigned long long *)NULL);
+                    rank_crowded(g));
     }
     bin_slots(g, c->st[c->cur], keyed, g->own - keyed, 0);
     g->keyed = 0;
@@ -751,7 +772,7 @@ const double *gpu_rank_halo_out(GpuRank *g, const HaloView *h, double vmax, int 
     HaloView d = *h;
     d.cut = g->view_cut, d.near = g->view_flags, d.whole = g->view_flags + np;
     /* this step in the slots, or gathered (decided here: a gathered step's pack marks the slots it sends) */
-    g->slots = SLOT_STEPS && g->since_gather < BATCH - 1;
+    g->slots = SLOT_STEPS && g->since_gather < RANK_GATHER_EVERY - 1;
     g->since_gather = g->slots ? g->since_gather + 1 : 0;
     /* the slots to look at: the last move's list and the disks added since, where it fits this halo */
     bool listed = g->hvalid && !h->any_whole && h->cut[h->me] == g->hc0 && h->cut[h->me + 1] == g->hc1 &&
@@ -895,6 +916,14 @@ void gpu_rank_set_halo_peer(GpuRank *g, const int *from, const GpuPeer *p, int n
     g->halo = got;
 }
 
+/* Whether this step's wall keys are read through the partners (GATED_WALLS): a step in the slots, whose keys
+ * the move before started as cuda's move does, writing a wall key only where there is one (move_kernel's
+ * MoveBin). A gathering step's gather starts every slot's keys. */
+static bool rank_gated(const GpuRank *g)
+{
+    return GATED_WALLS && g->slots;
+}
+
 /* A round's passes up to the keys that go out, and the copy of its list's length to the host (the
  * caller waits): the first round (first) over the search's list, the others over the live events the
  * last one left. */
@@ -916,7 +945,7 @@ static void round_launch(GpuRank *g, int first)
         unsigned long long *next = &g->counter[3 + (g->round & 1)];
         CUDA_CHECK(cudaMemsetAsync(next, 0, sizeof *next, c->stream));
         step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[g->list], g->len, c->ev_cap, c->ev[1 - g->list], next,
-                    c->partner, c->wall_hi, c->best_hi, c->best_lo);
+                    c->partner, rank_gated(g) ? (const uint64_t *)NULL : c->wall_hi, c->best_hi, c->best_lo);
         g->list = 1 - g->list;
         g->len = next;
         step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi);
@@ -940,7 +969,8 @@ static void round_launch(GpuRank *g, int first)
 /* The search is followed at once by the first round's passes, on a list of any length (their blocks
  * loop), so that the device does not wait for the host between them: the first round then only
  * returns what they found. Where the list was too short, it is made longer and both are launched again
- * (the state the step started from is intact). */
+ * (the state the step started from is intact); so too, counting in 32 bits from then on, where a cell of
+ * 8-bit counts passed 255 disks (count_add). */
 void gpu_rank_detect(GpuRank *g, double vmax)
 {
     CallClock clock_(g, GPU_DETECT);
@@ -976,19 +1006,20 @@ void gpu_rank_detect(GpuRank *g, double vmax)
                             c->best_hi, c->best_lo, c->partner);
             else if (!g->slots)
                 step_kernel(c, blocks_for(n), THREADS, 0, gather_state_kernel, c->st[in], c->st[1 - in], c->order,
-                            n, c->par, c->wall_hi, c->best_hi, c->best_lo, c->partner, c->ctl, g->where, g->own);
+                            n, c->par, c->wall_hi, c->best_hi, LO_AT_EVENT ? (uint64_t *)NULL : c->best_lo,
+                            c->partner, c->ctl, g->where, g->own);
             DevState *d = &c->st[g->slots ? in : 1 - in];
             Entries en;
             en.disk = d->d, en.id = d->id;
             en.slot = g->slots ? (int32_t *)c->order : NULL;
             en.wall = c->wall_hi;
-            en.wall_gate = NULL;
+            en.wall_gate = rank_gated(g) ? c->partner : NULL; /* the move before kept some wall keys alone */
             en.mid = NULL;
             en.placed = NULL;
             en.rank = c->rank;
-            en.rank8 = 0; /* a GPU rank counts in 32 bits (Cuda.narrow) */
+            en.rank8 = narrow_counts(c, pl, 0);
             en.patches = NULL;
-            en.best_lo = NULL;
+            en.best_lo = LO_AT_EVENT ? c->best_lo : NULL; /* the search starts its events' second keys */
             en.tally = g->settle ? c->partner : NULL; /* the first round settles (round_launch) */
             detect_launch(c, pl, 0, en);
         }
@@ -1003,6 +1034,12 @@ void gpu_rank_detect(GpuRank *g, double vmax)
         if (g->info_host->outside)
             sim_fail("internal error: %llu disks outside the slab of the grid (%g to %g)", g->info_host->outside,
                      c->lim.x0, c->lim.x1);
+        if (g->info_host->crowded) { /* a cell passed 255 disks: 32-bit counts from here on, the search again */
+            c->narrow = 0;
+            g->crowdings++;
+            early = false;
+            continue;
+        }
         int64_t found = (int64_t)g->info_host->found[0];
         if (found <= c->ev_cap) {
             g->keyed_steps[0] += g->info_host->ahead[0];
@@ -1106,7 +1143,11 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
             CUDA_CHECK(cudaMemsetAsync(&g->counter[1], 0, sizeof(unsigned long long), c->stream));
         }
         /* the kept disks keyed on the grid bin_early's gate fitted ahead, their event keys started */
-        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, c->best_lo, c->partner, 0, 0, 0};
+        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, NULL, c->partner, 0, GATED_WALLS, 0};
+        /* and as cuda's move starts them: no second keys (the search starts its events', LO_AT_EVENT), a wall
+         * key, partner or best key only where it changes (GATED_WALLS, SKIP_BEST) */
+        if (!LO_AT_EVENT) mb.best_lo = c->best_lo;
+        mb.marked = SKIP_BEST && g->settle;
         auto move = c->ahead_slack > 0 ? (MOVE_LOOP ? move_kernel<true, true, true> : move_kernel<true, true, false>)
                                        : (MOVE_LOOP ? move_kernel<true, false, true> : move_kernel<true, false, false>);
         step_kernel(c, MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n), THREADS, 0, move, c->st[in],

@@ -64,8 +64,9 @@ const double *gpu_rank_times(const GpuRank *g);
  * that looked at every own disk (reused[3]); moves done twice, their leavers having overflowed the
  * device's room for their records (reused[4]); searches done again, their events having overflowed the
  * event list (reused[5]); the pair events found in steps that settled the lone ones first (reused[6]), and
- * those of them left to the rounds (reused[7]) */
-void gpu_rank_reused(const GpuRank *g, uint64_t reused[8]);
+ * those of them left to the rounds (reused[7]); searches done again for a cell past 255 disks, whose counts
+ * were 8-bit (reused[8]) */
+void gpu_rank_reused(const GpuRank *g, uint64_t reused[9]);
 /* n records become own disks (between steps) */
 void gpu_rank_add_own(GpuRank *g, const double *rec, int64_t n);
 /* The disks of the steps to come lie within x0 <= x <= x1 (around the box where periodic), if `on`: the

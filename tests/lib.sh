@@ -106,6 +106,26 @@ exact_split() {
     echo "${split:-x x x}"
 }
 
+# ---- 8-bit cell counts (t_80, t_87) ----
+# crowd_scene NAME MODE: a scene whose cells pass 255 disks, its input on stdout. "point": 300 of 1500 disks
+# start on one point; "ring": 1200 of 2700 tiny disks converge on one point.
+crowd_scene() {
+    awk -v name="$1" -v mode="$2" 'BEGIN {
+        n = name == "point" ? 1500 : 2700; print n; print 200; print name == "point" ? 1 : 0.0002; print 12
+        print mode; srand(name == "point" ? 21 : 5)
+        for (i = 0; i < n; i++) {
+            if (name == "point" && i < 300) {
+                x = 100; y = 100; vx = rand() - 0.5; vy = rand() - 0.5
+            } else if (name == "ring" && i < 1200) {
+                a = 2 * 3.14159265358979 * i / 1200; x = 100.37 + 4.7 * cos(a); y = 100.41 + 4.7 * sin(a)
+                vx = -cos(a); vy = -sin(a)
+            } else {
+                x = 2 + rand() * 196; y = 2 + rand() * 196; vx = rand() - 0.5; vy = rand() - 0.5
+            }
+            printf "%d %.9f %.9f %.9f %.9f\n", i, x, y, vx, vy
+        } }'
+}
+
 # ---- mpi (t_86, t_78, t_88) ----
 have_mpi() { command -v mpirun > /dev/null 2>&1 && [ -x ./mpi ]; }
 # mpi_env: mpirun's settings here (as root, more ranks than cores), and MPIRUN, its command.

@@ -378,28 +378,13 @@ done <<< "$(periodic_scenes)"
 
 # 8-bit cell counts (count_add): where cub scans the table of a step of one slice (SIM_CUDA_SCAN_TILES=0
 # sends every table there), a cell of more than 255 disks refuses its step, which runs again counting in
-# 32 bits. "point": 300 of 1500 disks start on one point (the first step, alone in its batch, crowded);
+# 32 bits. "point" (crowd_scene, tests/lib.sh): 300 of 1500 disks start on one point (the first step, alone
+# in its batch, crowded);
 # "ring": 1200 of 2700 tiny disks converge on one point, in perf and print mode (a step inside a batch,
 # keyed by the move before it, in graphs without --stats). The bytes stay seq's, --stats names the crowded
 # cell, and the slow gas, counted in 8 bits throughout, refuses nothing. Each run is timed out: a fallback
 # that never took would refuse the same step forever.
 label="cuda: 8-bit cell counts"
-crowd_scene() { # NAME MODE: the scene's input on stdout
-    awk -v name="$1" -v mode="$2" 'BEGIN {
-        n = name == "point" ? 1500 : 2700; print n; print 200; print name == "point" ? 1 : 0.0002; print 12
-        print mode; srand(name == "point" ? 21 : 5)
-        for (i = 0; i < n; i++) {
-            if (name == "point" && i < 300) {
-                x = 100; y = 100; vx = rand() - 0.5; vy = rand() - 0.5
-            } else if (name == "ring" && i < 1200) {
-                a = 2 * 3.14159265358979 * i / 1200; x = 100.37 + 4.7 * cos(a); y = 100.41 + 4.7 * sin(a)
-                vx = -cos(a); vy = -sin(a)
-            } else {
-                x = 2 + rand() * 196; y = 2 + rand() * 196; vx = rand() - 0.5; vy = rand() - 0.5
-            }
-            printf "%d %.9f %.9f %.9f %.9f\n", i, x, y, vx, vy
-        } }'
-}
 if have_gpu; then
     for run in "point perf" "ring perf" "ring print"; do
         read -r name mode <<< "$run"

@@ -12,7 +12,8 @@
 #   lists of own disks near the cuts (--stats); moves done twice, their leavers overflowing the device's
 #   room (SIM_MPI_CUDA_LEAVERS_ROOM=0), their collisions counted once; searches done twice, their events
 #   overflowing the list (SIM_MPI_CUDA_EVENTS=2); the lone events settled before the rounds (--stats),
-#   always, with searches done twice, and never (SIM_CUDA_SETTLE=1e30, 0);
+#   always, with searches done twice, and never (SIM_CUDA_SETTLE=1e30, 0); 8-bit cell counts where cub
+#   scans a table (SIM_CUDA_SCAN_TILES=0), a crowded cell's search done again in 32 bits (SIM_CUDA_NARROW=0);
 # - --checkpoint: seq's file byte for byte; resumed across backends (seq's by mpi_cuda, mpi_cuda's by
 #   seq and by mpi at another rank count); kill trials: the job killed with SIGKILL at 2 and 3 ranks
 #   and resumed by mpi_cuda at another rank count, by mpi and by seq (CK_SEED=N repeats a run's moments);
@@ -176,6 +177,33 @@ else
     else
         fail "mpi_cuda settling with every search done twice" "$(head -c 200 "$G/err")"
     fi
+    # 8-bit cell counts (count_add) where cub scans a rank's table (SIM_CUDA_SCAN_TILES=0 sends every table
+    # there, as in cuda): the gas counted so throughout; "point" and "ring" (crowd_scene), whose crowded cell
+    # (in a step's first binning, and in one the move before keyed) has the search done again in 32 bits
+    # (--stats), and "point" in 32 bits throughout (SIM_CUDA_NARROW=0). Timed out: a fallback that never took
+    # would search the same step forever.
+    narrow_run() { # NAME EXPECTED P CROWDINGS ARGS...: seq's bytes, and --stats' searches for a crowded cell
+        local name=$1 expected=$2 p=$3 want=$4 rc=0 got
+        shift 4
+        (export SIM_CUDA_SCAN_TILES=0; timeout 120 "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@" --quiet \
+            --stats > "$G/out" 2> "$G/err" < /dev/null) || rc=$?
+        got=$(sed -nE 's/.*searches done again for a cell past 255 disks \(8-bit counts\): ([0-9]+).*/\1/p' "$G/err")
+        if [ "$rc" = 0 ] && cmp -s "$G/out" "$expected" && { [ "$want" = some ] && [ "${got:-0}" -gt 0 ] ||
+            [ "$want" = "${got:-x}" ]; }; then
+            pass "mpi_cuda 8-bit cell counts, $name: $got searches done again for a crowded cell,$(
+                ) seq's bytes at $p ranks"
+        else
+            fail "mpi_cuda 8-bit cell counts, $name" "exit $rc, ${got:-nothing said} searches done again (want $want)$(
+                ); $(head -c 200 "$G/err")"
+        fi
+    }
+    narrow_run "gas of 20000" "$G/gas.ref" 3 0 "$G/gas.in"
+    for name in point ring; do
+        crowd_scene "$name" perf > "$G/crowd_$name.in"
+        ./seq "$G/crowd_$name.in" --quiet > "$G/crowd_$name.ref"
+        narrow_run "$name" "$G/crowd_$name.ref" "$([ $name = point ] && echo 2 || echo 3)" some "$G/crowd_$name.in"
+    done
+    (export SIM_CUDA_NARROW=0; narrow_run "point, SIM_CUDA_NARROW=0" "$G/crowd_point.ref" 2 0 "$G/crowd_point.in")
     caller_settle=${SIM_CUDA_SETTLE-unset}
     for e in 1e30 0; do
         export SIM_CUDA_SETTLE=$e
