@@ -124,10 +124,18 @@ do_memcheck() {
         ./seq "$DATA/san_gas.in" --quiet > "$DATA/gas.seq" # seq's bytes once, for cuda and mpi_cuda below
         cmp -s "$DATA/gas.seq" "$DATA/gas.out" && echo "memcheck san_gas output == seq" \
             || echo "memcheck san_gas output DIFFERS"
+        # the same with every cell table scanned by cub, so counted in 8 bits (count_add)
+        SIM_CUDA_SCAN_TILES=0 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
+            --log-file "$OUT/memcheck_gas8.log" ./cuda "$DATA/san_gas.in" --quiet > "$DATA/gas.out" \
+            && echo "memcheck san_gas, 8-bit counts: clean" \
+            || { echo "memcheck san_gas, 8-bit counts: ERRORS"; tail -20 "$OUT/memcheck_gas8.log"; }
+        cmp -s "$DATA/gas.seq" "$DATA/gas.out" && echo "memcheck san_gas, 8-bit counts: output == seq" \
+            || echo "memcheck san_gas, 8-bit counts: output DIFFERS"
         # mpi_cuda at 3 ranks, where it is built: halos GPU to GPU and through host memory, moves done again
-        # (their leavers beyond the room), searches done again (their events beyond the list)
+        # (their leavers beyond the room), searches done again (their events beyond the list), 8-bit counts
         if [ -x ./mpi_cuda ] && command -v mpirun > /dev/null; then
-            for e in SIM_MPI_CUDA_HOST=0 SIM_MPI_CUDA_HOST=1 SIM_MPI_CUDA_LEAVERS_ROOM=0 SIM_MPI_CUDA_EVENTS=2; do
+            for e in SIM_MPI_CUDA_HOST=0 SIM_MPI_CUDA_HOST=1 SIM_MPI_CUDA_LEAVERS_ROOM=0 SIM_MPI_CUDA_EVENTS=2 \
+                SIM_CUDA_SCAN_TILES=0; do
                 local log="$OUT/memcheck_mpi_cuda_${e#SIM_MPI_CUDA_}"
                 env "$e" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np 3 --oversubscribe \
                     "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log.%p.log" \
