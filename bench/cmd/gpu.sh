@@ -87,75 +87,64 @@ do_check() {
 do_memcheck() {
     local san
     san=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
-    if [ -x "$san" ]; then
-        tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
-        printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
-        ./seq_f32 "$DATA/san.in" --quiet > "$DATA/san.seq_f32"
-        "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_san_f32.log" \
-            ./cuda_f32 "$DATA/san.in" --quiet > "$DATA/san.out_f32" && echo "memcheck san cuda_f32: clean" \
-            || { echo "memcheck san cuda_f32: ERRORS"; tail -20 "$OUT/memcheck_san_f32.log"; }
-        cmp -s "$DATA/san.seq_f32" "$DATA/san.out_f32" && echo "memcheck san cuda_f32 output == seq_f32" \
-            || echo "memcheck san cuda_f32 output DIFFERS"
-        for f in san san_random; do
-            "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_$f.log" \
-                ./cuda "$DATA/$f.in" --quiet > "$DATA/$f.out" && echo "memcheck $f: clean" \
-                || { echo "memcheck $f: ERRORS"; tail -20 "$OUT/memcheck_$f.log"; }
-            ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
-            cmp -s "$DATA/$f.seq" "$DATA/$f.out" && echo "memcheck $f output == seq" || echo "memcheck $f output DIFFERS"
-        done
-        # the periodic box: one slice a step, several, and the windows
-        tools/gen 3000 --periodic --fraction 0.3 --speed 2 --steps 5 --seed 13 > "$DATA/san_periodic.in"
-        tools/gen 1500 --periodic --assignment --fraction 0.05 --steps 4 --seed 14 > "$DATA/san_pfast.in"
-        for f in san_periodic san_pfast; do
-            for w in "" 1; do
-                SIM_CUDA_WINDOW=$w "$san" --tool memcheck --leak-check full --error-exitcode 9 \
-                    --log-file "$OUT/memcheck_$f$w.log" ./cuda "$DATA/$f.in" --quiet --periodic > "$DATA/$f.out" \
-                    && echo "memcheck $f${w:+ windows}: clean" \
-                    || { echo "memcheck $f${w:+ windows}: ERRORS"; tail -20 "$OUT/memcheck_$f$w.log"; }
-                ./seq "$DATA/$f.in" --quiet --periodic | cmp -s - "$DATA/$f.out" \
-                    && echo "memcheck $f${w:+ windows} output == seq" || echo "memcheck $f${w:+ windows} output DIFFERS"
-            done
-        done
-        # a gas of one slice a step, whose moves key the cells of the next step (cuda_move.cuh, MoveBin)
-        tools/gen 3000 --fraction 0.2 --speed 0.5 --steps 12 --seed 15 > "$DATA/san_gas.in"
-        "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$OUT/memcheck_gas.log" \
-            ./cuda "$DATA/san_gas.in" --quiet > "$DATA/gas.out" && echo "memcheck san_gas: clean" \
-            || { echo "memcheck san_gas: ERRORS"; tail -20 "$OUT/memcheck_gas.log"; }
-        ./seq "$DATA/san_gas.in" --quiet > "$DATA/gas.seq" # seq's bytes once, for cuda and mpi_cuda below
-        cmp -s "$DATA/gas.seq" "$DATA/gas.out" && echo "memcheck san_gas output == seq" \
-            || echo "memcheck san_gas output DIFFERS"
-        # the same with every cell table scanned by cub, so counted in 8 bits (count_add)
-        SIM_CUDA_SCAN_TILES=0 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
-            --log-file "$OUT/memcheck_gas8.log" ./cuda "$DATA/san_gas.in" --quiet > "$DATA/gas.out" \
-            && echo "memcheck san_gas, 8-bit counts: clean" \
-            || { echo "memcheck san_gas, 8-bit counts: ERRORS"; tail -20 "$OUT/memcheck_gas8.log"; }
-        cmp -s "$DATA/gas.seq" "$DATA/gas.out" && echo "memcheck san_gas, 8-bit counts: output == seq" \
-            || echo "memcheck san_gas, 8-bit counts: output DIFFERS"
-        # mpi_cuda at 3 ranks, where it is built: halos GPU to GPU and through host memory, moves done again
-        # (their leavers beyond the room), searches done again (their events beyond the list), 8-bit counts
-        if [ -x ./mpi_cuda ] && command -v mpirun > /dev/null; then
-            for e in SIM_MPI_CUDA_HOST=0 SIM_MPI_CUDA_HOST=1 SIM_MPI_CUDA_LEAVERS_ROOM=0 SIM_MPI_CUDA_EVENTS=2 \
-                SIM_CUDA_SCAN_TILES=0; do
-                local log="$OUT/memcheck_mpi_cuda_${e#SIM_MPI_CUDA_}"
-                env "$e" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np 3 --oversubscribe \
-                    "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log.%p.log" \
-                    ./mpi_cuda "$DATA/san_gas.in" --quiet > "$DATA/mpi_gas.out" \
-                    && echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: clean" \
-                    || { echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: ERRORS"; tail -n 20 "$log".*.log; }
-                cmp -s "$DATA/gas.seq" "$DATA/mpi_gas.out" && echo "memcheck san_gas, mpi_cuda, $e: output == seq" \
-                    || echo "memcheck san_gas, mpi_cuda, $e: output DIFFERS"
-            done
-        fi
-        # the time windows, forced from one slice (a scene this small gets one window otherwise)
-        SIM_CUDA_WINDOW=1 "$san" --tool memcheck --leak-check full --error-exitcode 9 \
-            --log-file "$OUT/memcheck_windows.log" ./cuda "$DATA/san_random.in" --quiet > "$DATA/win.out" \
-            && echo "memcheck san_random, windows: clean" \
-            || { echo "memcheck san_random, windows: ERRORS"; tail -20 "$OUT/memcheck_windows.log"; }
-        cmp -s "$DATA/san_random.seq" "$DATA/win.out" && echo "memcheck san_random, windows: output == seq" \
-            || echo "memcheck san_random, windows: output DIFFERS"
-    else
+    if [ ! -x "$san" ]; then
         echo "compute-sanitizer not found"
+        return
     fi
+    # checked LABEL LOG EXPECTED PROGRAM ARGS...: PROGRAM under memcheck (the caller's variables set before the
+    # call reach it), then its output against EXPECTED
+    checked() {
+        local label=$1 log=$2 expected=$3
+        shift 3
+        "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log" "$@" > "$DATA/checked.out" \
+            && echo "memcheck $label: clean" || { echo "memcheck $label: ERRORS"; tail -20 "$log"; }
+        cmp -s "$expected" "$DATA/checked.out" && echo "memcheck $label: output == seq" \
+            || echo "memcheck $label: output DIFFERS"
+    }
+    tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
+    printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
+    ./seq_f32 "$DATA/san.in" --quiet > "$DATA/san.seq_f32"
+    checked "san cuda_f32 (against seq_f32)" "$OUT/memcheck_san_f32.log" "$DATA/san.seq_f32" ./cuda_f32 \
+        "$DATA/san.in" --quiet
+    for f in san san_random; do
+        ./seq "$DATA/$f.in" --quiet > "$DATA/$f.seq"
+        checked "$f" "$OUT/memcheck_$f.log" "$DATA/$f.seq" ./cuda "$DATA/$f.in" --quiet
+    done
+    # the periodic box: one slice a step, several, and the windows
+    tools/gen 3000 --periodic --fraction 0.3 --speed 2 --steps 5 --seed 13 > "$DATA/san_periodic.in"
+    tools/gen 1500 --periodic --assignment --fraction 0.05 --steps 4 --seed 14 > "$DATA/san_pfast.in"
+    for f in san_periodic san_pfast; do
+        ./seq "$DATA/$f.in" --quiet --periodic > "$DATA/$f.seq"
+        for w in "" 1; do
+            SIM_CUDA_WINDOW=$w checked "$f${w:+ windows}" "$OUT/memcheck_$f$w.log" "$DATA/$f.seq" ./cuda \
+                "$DATA/$f.in" --quiet --periodic
+        done
+    done
+    # a gas of one slice a step, whose moves key the cells of the next step (cuda_move.cuh, MoveBin); the same
+    # with every cell table scanned by cub, so counted in 8 bits (count_add)
+    tools/gen 3000 --fraction 0.2 --speed 0.5 --steps 12 --seed 15 > "$DATA/san_gas.in"
+    ./seq "$DATA/san_gas.in" --quiet > "$DATA/gas.seq" # seq's bytes once, for cuda and mpi_cuda below
+    checked san_gas "$OUT/memcheck_gas.log" "$DATA/gas.seq" ./cuda "$DATA/san_gas.in" --quiet
+    SIM_CUDA_SCAN_TILES=0 checked "san_gas, 8-bit counts" "$OUT/memcheck_gas8.log" "$DATA/gas.seq" ./cuda \
+        "$DATA/san_gas.in" --quiet
+    # mpi_cuda at 3 ranks, where it is built: halos GPU to GPU and through host memory, moves done again
+    # (their leavers beyond the room), searches done again (their events beyond the list), 8-bit counts
+    if [ -x ./mpi_cuda ] && command -v mpirun > /dev/null; then
+        for e in SIM_MPI_CUDA_HOST=0 SIM_MPI_CUDA_HOST=1 SIM_MPI_CUDA_LEAVERS_ROOM=0 SIM_MPI_CUDA_EVENTS=2 \
+            SIM_CUDA_SCAN_TILES=0; do
+            local log="$OUT/memcheck_mpi_cuda_${e#SIM_MPI_CUDA_}"
+            env "$e" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -np 3 --oversubscribe \
+                "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log.%p.log" \
+                ./mpi_cuda "$DATA/san_gas.in" --quiet > "$DATA/mpi_gas.out" \
+                && echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: clean" \
+                || { echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: ERRORS"; tail -n 20 "$log".*.log; }
+            cmp -s "$DATA/gas.seq" "$DATA/mpi_gas.out" && echo "memcheck san_gas, mpi_cuda, $e: output == seq" \
+                || echo "memcheck san_gas, mpi_cuda, $e: output DIFFERS"
+        done
+    fi
+    # the time windows, forced from one slice (a scene this small gets one window otherwise)
+    SIM_CUDA_WINDOW=1 checked "san_random, windows" "$OUT/memcheck_windows.log" "$DATA/san_random.seq" ./cuda \
+        "$DATA/san_random.in" --quiet
 }
 
 # cuda, and BASE/cuda where given, on one input; BASE's output must be the same bytes.
