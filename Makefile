@@ -84,7 +84,8 @@ mpi: $(MPI_SRC) $(HEADERS) $(OMP_H) mpi.h mpi_halo.h Makefile
 # mpi with a GPU for each rank: mpi.c's steps built with MPI_CUDA, cuda.cu's kernels through
 # mpi_cuda.cu (nvcc), linked by mpicc with the CUDA runtime
 CUDA_LIBDIR ?= $(abspath $(dir $(shell command -v $(NVCC) 2>/dev/null))../lib64)
-mpi_cuda: $(MPI_SRC) mpi_cuda.cu $(CUDA_SRC) mpi_halo.h $(HEADERS) $(OMP_H) mpi.h Makefile
+mpi_cuda: $(MPI_SRC) mpi_cuda.cu mpi_cuda_kernels.cuh mpi_cuda_buffers.cuh $(CUDA_SRC) mpi_halo.h $(HEADERS) $(OMP_H) \
+	mpi.h Makefile
 	$(NVCC) $(NVCCFLAGS) -Xcompiler -ffp-contract=off -c mpi_cuda.cu -o mpi_cuda_gpu.o
 	$(MPICC) $(CFLAGS) $(OMPFLAGS) -DMPI_CUDA $(MPI_SRC) mpi_cuda_gpu.o -o $@ $(LDLIBS) \
 		-L$(CUDA_LIBDIR) -Wl,-rpath,$(CUDA_LIBDIR) -lcudart -lstdc++
