@@ -219,8 +219,8 @@ typedef struct {
     int64_t scan_tiles;                  /* tables of as many tiles at most are scanned so (else cub) */
     int64_t dirty;                       /* words of counts left behind by cub's scans: count[0, dirty) may be
                                             non-zero */
-    int narrow;                          /* 8-bit cell counts where they apply (narrow_counts); 0 in a GPU
-                                            rank, with SIM_CUDA_NARROW=0, and after a crowded cell */
+    int narrow;                          /* 8-bit cell counts where they apply (narrow_counts); 0 with
+                                            SIM_CUDA_NARROW=0, and after a crowded cell */
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
     int64_t fused_n;                     /* placement fused below this many disks (place_fused) */
     double settle_events;                /* steps of one slice settle below this many events a disk (Plan) */

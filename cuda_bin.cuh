@@ -582,8 +582,8 @@ typedef struct {
     int32_t *id, *slot; /* slot: K = 1, each place's slot (the disks in their slots, or a gathering step's
                            new slots in patches: en.patches); else NULL */
     uint64_t *wall;
-    const int32_t *wall_gate; /* cuda's steps in the slots: the partners, by which a slot's wall key is read
-                                 only where the move kept it (GATED_WALLS); else NULL */
+    const int32_t *wall_gate; /* steps in the slots (cuda's, a GPU rank's): the partners, by which a slot's wall
+                                 key is read only where the move kept it (GATED_WALLS); else NULL */
     float4 *mid; /* K > 1: the disk at its level slice's middle, and its velocity (near_path); else NULL */
     const uint32_t *rank; /* K = 1 with the disks in their slots (slot != NULL): each slot's place in its cell */
     int rank8;            /* and those ranks are 8-bit (rank_get) */

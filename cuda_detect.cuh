@@ -394,7 +394,7 @@ static __device__ __forceinline__ uint32_t candidate(const Probe &po, uint32_t i
  * registers and instructions it never uses (random scene, N = 32000: its search 13.9 -> 16.0 ms, the
  * gas of 1e7's spilled). SLOTS (test_pair): 1, the disks in their slots; 2, a gathering step's in patches
  * (Entries.patches), a build of its own, as testing the pointer took registers the search spills; 3, as 1,
- * cuda's steps, whose wall keys the move kept only where there is one (GATED_WALLS). */
+ * whose wall keys the move kept only where there is one (GATED_WALLS; cuda's steps, a GPU rank's). */
 template <bool TILES, bool MID, bool PERIODIC, int SLOTS>
 __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_MIN_BLOCKS_ONE)
     detect_kernel(Entries en, const uint32_t *__restrict__ keys, const uint32_t *__restrict__ start,

@@ -63,7 +63,7 @@ static bool scan_short(const Cuda *c, int64_t len)
 }
 
 /* Whether window w's table counts in 8 bits (count_add): a step of one slice whose table cub scans, in cuda's
- * run until a cell passes 255 disks (Cuda.narrow). */
+ * run (or a GPU rank's) until a cell passes 255 disks (Cuda.narrow). */
 static bool narrow_counts(const Cuda *c, const Plan *pl, int w)
 {
     return c->narrow && pl->K == 1 && !scan_short(c, pl->wcells[w] + 1);
@@ -173,7 +173,7 @@ static void detect_box(Cuda *c, const Plan *pl, int w, const Entries &en)
     if (pl->K == 1 && en.patches) /* a gathering step in patches (step_launch): places from the slots */
         step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 2>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
-    else if (pl->K == 1 && en.slot && en.wall_gate) /* cuda's, the disks in their slots (step_launch) */
+    else if (pl->K == 1 && en.slot && en.wall_gate) /* the disks in their slots, the move's gated keys */
         step_kernel(c, one, THREADS, 0, detect_kernel<false, false, PERIODIC, 3>, en, keys, start, c->grid, w,
                     c->par.sigma2, c->ev[0], c->ev_cap, c->info, c->best_hi);
     else if (pl->K == 1 && en.slot) /* the disks in their slots: their keys by slot */
