@@ -151,7 +151,8 @@ __global__ void rank_holes_kernel(DevState out, int64_t own, int64_t halo, const
 /* The holes below the kept count filled from the slots above it (rank_holes_kernel), each moved disk's
  * event keys started and its cell key (keys, where the move keyed them) moved with it; those within
  * reach of the cuts listed for the next halo, as the move lists them. The move kept a wall key only where
- * the partner it started says there is one (GATED_WALLS): elsewhere the key is an older step's. */
+ * the partner it started says there is one (GATED_WALLS): elsewhere the key is an older step's (without
+ * GATED_WALLS every key is the move's, and with WALL_PENDING 0 no partner says so). */
 __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t *from, int64_t room, RankMove rm,
                                  uint64_t *wall_hi, uint64_t *best_hi, uint64_t *best_lo, int32_t *partner,
                                  uint32_t *keys)
@@ -165,7 +166,8 @@ __global__ void rank_fill_kernel(DevState out, const int32_t *to, const int32_t 
         Disk disk = out.d[b];
         out.d[a] = disk;
         out.id[a] = out.id[b];
-        slot_init(a, wall_pending(partner[b]) ? wall_hi[b] : NO_EVENT, wall_hi, best_hi, best_lo, partner);
+        slot_init(a, !GATED_WALLS || wall_pending(partner[b]) ? wall_hi[b] : NO_EVENT, wall_hi, best_hi, best_lo,
+                  partner);
         if (keys) keys[a] = keys[b];
         rank_list_near(rm, (double)disk.pos.x, a);
     }

@@ -183,9 +183,9 @@ else
     # (--stats), and "point" in 32 bits throughout (SIM_CUDA_NARROW=0). Timed out: a fallback that never took
     # would search the same step forever.
     narrow_run() { # NAME EXPECTED P CROWDINGS ARGS...: seq's bytes, and --stats' searches for a crowded cell
-        local name=$1 expected=$2 p=$3 want=$4 rc=0 got
+        local name=$1 expected=$2 p=$3 want=$4 rc=0 got # NARROW=0: SIM_CUDA_NARROW=0 (else 8 bits allowed)
         shift 4
-        (export SIM_CUDA_SCAN_TILES=0; timeout 120 "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@" --quiet \
+        (export SIM_CUDA_SCAN_TILES=0 SIM_CUDA_NARROW=${NARROW:-1}; timeout 120 "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@" --quiet \
             --stats > "$G/out" 2> "$G/err" < /dev/null) || rc=$?
         got=$(sed -nE 's/.*searches done again for a cell past 255 disks \(8-bit counts\): ([0-9]+).*/\1/p' "$G/err")
         if [ "$rc" = 0 ] && cmp -s "$G/out" "$expected" && { [ "$want" = some ] && [ "${got:-0}" -gt 0 ] ||
@@ -203,7 +203,7 @@ else
         ./seq "$G/crowd_$name.in" --quiet > "$G/crowd_$name.ref"
         narrow_run "$name" "$G/crowd_$name.ref" "$([ $name = point ] && echo 2 || echo 3)" some "$G/crowd_$name.in"
     done
-    (export SIM_CUDA_NARROW=0; narrow_run "point, SIM_CUDA_NARROW=0" "$G/crowd_point.ref" 2 0 "$G/crowd_point.in")
+    NARROW=0 narrow_run "point, SIM_CUDA_NARROW=0" "$G/crowd_point.ref" 2 0 "$G/crowd_point.in"
     caller_settle=${SIM_CUDA_SETTLE-unset}
     for e in 1e30 0; do
         export SIM_CUDA_SETTLE=$e
