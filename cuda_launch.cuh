@@ -198,6 +198,17 @@ static void detect_launch(Cuda *c, const Plan *pl, int w, const Entries &en)
         detect_box<false>(c, pl, w, en);
 }
 
+/* A move's MoveBin whose kept slots start their event keys in place, as the next step in the slots reads them
+ * (cuda's steps, a GPU rank's): no second keys where the search starts its events' (LO_AT_EVENT), a wall key,
+ * partner or best key only where it changes (GATED_WALLS; SKIP_BEST after a step that settled). */
+static MoveBin move_starts_keys(const Cuda *c, bool settled)
+{
+    MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, NULL, c->partner, 0, GATED_WALLS, 0};
+    if (!LO_AT_EVENT) mb.best_lo = c->best_lo;
+    mb.marked = SKIP_BEST && settled;
+    return mb;
+}
+
 /* Whether a step of plan pl keys the disks ahead in its move (MoveBin): steps of one slice, unless
  * SIM_CUDA_BIN_AHEAD=0 */
 static bool moves_key_ahead(const Cuda *c, const Plan *pl)
@@ -283,12 +294,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         }
     }
     RankMove none = {};
-    MoveBin mb = {c->ahead, c->keys, NULL, NULL, NULL, NULL, 0, 0, 0}; /* read by move_kernel<false, true, *> */
-    if (SLOT_STEPS) mb.wall_hi = c->wall_hi, mb.best_hi = c->best_hi, mb.partner = c->partner;
-    if (SLOT_STEPS && !LO_AT_EVENT) mb.best_lo = c->best_lo;
+    MoveBin mb = move_starts_keys(c, pl->settle); /* the grid and keys: read by move_kernel<false, true, *> */
+    if (!SLOT_STEPS) mb.wall_hi = mb.best_hi = mb.best_lo = NULL, mb.partner = NULL; /* every step gathers */
     mb.ids_alike = slots;
-    mb.gated = GATED_WALLS; /* its keys are taken by a step in the slots, which reads them so (GATED_WALLS) */
-    mb.marked = SKIP_BEST && pl->settle;
     auto move = MOVE_LOOP ? (key_ahead ? move_kernel<false, true, true> : move_kernel<false, false, true>)
                           : (key_ahead ? move_kernel<false, true, false> : move_kernel<false, false, false>);
     int64_t move_blocks = MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n);

@@ -825,12 +825,8 @@ void gpu_rank_move(GpuRank *g, double c0, double c1, int first, int last, double
         } else {
             CUDA_CHECK(cudaMemsetAsync(&g->counter[1], 0, sizeof(unsigned long long), c->stream));
         }
-        /* the kept disks keyed on the grid bin_early's gate fitted ahead, their event keys started */
-        MoveBin mb = {c->ahead, c->keys, c->wall_hi, c->best_hi, NULL, c->partner, 0, GATED_WALLS, 0};
-        /* and as cuda's move starts them: no second keys (the search starts its events', LO_AT_EVENT), a wall
-         * key, partner or best key only where it changes (GATED_WALLS, SKIP_BEST) */
-        if (!LO_AT_EVENT) mb.best_lo = c->best_lo;
-        mb.marked = SKIP_BEST && g->settle;
+        /* the kept disks keyed on the grid bin_early's gate fitted ahead, their event keys started in place */
+        MoveBin mb = move_starts_keys(c, g->settle);
         auto move = c->ahead_slack > 0 ? (MOVE_LOOP ? move_kernel<true, true, true> : move_kernel<true, true, false>)
                                        : (MOVE_LOOP ? move_kernel<true, false, true> : move_kernel<true, false, false>);
         step_kernel(c, MOVE_LOOP ? loop_blocks(c, n, MOVE_LOOP) : blocks_for(n), THREADS, 0, move, c->st[in],
