@@ -185,8 +185,10 @@ else
     narrow_run() { # NAME EXPECTED P CROWDINGS ARGS...: seq's bytes, and --stats' searches for a crowded cell
         local name=$1 expected=$2 p=$3 want=$4 rc=0 got # NARROW=0: SIM_CUDA_NARROW=0 (else 8 bits allowed)
         shift 4
-        (export SIM_CUDA_SCAN_TILES=0 SIM_CUDA_NARROW=${NARROW:-1}; timeout 120 "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@" --quiet \
-            --stats > "$G/out" 2> "$G/err" < /dev/null) || rc=$?
+        # (run_gpu, a function, cannot run under timeout)
+        (export SIM_CUDA_SCAN_TILES=0 SIM_CUDA_NARROW=${NARROW:-1}
+            timeout 120 "${MPIRUN[@]}" -np "$p" --oversubscribe ./mpi_cuda "$@" --quiet --stats > "$G/out" \
+                2> "$G/err" < /dev/null) || rc=$?
         got=$(sed -nE 's/.*searches done again for a cell past 255 disks \(8-bit counts\): ([0-9]+).*/\1/p' "$G/err")
         if [ "$rc" = 0 ] && cmp -s "$G/out" "$expected" && { [ "$want" = some ] && [ "${got:-0}" -gt 0 ] ||
             [ "$want" = "${got:-x}" ]; }; then
