@@ -55,6 +55,13 @@ static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower 
                                rows' order, no faster (bench/gpu_h100_variants.log 27f). Gas of 1e7 on one
                                H200: 1.02e10 particle-steps/s, 9.96e9 without (39d) */
 #endif
+#ifndef DETECT_SCAN
+#define DETECT_SCAN cub::BLOCK_SCAN_WARP_SCANS /* the dealing's block scan: a warp's by shuffles, 8 sums through
+                                                 shared memory, where cub's default (BLOCK_SCAN_RAKING) passes
+                                                 every count through it. Gas of 1e7 on one H200: the search 20.88
+                                                 -> 20.71 ms over 50 steps, 1.027e10 -> 1.031e10-1.032e10
+                                                 particle-steps/s (bench/gpu_h100_variants.log 41e) */
+#endif
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
@@ -402,7 +409,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
                   uint64_t *best_hi)
 {
     after_previous();
-    typedef cub::BlockScan<uint32_t, THREADS> Scan;
+    typedef cub::BlockScan<uint32_t, THREADS, DETECT_SCAN> Scan;
     __shared__ typename Scan::TempStorage scan_tmp;
     constexpr bool GATED = !MID && SLOTS == 3;
     __shared__ Probe probes[THREADS];
