@@ -69,6 +69,13 @@ static bool narrow_counts(const Cuda *c, const Plan *pl, int w)
     return c->narrow && pl->K == 1 && !scan_short(c, pl->wcells[w] + 1);
 }
 
+/* Where window w's table counts in 8 bits, the flag count_add raises for a cell past 255 disks (the binning's
+ * crowded); else NULL, 32-bit counts. cuda's steps and a GPU rank's. */
+static unsigned long long *crowded_flag(const Cuda *c, const Plan *pl, int w)
+{
+    return narrow_counts(c, pl, w) ? &c->info->crowded : NULL;
+}
+
 /* The cell counts of window w's table cleared where the last scan left them (the short scans clear the
  * counts behind them; after cub's, they are cleared before binning); returns whether the table is
  * scanned by the two short kernels. */
@@ -146,7 +153,7 @@ static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32
 {
     int64_t blocks = window_blocks(c, pl, w);
     bool short_scan = bin_clear(c, pl, w);
-    unsigned long long *crowded = narrow_counts(c, pl, w) ? &c->info->crowded : NULL;
+    unsigned long long *crowded = crowded_flag(c, pl, w);
     if (keyed) { /* one slice */
         step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n,
                     c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1, crowded);

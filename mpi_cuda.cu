@@ -5,7 +5,7 @@
  *   detect   bin, scan, place and the pair search over the own disks and the copies, on the grid cuda
  *            would fit to the whole box of N disks, its table of cells cut to the strip's columns
  *            (GridLimits' slab) (a copy is a disk like any other here); the search reads the disks in
- *            their slots through the cell order, and every BATCH steps they are gathered into it; the
+ *            their slots through the cell order, and every RANK_GATHER_EVERY steps they are gathered into it; the
  *            cells counted in 8 bits, as cuda counts them, until one passes 255 disks;
  *   rounds   cuda's rounds of the choice, each with one exchange between its min and accept passes:
  *            the smallest live keys of the own disks that other ranks hold copies of go out, and the
@@ -369,13 +369,6 @@ static void view_reserve(GpuRank *g, int np)
     g->view_np = np;
 }
 
-/* Where a step's cells are counted in 8 bits (narrow_counts: a table that cub scans, until a cell passes 255
- * disks), the flag count_add raises for a cell past 255; else NULL, 32-bit counts. */
-static unsigned long long *rank_crowded(GpuRank *g)
-{
-    return narrow_counts(&g->c, &g->pl, 0) ? &g->c.info->crowded : NULL;
-}
-
 /* Slots first to first + n of st binned on the step's grid (keyed_before: unless the gate took the keys
  * the move before gave them, bin_kernel), into the cell counts. keyed_before: few blocks, looping, as
  * cuda's bin_place_launch, since they mostly return at once: a block a thread's slot, each returning,
@@ -385,7 +378,7 @@ static void bin_slots(GpuRank *g, DevState st, int64_t first, int64_t n, int key
     Cuda *c = &g->c;
     if (n <= 0) return;
     st.d += first, st.id += first;
-    unsigned long long *crowded = rank_crowded(g);
+    unsigned long long *crowded = crowded_flag(&g->c, &g->pl, 0);
     /* 8-bit counts' ranks take a byte an entry (rank_put), which bin_kernel writes through the pointer */
     uint32_t *rank = crowded && RANK8 ? (uint32_t *)((uint8_t *)c->rank + first) : c->rank + first;
     if (keyed_before)
@@ -426,7 +419,7 @@ static void bin_early(GpuRank *g, double vmax)
     if (keyed > 0) {
         bin_slots(g, c->st[c->cur], 0, keyed, 1);
         step_kernel(c, blocks_for(keyed), THREADS, 0, count_kernel, c->grid, keyed, c->keys, c->rank, c->count,
-                    rank_crowded(g));
+                    crowded_flag(&g->c, &g->pl, 0));
     }
     bin_slots(g, c->st[c->cur], keyed, g->own - keyed, 0);
     g->keyed = 0;
