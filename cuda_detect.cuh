@@ -62,6 +62,14 @@ static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower 
                                                  -> 20.71 ms over 50 steps, 1.027e10 -> 1.031e10-1.032e10
                                                  particle-steps/s (bench/gpu_h100_variants.log 41e) */
 #endif
+#ifndef LEAN_PROBES
+#define LEAN_PROBES 1 /* K = 1: a probe's record written without the fields the search never reads back (its slice
+                         k, and its edge runs outside the periodic box), 60 bytes of 80: gas of 1e7 on one H200,
+                         the search 20.82 -> 20.72 ms over 50 steps, 1.023e10-1.025e10 -> 1.025e10-1.028e10
+                         particle-steps/s; dense gas 32.26 -> 31.82 ms, 7.19e9-7.20e9 -> 7.23e9-7.25e9 (each
+                         field read where it is used as well: no faster; bench/gpu_h100_variants.log 42c).
+                         0: the whole record */
+#endif
 #ifndef DEAL_MAX
 #define DEAL_MAX 8 /* candidates per thread of a block at most for dealing them out */
 #endif
@@ -191,7 +199,9 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
                                           gr.halfw, 1)
                          : pair_time(pos1.x, pos1.y, vel1.x, vel1.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
-    if (gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
+    /* K > 1 alone (MID); a one-slice search's records leave k unwritten (LEAN_PROBES) */
+    if ((MID || !LEAN_PROBES) && gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k))
+        return;
     PairEvent e;
     e.hi = time_key(t) | 1;
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
@@ -488,7 +498,14 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         } else if (MID) {
             first[threadIdx.x] = 0;
         }
-        probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
+        if (!MID && LEAN_PROBES) {
+            Probe &me = probes[threadIdx.x];
+            me.pos = pr.pos, me.vel = pr.vel, me.wall = pr.wall, me.id = pr.id;
+            me.c = pr.c, me.na = pr.na, me.b0 = pr.b0, me.nb = pr.nb;
+            if (PERIODIC) me.edge = pr.edge;
+        } else {
+            probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
+        }
         if (threadIdx.x == 0) {
             be.n = 0;
             tests = 0;
