@@ -64,7 +64,7 @@ static_assert(PROBE_RUNS < 256 && LEVELS <= 3, "Cursor: lv holds where 2 slower 
 #endif
 #ifndef LEAN_PROBES
 #define LEAN_PROBES 1 /* K = 1: a probe's record written without the fields the search never reads back (its slice
-                         k, and its edge runs outside the periodic box), 60 bytes of 80: gas of 1e7 on one H200,
+                         k, 0, and its edge runs outside the periodic box), 60 bytes of 80: gas of 1e7 on one H200,
                          the search 20.82 -> 20.72 ms over 50 steps, 1.023e10-1.025e10 -> 1.025e10-1.028e10
                          particle-steps/s; dense gas 32.26 -> 31.82 ms, 7.19e9-7.20e9 -> 7.23e9-7.25e9 (each
                          field read where it is used as well: no faster; bench/gpu_h100_variants.log 42c).
@@ -199,9 +199,9 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
                                           gr.halfw, 1)
                          : pair_time(pos1.x, pos1.y, vel1.x, vel1.y, pos2.x, pos2.y, vel2.x, vel2.y, sigma2);
     if (t < 0) return;
-    /* K > 1 alone (MID); a one-slice search's records leave k unwritten (LEAN_PROBES) */
-    if ((MID || !LEAN_PROBES) && gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k))
-        return;
+    /* K > 1 alone, which MID searches: a one-slice search runs where the plan, and so the gate's grid, has one
+     * slice (detect_box), and its records leave k unwritten (LEAN_PROBES) */
+    if (MID && gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
     e.hi = time_key(t) | 1;
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
@@ -469,9 +469,7 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
             if (MID) {
                 uint32_t base, lv = row_level(kl, k0, k1, gr.levels, &base);
                 pr.k = ((k0 >> lv) + (kl - base)) | (lv << 16);
-            } else {
-                pr.k = kl + k0;
-            }
+            } /* one slice: k stays 0, read by nothing (test_pair) */
             /* after lies within its cell, but a crowded table of 8-bit counts (count_add) can put it
              * anywhere (a step then refused): the run stays between its cell's start and its row's end,
              * empty where after lies past that end */
@@ -498,13 +496,14 @@ __global__ void __launch_bounds__(THREADS, MID ? DETECT_MIN_BLOCKS_MID : DETECT_
         } else if (MID) {
             first[threadIdx.x] = 0;
         }
+        /* read back from there: fewer registers held across the loops */
         if (!MID && LEAN_PROBES) {
             Probe &me = probes[threadIdx.x];
             me.pos = pr.pos, me.vel = pr.vel, me.wall = pr.wall, me.id = pr.id;
             me.c = pr.c, me.na = pr.na, me.b0 = pr.b0, me.nb = pr.nb;
             if (PERIODIC) me.edge = pr.edge;
         } else {
-            probes[threadIdx.x] = pr; /* read back from there: fewer registers held across the loops */
+            probes[threadIdx.x] = pr;
         }
         if (threadIdx.x == 0) {
             be.n = 0;
