@@ -332,19 +332,21 @@ static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps, bool k
 }
 
 /* Steps first to last, from the current state (cur_at: the state each starts from). A batch of BATCH
- * steps whose shape (batch_shape) is that of the last batch of its slot b is captured and launched as
- * one graph, whose kernels the device starts with less delay between them than kernels launched one
- * by one (random scene, N = 32000: 1.62e8-1.65e8 against 1.51e8-1.52e8 particle-steps/s). graph[b] is
- * updated in place (only sizes and pointers differ), made the first time; slot b's last launch has
- * finished by then (the host read its batch back). Other batches launch kernel by kernel: making a
- * graph takes milliseconds, which a run of 10 steps at N = 1e6 does not win back (2.5e8 against 2.8e8
- * when every full batch made one), and so do --stats runs. bench/gpu_h100_variants.log 9h. */
+ * steps of one slice whose shape (batch_shape) is that of the last batch of its slot b is captured and
+ * launched as one graph, whose kernels the device starts with less delay between them than kernels
+ * launched one by one (gas of 1e5, 1000 steps, one H200: 2.15e9-2.21e9 against 1.63e9-2.08e9
+ * particle-steps/s). graph[b] is updated in place (only sizes and pointers differ), made the first time;
+ * slot b's last launch has finished by then (the host read its batch back). Other batches launch kernel
+ * by kernel: making a graph takes milliseconds, which a run of 10 steps at N = 1e6 does not win back
+ * (9h), and so do --stats runs; and a graph of steps of several slices runs slower than their kernels
+ * launched one by one, as programmatic dependent launches (random scene, N = 32000: 2.29e8-2.60e8 against
+ * 2.69e8-2.71e8, no graph made anew or failing its update). bench/gpu_h100_variants.log 9h, 43b. */
 static void batch_launch(Cuda *c, const Plan *pl, int b, int64_t first, int64_t last, int *cur_at,
                          bool keyed_in, bool key_out)
 {
     if (c->scan_alternate) c->scan_tiles = b ? SCAN_TILES : 0; /* SIM_CUDA_SCAN_TILES=-1 */
     uint64_t shape = batch_shape(c, pl, last - first + 1, keyed_in, key_out);
-    int graph = c->graphs && last - first + 1 == BATCH && shape == c->shape[b];
+    int graph = c->graphs && pl->K == 1 && last - first + 1 == BATCH && shape == c->shape[b];
     c->shape[b] = shape;
     if (graph) CUDA_CHECK(cudaStreamBeginCapture(c->stream, cudaStreamCaptureModeThreadLocal));
     for (int64_t s = first; s <= last; s++) {
