@@ -150,9 +150,6 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 #ifndef GRAPHS
 #define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
 #endif
-#ifndef EAGER_LOAD
-#define EAGER_LOAD 1              /* every kernel loaded with the context (main) */
-#endif
 #ifndef PDL
 #define PDL 1                     /* a step's kernels as programmatic dependent launches (step_kernel) */
 #endif
@@ -623,10 +620,6 @@ static const Backend cuda_backend = {
 
 int main(int argc, char **argv)
 {
-    /* The context, made by cuda_prepare's thread while the input is read, loads every kernel with it,
-     * unless CUDA_MODULE_LOADING says otherwise: loaded lazily, each kernel's first launch waited for its
-     * loading inside the step loop. */
-    if (EAGER_LOAD) setenv("CUDA_MODULE_LOADING", "EAGER", 0);
     int rc = io_main(argc, argv, &cuda_backend);
     fflush(NULL);
     _exit(rc);
