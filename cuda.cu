@@ -1,11 +1,11 @@
 /* cuda.cu: the CUDA backend.
  *
  * Every phase of a step runs on the device, and the device never waits for the host. The host launches
- * steps in batches of up to BATCH (a whole batch as one CUDA graph), two batches ahead, and reads one
- * control record per batch (the largest speed, the counters) while the next batch runs. From that
- * speed, a batch or two old, it plans the launch sizes: the most time slices and the finest grid a
- * step may use. Each step's first kernel
- * fits its grid to the largest speed of its own disks within that plan, so the grid is always valid.
+ * steps in batches of up to BATCH (a whole batch of one-slice steps as one CUDA graph), two batches
+ * ahead, and reads one control record per batch (the largest speed, the counters) while the next batch
+ * runs. From that speed, a batch or two old, it plans the launch sizes: the most time slices and the
+ * finest grid a step may use. Each step's first kernel fits its grid to the largest speed of its own
+ * disks within that plan, so the grid is always valid.
  * A step whose pair events overflow the event list, or a cell its 8-bit count, is refused before it
  * writes the state; the steps launched after it then get an empty grid, write only scratch buffers and
  * commit nothing, and the host runs them again with a larger list or 32-bit counts. A step:
