@@ -148,7 +148,7 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
                                      1.5 still best: 39c) */
 #endif
 #ifndef GRAPHS
-#define GRAPHS 1                  /* batches of BATCH steps as CUDA graphs (batch_launch) */
+#define GRAPHS 1                  /* batches of BATCH one-slice steps as CUDA graphs (batch_launch) */
 #endif
 #ifndef PDL
 #define PDL 1                     /* a step's kernels as programmatic dependent launches (step_kernel) */
@@ -253,7 +253,7 @@ typedef struct {
     real *out_host[2];          /* pinned copies, one per batch in flight (checkpoints: then p, w) */
     int checkpoints;            /* --checkpoint: out_host also holds the counts */
     cudaStream_t stream;
-    int graphs;                 /* batches of BATCH steps launched as one CUDA graph (batch_launch) */
+    int graphs;                 /* batches of BATCH one-slice steps launched as one CUDA graph (batch_launch) */
     int pdl;                    /* a step's kernels as programmatic dependent launches (step_kernel) */
     cudaGraphExec_t graph[2];   /* one per batch in flight */
     uint64_t shape[2];          /* the shape of each slot's last batch (batch_shape) */
