@@ -100,8 +100,9 @@ done
 # as the perf cases above do (steps of several slices launch kernel by kernel): here every batch kernel by
 # kernel (SIM_CUDA_GRAPH=0), and in graphs through refused steps and plans that alternate between one
 # slice and several, which change the graphs' shape (the event list of 2 overflows on these scenes: the
-# --stats cases above count the refusals; without --stats the graphs stay on). Each kernel of a step starts launching while the one before it drains (programmatic
-# dependent launch, cuda_launch.cuh step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
+# --stats cases above count the refusals; without --stats the graphs stay on). Each kernel of a step
+# starts launching while the one before it drains (programmatic dependent launch, cuda_launch.cuh
+# step_kernel) unless SIM_CUDA_PDL=0, as in the last case.
 for name in $(pick "fast random dense spread" "random spread"); do
     for what in "kernel by kernel" "graphs, refused steps" "graphs, no programmatic launches"; do
         label="cuda/$name perf, $what"
