@@ -57,7 +57,7 @@ $(BASE_F32): %_f32.o: %.c $(HEADERS) Makefile
 OMP_SRC = omp.c omp_broad.c omp_paths.c omp_exact.c omp_team.c
 OMP_H = omp_step.h omp_lanes.h omp_team.h
 # cuda.cu and the files it includes: the device code phase by phase, the host's parts, mpi_cuda.h
-CUDA_SRC = cuda.cu cuda_state.cuh cuda_bin.cuh cuda_detect.cuh cuda_choose.cuh cuda_move.cuh \
+CUDA_SRC = cuda.cu cuda_state.cuh cuda_bin.cuh cuda_rows.cuh cuda_detect.cuh cuda_choose.cuh cuda_move.cuh \
 	cuda_buffers.cuh cuda_plan.cuh cuda_launch.cuh cuda_output.cuh mpi_cuda.h
 
 seq_f32: seq.c $(BASE_F32) $(HEADERS) Makefile

@@ -36,14 +36,15 @@
  *   move     each disk from the old buffers into the new ones; the pair physics is computed by both
  *            partners with the lower original index as i, so both see the same arithmetic. With K = 1
  *            (a gas) it also keys each disk's cell for the next step and starts its event keys in its
- *            slot, so that the next step only counts the keys (count_kernel) before its scan
+ *            slot, so that the next step only counts the keys (count_kernel) before its scan; where the
+ *            table is long, the next step sorts them in buckets of a row's cells instead (cuda_rows.cuh)
  * Event keys compare by value only (t, kind, i, j), so nothing depends on thread order.
  * This file holds the constants, the host's types and the run (cuda_run, main). The device code, included
  * below, lies in one file a phase: cuda_state.cuh (buffers, speed levels, windows, the grid's fit, event
- * keys), cuda_bin.cuh (the step's gate, bin, scan and place), cuda_detect.cuh, cuda_choose.cuh and
- * cuda_move.cuh; the host's in cuda_buffers.cuh (the device buffers, cuda_open), cuda_plan.cuh (a batch's
- * plan, the buffers it needs), cuda_launch.cuh (a step's kernels, a batch as a graph) and cuda_output.cuh
- * (printing and checkpoints while the next batch runs).
+ * keys), cuda_bin.cuh (the step's gate, bin, scan and place), cuda_rows.cuh (a keyed step's table in
+ * buckets), cuda_detect.cuh, cuda_choose.cuh and cuda_move.cuh; the host's in cuda_buffers.cuh (the device
+ * buffers, cuda_open), cuda_plan.cuh (a batch's plan, the buffers it needs), cuda_launch.cuh (a step's
+ * kernels, a batch as a graph) and cuda_output.cuh (printing and checkpoints while the next batch runs).
  */
 #include "io.h"
 #include "mpi_cuda.h" /* a GPU rank's records (the move, RankMove) */
@@ -161,6 +162,7 @@ static void cuda_parallel(int threads, int64_t tasks, void (*task)(void *ctx, in
 /* the device code, phase by phase (each file opens with what it holds) */
 #include "cuda_state.cuh"
 #include "cuda_bin.cuh"
+#include "cuda_rows.cuh"
 #include "cuda_detect.cuh"
 #include "cuda_choose.cuh"
 #include "cuda_move.cuh"
@@ -224,7 +226,13 @@ typedef struct {
     int scan_alternate;                  /* SIM_CUDA_SCAN_TILES=-1 (bin_place_launch) */
     int64_t fused_n;                     /* placement fused below this many disks (place_fused) */
     double settle_events;                /* steps of one slice settle below this many events a disk (Plan) */
-    int64_t scans[2];                    /* cell tables scanned by cub, and short (--stats) */
+    int64_t scans[3];                    /* cell tables scanned by cub, short, sorted in buckets (--stats) */
+    int rows;                            /* keyed steps' tables sorted in buckets (rows_sort): -1 where cub would
+                                            scan them, 0 never, 1 always (SIM_CUDA_ROWS) */
+    uint32_t *bcount, *bstart;           /* rows_sort: each bucket's disks (0 between steps), where it begins */
+    int64_t bucket_cap;                  /* buckets they hold, the last (+1) included */
+    uint32_t *bucket;                    /* rows_sort: the buckets' rooms of slots */
+    int64_t bucket_total;                /* slots it holds (ROW_ROOM) */
     Entries en;                          /* K > 1: the entries' slots and mids alone (step_launch) */
     GridLimits lim;
     int64_t entry_cap;   /* entries the key arrays hold (buffers_grow) */
@@ -265,6 +273,7 @@ typedef struct {
     int64_t refusals;                 /* steps refused: their pair events overflowed the list, or a cell its
                                          8-bit count */
     int64_t crowdings;                /* of those, for a cell's count (one at most: 32 bits after it) */
+    int64_t overfull;                 /* for a bucket past its room (one at most: cell by cell after it) */
 } Cuda;
 
 static const char *const phase_names[PHASES] = {"bin", "scan", "place", "detect", "rounds", "finish", "move"};
@@ -302,13 +311,14 @@ static void phase_report(const Cuda *c, const Control *h)
         fprintf(stderr, "\ncuda: per window, disks free at its start and pair events found:");
         for (int w = 0; w < WMAX && h->wactive[w]; w++) fprintf(stderr, " %llu/%llu", h->wactive[w], h->wfound[w]);
     }
-    fprintf(stderr, "\ncuda: cell tables scanned in two short kernels: %lld, by cub: %lld", (long long)c->scans[1],
-            (long long)c->scans[0]);
+    fprintf(stderr, "\ncuda: cell tables scanned in two short kernels: %lld, by cub: %lld, sorted in buckets: %lld",
+            (long long)c->scans[1], (long long)c->scans[0], (long long)c->scans[2]);
     fprintf(stderr, "\ncuda: steps keyed by the move before them: %llu, binned anew (those cells too fine for "
             "their speed): %llu", h->ahead[0], h->ahead[1]);
     fprintf(stderr, "\ncuda: batches of up to %d steps; %llu steps faster than planned; %lld steps refused "
             "(event list now %lld)", BATCH, h->faster, (long long)c->refusals, (long long)c->ev_cap);
     if (c->crowdings) fprintf(stderr, "; one for a cell past 255 disks: 32-bit cell counts since");
+    if (c->overfull) fprintf(stderr, "; one for a bucket past its room: tables counted cell by cell since");
     fputc('\n', stderr);
 }
 
@@ -512,7 +522,8 @@ static int cuda_run(Sim *sim, const Params *par, const Options *opt, Output *out
                 cudaFree(c.ev[1]);
                 events_alloc(&c, cap);
             }
-            if (last_read.crowded) c.narrow = 0, c.crowdings++; /* a cell passed 255 disks: 32-bit counts */
+            if (last_read.crowded & CROWDED_CELL) c.narrow = 0, c.crowdings++; /* a cell past 255: 32 bits */
+            if (last_read.crowded & CROWDED_BUCKET) c.rows = 0, c.overfull++; /* cell by cell (rows_sort) */
             last_read.refused = 0;
             last_read.overflow = 0;
             last_read.crowded = 0;
@@ -580,7 +591,8 @@ static double bytes_needed(const Params *par, int print_buffer)
     double keys = 3 * 8 + 4;                           /* wall_hi, best_hi, best_lo; partner */
     double events = 2 * sizeof(PairEvent) * (n / EVENTS_PER_DISK + 4096) / n;
     double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, slot_of, order; count, start */
-    return n * (state + keys + events + entries + (print_buffer ? 4 * sizeof(real) : 0));
+    double buckets = ROW_SORT ? 4 * 1.5 : 0;           /* rows_sort's rooms (ROW_ROOM), less their 256 a bucket */
+    return n * (state + keys + events + entries + buckets + (print_buffer ? 4 * sizeof(real) : 0));
 }
 
 /* With steps to run, the context is created while the particle lines are read; then a run that the

@@ -260,14 +260,14 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
     }
 #pragma unroll
     for (int t = 0; t < BIN_CHUNK; t++)
-        if (key[t] != KEY_OUT) r[t] = count_add(count, key[t], 1u, crowded);
+        if (key[t] != KEY_OUT && count) r[t] = count_add(count, key[t], 1u, crowded);
 #pragma unroll
     for (int t = 0; t < BIN_CHUNK; t++) {
         int kl = c.kl0 + t;
         if (kl >= c.rows) continue;
         int64_t e = c.base + (int64_t)kl * c.nl + c.i;
         keys[e] = key[t];
-        if (key[t] != KEY_OUT) rank_put(rank, e, r[t], crowded != NULL);
+        if (key[t] != KEY_OUT && count) rank_put(rank, e, r[t], crowded != NULL);
     }
 }
 
@@ -278,7 +278,8 @@ static __device__ __forceinline__ void bin_chunk(const DevState &st, const Grid 
  * flying through a wall would otherwise pile up in the border cells. Midpoints are
  * computed in double whatever real is: less rounding for the margin to cover. The rank of an entry
  * within its cell comes from an atomic counter: the order inside a cell changes from run to run, which
- * changes where disks sit in memory and nothing else (every decision compares values). */
+ * changes where disks sit in memory and nothing else (every decision compares values). count NULL: the keys
+ * alone, which a keyed step's buckets sort (cuda_rows.cuh). */
 template <bool WINDOWS, bool LEVELS_LISTED, bool COLUMNS>
 __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, const int32_t *act,
                            const int32_t *lev, const StepInfo *info, const uint64_t *wall_hi, uint32_t *keys,
@@ -308,7 +309,7 @@ __global__ void bin_kernel(DevState st, int64_t n, const Grid *grid, int w, cons
         }
         uint32_t key = cell_key<COLUMNS>(gr, st.d[s].pos, vel, slice_mid(k, l, gr.K), x.row, info);
         keys[e] = key;
-        rank_put(rank, e, count_add(count, key, 1u, crowded), crowded != NULL);
+        if (count) rank_put(rank, e, count_add(count, key, 1u, crowded), crowded != NULL);
     }
 }
 

@@ -53,6 +53,8 @@ static void counts_env(Cuda *c)
     if (c->scan_tiles > SCAN_TILES || c->scan_tiles < 0) c->scan_tiles = SCAN_TILES;
     const char *narrow = getenv("SIM_CUDA_NARROW");
     c->narrow = NARROW_COUNTS && !(narrow && atoi(narrow) == 0);
+    const char *rows = getenv("SIM_CUDA_ROWS"); /* rows_sort: 0 never, 1 every keyed step */
+    c->rows = rows ? (atoi(rows) != 0) : -1;
 }
 
 static void events_alloc(Cuda *c, int64_t cap)
@@ -232,6 +234,7 @@ static double buffer_bytes(const Cuda *c)
     b += 2.0 * (double)c->ev_cap * sizeof(PairEvent);                         /* the event lists */
     b += 8.0 * (double)(c->entry_cap + c->order_cap) + 8.0 * (double)c->cell_held; /* entries, cells */
     b += 8.0 * (double)c->patch_cap;                                          /* the patches' pieces */
+    b += 8.0 * (double)c->bucket_cap + 4.0 * (double)c->bucket_total;         /* rows_sort's buckets */
     b += (double)c->copy_cap * (sizeof(uint2) + sizeof(float4));              /* entries' slots, keys, mids */
     if (c->slices_held) b += n * (8 + 2 * 4 + LEVELS * 4 + 1);                 /* wall_win, act, lev, level_of */
     if (c->out_dev) b += n * 4 * sizeof(real);                                /* the print buffer */
@@ -256,6 +259,9 @@ static void cuda_close(Cuda *c)
     cudaFree(c->tile_sums);
     cudaFree(c->pieces);
     cudaFree(c->patch_at);
+    cudaFree(c->bcount);
+    cudaFree(c->bstart);
+    cudaFree(c->bucket);
     cudaFree(c->en.placed);
     cudaFree(c->en.mid);
     cudaFree(c->wall_hi);

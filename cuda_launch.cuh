@@ -143,6 +143,34 @@ static void scan_place_launch(Cuda *c, const Plan *pl, int w, const int32_t *act
                 c->start, c->order, en, (int)narrow_counts(c, pl, w));
 }
 
+/* Whether a keyed step's table is sorted in buckets (cuda_rows.cuh) rather than counted cell by cell: the
+ * tables cub would scan (SIM_CUDA_ROWS: 0 never, 1 every keyed step; the tests take each way). */
+static bool rows_sort(const Cuda *c, const Plan *pl)
+{
+    if (!ROW_SORT || c->rows == 0 || !c->bucket) return false; /* buffers_grow: a plan of one slice's */
+    return c->rows == 1 || !scan_short(c, pl->wcells[0] + 1);
+}
+
+/* A keyed step's table in buckets (rows_sort): the keys the move gave, or binned anew where the step's cells
+ * are finer (bin_kernel, counting nothing); then each slot into its bucket, the buckets scanned, and sorted a
+ * bucket a block. */
+static void rows_launch(Cuda *c, const Plan *pl, int in, int ring)
+{
+    const int32_t *none = NULL;
+    uint32_t *no_counts = NULL;
+    c->scans[2]++;
+    step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n, c->grid,
+                0, none, none, c->info, c->wall_hi, c->keys, no_counts, no_counts, 1,
+                (unsigned long long *)NULL);
+    step_kernel(c, blocks_for(bucket_slots(c->n)), THREADS, 0, bucket_fill_kernel, c->grid, c->n, c->keys,
+                c->bcount, c->bucket, c->bucket_total, c->info);
+    phase_mark(c, ring, 0, 1);
+    step_kernel(c, 1, ROW_SCAN, 0, bucket_scan_kernel, c->grid, c->bcount, c->bstart, c->start, c->bucket_total);
+    phase_mark(c, ring, 0, 2);
+    step_kernel(c, row_buckets(pl->gcap), ROW_THREADS, 0, bucket_sort_kernel, c->grid, c->keys, c->bstart,
+                c->bucket, c->bucket_total, c->start, c->order, c->rank, crowded_flag(c, pl, 0));
+}
+
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
  * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
  * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
@@ -151,6 +179,10 @@ template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
                              int ring, bool keyed, bool in_patches = false)
 {
+    if (keyed && rows_sort(c, pl)) {
+        rows_launch(c, pl, in, ring);
+        return;
+    }
     int64_t blocks = window_blocks(c, pl, w);
     bool short_scan = bin_clear(c, pl, w);
     unsigned long long *crowded = crowded_flag(c, pl, w);
@@ -320,9 +352,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
 static uint64_t batch_shape(const Cuda *c, const Plan *pl, int64_t steps, bool keyed_in, bool key_out)
 {
     uint64_t h = 1469598103934665603ull; /* FNV-1a over the fields */
-    enum { HEAD = 8 }; /* the fields before the windows' */
+    enum { HEAD = 9 }; /* the fields before the windows' */
     int64_t f[HEAD + 2 * WMAX] = {steps, pl->K > 1, pl->W, pl->levels > 1, c->dirty > 0, pl->settle,
-                                  2 * keyed_in + key_out, c->narrow}; /* narrow: narrow_counts */
+                                  2 * keyed_in + key_out, c->narrow, rows_sort(c, pl)}; /* narrow: narrow_counts */
     for (int w = 0; w < pl->W && w < WMAX; w++) {
         f[HEAD + 2 * w] = pl->rounds[w];
         f[HEAD + 1 + 2 * w] = scan_short(c, pl->wcells[w] + 1); /* bin_place_launch */

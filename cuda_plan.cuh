@@ -185,6 +185,19 @@ static void buffers_grow(Cuda *c, const Plan *pl)
             c->patch_at = (uint32_t *)dev_alloc((size_t)c->patch_cap * 4, "the cell table");
             scanned = c->patch_cap > nc ? c->patch_cap : nc; /* cub's scratch for either sum */
         }
+        /* rows_sort's buckets over any grid these cells hold, their counts cleared as bucket_scan_kernel
+         * leaves them, and their rooms */
+        cudaFree(c->bcount), cudaFree(c->bstart);
+        c->bucket_cap = row_buckets((int64_t)sqrt((double)nc) + 1) + 1;
+        c->bcount = (uint32_t *)dev_alloc((size_t)c->bucket_cap * 4, "the cell table");
+        c->bstart = (uint32_t *)dev_alloc((size_t)c->bucket_cap * 4, "the cell table");
+        CUDA_CHECK(cudaMemsetAsync(c->bcount, 0, (size_t)c->bucket_cap * 4, c->stream));
+        cudaFree(c->bucket);
+        c->bucket = NULL, c->bucket_total = 0;
+        if (ROW_SORT && c->rows != 0 && pl->K == 1) { /* a run whose keyed steps may sort so (rows_sort) */
+            c->bucket_total = ROW_ROOM(n, c->bucket_cap);
+            c->bucket = (uint32_t *)dev_alloc((size_t)c->bucket_total * 4, "the cell table");
+        }
         c->scan_tmp_bytes = 0;
         CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, c->scan_tmp_bytes, c->count, c->start, scanned, c->stream));
         size_t narrow_bytes = 0; /* the scan of 8-bit counts (narrow_counts) */

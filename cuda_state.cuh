@@ -51,21 +51,24 @@ typedef struct {
     unsigned long long tests;  /* narrow-phase pair tests */
     unsigned long long faster; /* 1: the disks are faster than the plan's speed */
     unsigned long long outside; /* a slab grid's (GridLimits): disks binned outside its rows (never) */
-    unsigned long long crowded; /* 1: a cell of a table of 8-bit counts (count_add) passed 255 keys: the
-                                   step is refused, and the run counts in 32 bits from then on */
+    unsigned long long crowded; /* CROWDED_CELL: a cell of a table of 8-bit counts (count_add) passed 255 keys;
+                                   CROWDED_BUCKET: a bucket its room (bucket_fill_kernel). The step is refused,
+                                   and the run counts in 32 bits, or cell by cell, from then on */
     unsigned long long ahead[2]; /* 1 in [0]: the step takes the keys the move before it gave; in [1]: it
                                     bins anew, their cells being too fine for its speed */
 } StepInfo;
+#define CROWDED_CELL 1
+#define CROWDED_BUCKET 2
 
 /* What the host reads back once per batch. Steps commit in order, so `steps` also says where a refused
- * step is: steps + 1. A step is refused only when its pair events overflow the list or a cell its 8-bit
- * count (StepInfo.crowded). */
+ * step is: steps + 1. A step is refused only when its pair events overflow the list, or a cell its 8-bit
+ * count or a bucket its room (StepInfo.crowded). */
 typedef struct {
     unsigned long long vmax;     /* bits of the largest |vx| or |vy| of the current state (double) */
     unsigned long long steps;    /* steps committed */
     unsigned long long refused;  /* 1: a step was refused; no step launched after it commits */
     unsigned long long overflow; /* pair events the refused step found, when they overflowed the list */
-    unsigned long long crowded;  /* 1: the refused step's 8-bit cell counts overflowed (StepInfo.crowded) */
+    unsigned long long crowded;  /* the refused step's StepInfo.crowded */
     unsigned long long faster;   /* steps whose disks were faster than their plan's speed */
     unsigned long long tests, events;             /* sums over committed steps */
     unsigned long long left[MAX_ROUNDS];          /* pair events undecided before each grid-wide round */

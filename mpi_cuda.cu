@@ -179,6 +179,7 @@ GpuRank *gpu_rank_open(const Params *par, int local)
     /* the host waits for every step: no graphs, no programmatic launches; SIM_CUDA_SCAN_TILES=-1 (one of
      * cuda's batch slots to cub) is as unset here */
     counts_env(c);
+    c->rows = 0; /* a GPU rank's keyed steps count their keys (count_kernel), not in buckets (rows_sort) */
     c->settle_events = settle_events_env();
     /* the grid cuda fits to the whole box of N disks, one time slice a step: a rank's slots are a part
      * of the box's disks, wherever its strip lies; the table holds the strip's cells (gpu_rank_slab) */

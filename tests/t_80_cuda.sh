@@ -377,6 +377,38 @@ while read -r name cmd; do
     done
 done <<< "$(periodic_scenes)"
 
+# A keyed step's table sorted a bucket of a row's cells at a time (cuda_rows.cuh), which ordinary runs do where
+# cub would scan it, as these scenes' short tables never are: SIM_CUDA_ROWS=1 sorts every keyed step's table so,
+# in perf and print mode, in the periodic box and in single precision; then in graphs, through refused steps
+# (SIM_CUDA_EVENTS=2) and steps binned anew (SIM_CUDA_BIN_AHEAD=1, counting nothing). --stats counts the tables
+# sorted so, which must be some.
+# (The periodic scenes' "windows" input is a perf run, as the quick suite writes it.)
+for run in "slow perf" "slow print" "dense perf" "p_gas windows --periodic" "p_gas print --periodic" \
+    "p_dense windows --periodic"; do
+    read -r name mode extra <<< "$run"
+    label="cuda/$name $mode${extra:+ $extra}, keyed tables sorted in buckets"
+    if ! have_gpu; then
+        skip "$label" "no GPU"
+        continue
+    fi
+    in=$TMP/cuda_${name}_$mode.in expected=$TMP/cuda_${name}_$mode.expected
+    # shellcheck disable=SC2086
+    same_bytes "$label" "$expected" env SIM_CUDA_ROWS=1 ./cuda "$in" --quiet --stats $extra
+    line=$(grep "sorted in buckets" "$TMP/err")
+    if [[ $line =~ sorted\ in\ buckets:\ ([0-9]+) ]] && [ "${BASH_REMATCH[1]}" -gt 0 ]; then
+        pass "$label: ${BASH_REMATCH[1]} tables"
+    else
+        fail "$label: some tables" "stats: ${line:-no line}"
+    fi
+    # shellcheck disable=SC2086
+    same_bytes "$label, in graphs, refused steps, binned anew" "$expected" env SIM_CUDA_ROWS=1 SIM_CUDA_EVENTS=2 \
+        SIM_CUDA_BIN_AHEAD=1 ./cuda "$in" --quiet $extra
+    if [ -z "$extra" ] && [ -x ./cuda_f32 ]; then
+        same_bytes "$label, single precision" "$TMP/cuda_f32_${name}_$mode.expected" env SIM_CUDA_ROWS=1 \
+            ./cuda_f32 "$in" --quiet
+    fi
+done
+
 # 8-bit cell counts (count_add): where cub scans the table of a step of one slice (SIM_CUDA_SCAN_TILES=0
 # sends every table there), a cell of more than 255 disks refuses its step, which runs again counting in
 # 32 bits. "point" (crowd_scene, tests/lib.sh): 300 of 1500 disks start on one point (the first step, alone
@@ -403,6 +435,25 @@ if have_gpu; then
     done
     same_bytes "$label, point, 32 bits throughout" "$TMP/cuda_crowd_point_perf.in.expected" env SIM_CUDA_SCAN_TILES=0 \
         SIM_CUDA_NARROW=0 timeout 120 ./cuda "$TMP/cuda_crowd_point_perf.in" --quiet
+    # a bucket of a keyed step's table (cuda_rows.cuh; SIM_CUDA_ROWS=1 on this short table of 32-bit counts) past
+    # its room: the step refused, then tables counted cell by cell
+    same_bytes "$label, ring perf, a bucket past its room" "$TMP/cuda_crowd_ring_perf.in.expected" \
+        env SIM_CUDA_ROWS=1 timeout 120 ./cuda "$TMP/cuda_crowd_ring_perf.in" --quiet --stats
+    if grep -q "one for a bucket past its room" "$TMP/err"; then
+        pass "$label, ring perf, a bucket past its room: the step refused, then cell by cell"
+    else
+        fail "$label, ring perf, a bucket past its room: the step refused" "stats: $(grep refused "$TMP/err")"
+    fi
+    # the keyed steps above sort their tables in buckets (cuda_rows.cuh), a rank past 255 refusing the step; here
+    # they count them cell by cell (count_kernel) as well
+    same_bytes "$label, ring perf, counted cell by cell" "$TMP/cuda_crowd_ring_perf.in.expected" \
+        env SIM_CUDA_SCAN_TILES=0 SIM_CUDA_ROWS=0 timeout 120 ./cuda "$TMP/cuda_crowd_ring_perf.in" --quiet --stats
+    if grep -q "one for a cell past 255 disks" "$TMP/err"; then
+        pass "$label, ring perf, counted cell by cell: the crowded cell's step refused, then 32 bits"
+    else
+        fail "$label, ring perf, counted cell by cell: the crowded cell's step refused" \
+            "stats: $(grep refused "$TMP/err")"
+    fi
     same_bytes "$label, the slow gas" "$TMP/cuda_slow_perf.expected" env SIM_CUDA_SCAN_TILES=0 \
         ./cuda "$TMP/cuda_slow_perf.in" --quiet --stats
     if grep -q " 0 steps refused" "$TMP/err" && ! grep -q "past 255" "$TMP/err"; then
