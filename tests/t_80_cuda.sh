@@ -120,8 +120,9 @@ done
 # The cell table's exclusive sum: two short kernels that also clear the counts behind them, or cub's
 # for long tables, after which the counts are cleared before the next binning (cuda.cu,
 # bin_place_launch). These scenes' tables are short; SIM_CUDA_SCAN_TILES=-1 sends every other batch to
-# cub, so the short scans also follow cub's, in graphs and (with SIM_CUDA_WINDOW=1) across windows.
-# --stats counts the tables each way: both must have been taken.
+# cub, so the short scans also follow cub's, in graphs and (with SIM_CUDA_WINDOW=1) across windows (a gas's
+# keyed steps in those batches sort their tables in buckets instead, cuda_rows.cuh; its gathering steps
+# take cub's). --stats counts the tables each way: both must have been taken.
 for name in $(pick "slow fast walls random spread mixed_gas" "slow spread"); do
     for mode in print perf; do
         label="cuda/$name $mode, cell tables scanned short and by cub in turn"
