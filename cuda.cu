@@ -6,9 +6,9 @@
  * runs. From that speed, a batch or two old, it plans the launch sizes: the most time slices and the
  * finest grid a step may use. Each step's first kernel fits its grid to the largest speed of its own
  * disks within that plan, so the grid is always valid.
- * A step whose pair events overflow the event list, or a cell its 8-bit count, is refused before it
- * writes the state; the steps launched after it then get an empty grid, write only scratch buffers and
- * commit nothing, and the host runs them again with a larger list or 32-bit counts. A step:
+ * A step whose pair events overflow the event list, a cell its 8-bit count or a bucket its room, is refused
+ * before it writes the state; the steps launched after it then get an empty grid, write only scratch buffers
+ * and commit nothing, and the host runs them again with a larger list, 32-bit counts or no buckets. A step:
  *   bin      each disk's path over the step is cut into K time slices; each slice is binned by its
  *            midpoint into square cells wide enough that any pair SPEC.md 3.2 finds within that slice
  *            lies in neighbouring cells (see grid_fit); a counting sort orders the (slice, cell)
@@ -270,8 +270,8 @@ typedef struct {
     cudaEvent_t mark[RING][WMAX][PHASES + 1]; /* per window: bin .. finish; the last window's: move */
     int step_windows[RING];
     double phase_ms[PHASES];
-    int64_t refusals;                 /* steps refused: their pair events overflowed the list, or a cell its
-                                         8-bit count */
+    int64_t refusals;                 /* steps refused: their pair events overflowed the list, a cell its 8-bit
+                                         count or a bucket its room */
     int64_t crowdings;                /* of those, for a cell's count (one at most: 32 bits after it) */
     int64_t overfull;                 /* for a bucket past its room (one at most: cell by cell after it) */
 } Cuda;
