@@ -591,7 +591,7 @@ static double bytes_needed(const Params *par, int print_buffer)
     double keys = 3 * 8 + 4;                           /* wall_hi, best_hi, best_lo; partner */
     double events = 2 * sizeof(PairEvent) * (n / EVENTS_PER_DISK + 4096) / n;
     double entries = 16 + 2 * 4 * CELLS_PER_DISK;      /* keys, rank, slot_of, order; count, start */
-    double buckets = ROW_SORT ? 4 * 1.5 : 0;           /* rows_sort's rooms (ROW_ROOM), less their 256 a bucket */
+    double buckets = ROW_SORT ? 4 * ROW_ROOM(1.0, 0) : 0; /* rows_sort's rooms, less their 256 a bucket */
     return n * (state + keys + events + entries + buckets + (print_buffer ? 4 * sizeof(real) : 0));
 }
 

@@ -213,7 +213,7 @@ static __device__ __forceinline__ uint32_t count_add(uint32_t *count, uint32_t k
     if (!crowded) return atomicAdd(&count[key], add);
     const unsigned shift = (key & 3u) * 8u;
     uint32_t before = (atomicAdd(&count[key >> 2], add << shift) >> shift) & 0xffu;
-    if (before + add > 0xffu) *(volatile unsigned long long *)crowded = 1;
+    if (before + add > 0xffu) *(volatile unsigned long long *)crowded = CROWDED_CELL;
     return before;
 }
 
@@ -508,7 +508,7 @@ __global__ void count_kernel(const Grid *grid, int64_t n, const uint32_t *keys, 
 #pragma unroll
         for (unsigned b = 0; b < 4; b++) /* a cell past 255 carries into the next: the step is refused */
             if (((base >> (8 * b)) & 0xffu) + (uint32_t)__popc(cell[b]) > 0xffu)
-                *(volatile unsigned long long *)crowded = 1;
+                *(volatile unsigned long long *)crowded = CROWDED_CELL;
     }
     const unsigned mine = byte == 0 ? cell[0] : byte == 1 ? cell[1] : byte == 2 ? cell[2] : cell[3];
     base = __shfl_sync(live, base, head);

@@ -151,17 +151,12 @@ static bool rows_sort(const Cuda *c, const Plan *pl)
     return c->rows == 1 || !scan_short(c, pl->wcells[0] + 1);
 }
 
-/* A keyed step's table in buckets (rows_sort): the keys the move gave, or binned anew where the step's cells
- * are finer (bin_kernel, counting nothing); then each slot into its bucket, the buckets scanned, and sorted a
- * bucket a block. */
-static void rows_launch(Cuda *c, const Plan *pl, int in, int ring)
+/* A keyed step's table in buckets (rows_sort), once its keys are there (the move's, or binned anew where the
+ * step's cells are finer, counting nothing: bin_place_launch): each slot into its bucket, the buckets scanned,
+ * and sorted a bucket a block. */
+static void rows_launch(Cuda *c, const Plan *pl, int ring)
 {
-    const int32_t *none = NULL;
-    uint32_t *no_counts = NULL;
     c->scans[2]++;
-    step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n, c->grid,
-                0, none, none, c->info, c->wall_hi, c->keys, no_counts, no_counts, 1,
-                (unsigned long long *)NULL);
     step_kernel(c, blocks_for(bucket_slots(c->n)), THREADS, 0, bucket_fill_kernel, c->grid, c->n, c->keys,
                 c->bcount, c->bucket, c->bucket_total, c->info);
     phase_mark(c, ring, 0, 1);
@@ -172,23 +167,25 @@ static void rows_launch(Cuda *c, const Plan *pl, int in, int ring)
 }
 
 /* Window w's entries binned and placed in cell order (WINDOWS false: a step of one window). keyed: the
- * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here,
- * or bins anew where their cells are too fine for the step's speed. The binning that returns at once
- * where the keys are taken loops over its entries: few blocks to start. */
+ * move before keyed the disks (step_launch), and the gate took those keys, which are then counted here (or
+ * sorted in buckets, rows_launch), or bins anew where their cells are too fine for the step's speed. The
+ * binning that returns at once where the keys are taken loops over its entries: few blocks to start. */
 template <bool WINDOWS>
 static void bin_place_launch(Cuda *c, const Plan *pl, int w, int in, const int32_t *act, const int32_t *lev,
                              int ring, bool keyed, bool in_patches = false)
 {
-    if (keyed && rows_sort(c, pl)) {
-        rows_launch(c, pl, in, ring);
-        return;
-    }
+    const bool rows = keyed && rows_sort(c, pl); /* no cell counts: the table in buckets (rows_launch) */
     int64_t blocks = window_blocks(c, pl, w);
-    bool short_scan = bin_clear(c, pl, w);
-    unsigned long long *crowded = crowded_flag(c, pl, w);
+    bool short_scan = !rows && bin_clear(c, pl, w);
+    unsigned long long *crowded = rows ? NULL : crowded_flag(c, pl, w);
     if (keyed) { /* one slice */
         step_kernel(c, loop_blocks(c, c->n, 16), THREADS, 0, bin_kernel<true, false, false>, c->st[in], c->n,
-                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, c->rank, c->count, 1, crowded);
+                    c->grid, 0, act, lev, c->info, c->wall_hi, c->keys, rows ? NULL : c->rank,
+                    rows ? NULL : c->count, 1, crowded);
+        if (rows) {
+            rows_launch(c, pl, ring);
+            return;
+        }
         step_kernel(c, blocks_for(c->n), THREADS, 0, count_kernel, c->grid, c->n, c->keys, c->rank, c->count,
                     crowded);
     } else {
