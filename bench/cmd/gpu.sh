@@ -127,6 +127,14 @@ do_memcheck() {
     checked san_gas "$OUT/memcheck_gas.log" "$DATA/gas.seq" ./cuda "$DATA/san_gas.in" --quiet
     SIM_CUDA_SCAN_TILES=0 checked "san_gas, 8-bit counts" "$OUT/memcheck_gas8.log" "$DATA/gas.seq" ./cuda \
         "$DATA/san_gas.in" --quiet
+    # every keyed step's table sorted in buckets (cuda_rows.cuh); and the ring scene (tests/lib.sh), whose
+    # bucket past its room refuses its step
+    SIM_CUDA_ROWS=1 checked "san_gas, buckets" "$OUT/memcheck_gas_rows.log" "$DATA/gas.seq" ./cuda \
+        "$DATA/san_gas.in" --quiet
+    (TMP=$DATA/tests && . tests/lib.sh && crowd_scene ring perf) > "$DATA/san_ring.in"
+    ./seq "$DATA/san_ring.in" --quiet > "$DATA/san_ring.seq"
+    SIM_CUDA_ROWS=1 checked "ring, a bucket past its room" "$OUT/memcheck_ring.log" "$DATA/san_ring.seq" ./cuda \
+        "$DATA/san_ring.in" --quiet
     # mpi_cuda at 3 ranks, where it is built: halos GPU to GPU and through host memory, moves done again
     # (their leavers beyond the room), searches done again (their events beyond the list), 8-bit counts
     if [ -x ./mpi_cuda ] && command -v mpirun > /dev/null; then
