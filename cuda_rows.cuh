@@ -110,7 +110,10 @@ static __device__ __forceinline__ uint32_t bucket_room(int64_t total, int64_t nb
 
 /* Each slot into its bucket's room, at a place the bucket's count gives (an atomic a warp's bucket). A bucket
  * past its room marks the step crowded (CROWDED_BUCKET), to be refused; its count stays in bounds for the
- * scan (bucket_scan_kernel clamps it). */
+ * scan (bucket_scan_kernel clamps it). Slower on one H200: the move before filing each disk as it keys it (its
+ * atomics and stores cost the move twice this pass: gas of 1e7 9.5e9 against 1.05e10 particle-steps/s), and a
+ * tile of 2048 slots counted in shared memory, a global atomic a bucket (1.014e10 against 1.051e10;
+ * bench/gpu_h100_variants.log 47, 48). */
 __global__ void bucket_fill_kernel(const Grid *grid, int64_t n, const uint32_t *keys, uint32_t *bcount,
                                    uint32_t *bucket, int64_t total, StepInfo *info)
 {
