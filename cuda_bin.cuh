@@ -72,6 +72,7 @@ __global__ void gate_kernel(Control *ctl, StepInfo *info, unsigned long long *co
     info->active[0] = ctl->refused ? 0 : lim.n;
     info->events = 0;
     info->tests = 0;
+    info->ties = 0;
     info->outside = 0;
     info->crowded = 0;
     for (int r = 0; r < WMAX * (MAX_ROUNDS + 1); r++) counts[r] = 0;
@@ -598,6 +599,8 @@ typedef struct {
                       store where two arrays took two (random scene on one H200, N = 32000: the placement 4.00 ->
                       3.15 ms over 200 steps, 2.54e8 -> 2.63e8 particle-steps/s; at 1e6, 3.03 -> 2.46 ms over
                       10, 5.05e8 -> 5.22e8; bench/gpu_h100_variants.log 29a); else NULL */
+    unsigned int *ties; /* LO_IF_TIED: StepInfo.ties, raised where a first key the search lowers was already the
+                           event's; else NULL (the search's minima then return nothing) */
 } Entries;
 
 /* The entries of window w's cells (window_rows rows of ncell cells), once placed. */

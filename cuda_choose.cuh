@@ -22,6 +22,18 @@
 #endif
 #define ILP_EACH(u) _Pragma("unroll") for (int u = 0; u < ILP; u++) if (ILP == 1 || i + u * stride < len)
 
+/* LO_IF_TIED: the first round's second keys (min_lo, a pass over the whole list) matter only where one disk has
+ * two events of one first key, which ZERO_KEYS makes rare. The search's minima of the first keys return the key
+ * they met, and one that met its own raises StepInfo.ties (test_pair); where the step has none, min_lo returns at
+ * once and accept compares first keys alone. On one H200: dense gas of 1e7 6.84e9 -> 7.36e9 particle-steps/s,
+ * its rounds 12.01 -> 6.86 ms over 50 steps; gas of 1e7 9.98e9 -> 1.002e10 (rounds 3.17 -> 2.86); random scene,
+ * N = 32000, rounds 3.18 -> 2.94 ms over 200 steps (bench/gpu_h100_variants.log 54). The flag alone, with one
+ * first key for all events of time 0, rose in nearly every step of a gas (12b, 27j, 52b). 2: cuda's steps,
+ * 1: those of one slice, 0: never (GPU ranks, mpi_cuda.cu: never). */
+#ifndef LO_IF_TIED
+#define LO_IF_TIED 2
+#endif
+
 /* The events' own keys: each disk's best_lo lowered to the event's where its best_hi is the event's. */
 template <int ILP>
 static __device__ __forceinline__ void pass_min_lo(const PairEvent *ev, int64_t i, int64_t stride, int64_t len,
@@ -70,8 +82,8 @@ static __device__ __forceinline__ void pass_accept(const PairEvent *ev, int64_t 
 #pragma unroll
     for (int u = 0; u < ILP; u++) la[u] = lb[u] = NO_EVENT;
     ILP_EACH(u) if (ha[u] == e[u].hi && hb[u] == e[u].hi) {
-        la[u] = best_lo[e[u].a];
-        lb[u] = best_lo[e[u].b];
+        la[u] = best_lo ? best_lo[e[u].a] : e[u].lo; /* NULL: no ties (accept_kernel) */
+        lb[u] = best_lo ? best_lo[e[u].b] : e[u].lo;
     }
     ILP_EACH(u) accept_event(e[u], ha[u], hb[u], la[u], lb[u], partner);
 }
@@ -144,9 +156,10 @@ static_assert(!BLOCK_APPEND || CHOOSE_ILP > 1, "BLOCK_TURN: ILP_EACH checks each
 #endif
 
 __global__ void min_lo_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
-                              const uint64_t *best_hi, uint64_t *best_lo)
+                              const uint64_t *best_hi, uint64_t *best_lo, const unsigned int *ties)
 {
     after_previous();
+    if (ties && !*ties) return; /* LO_IF_TIED: no disk has two events of its smallest first key */
     int64_t len = list_len(count, cap);
     ILP_TURN(i, len) pass_min_lo<CHOOSE_ILP>(ev, i, stride, len, best_hi, best_lo);
 }
@@ -160,9 +173,11 @@ __global__ void min_hi_kernel(const PairEvent *ev, const unsigned long long *cou
 }
 
 __global__ void accept_kernel(const PairEvent *ev, const unsigned long long *count, int64_t cap,
-                              const uint64_t *best_hi, const uint64_t *best_lo, int32_t *partner)
+                              const uint64_t *best_hi, const uint64_t *best_lo, int32_t *partner,
+                              const unsigned int *ties)
 {
     after_previous();
+    if (ties && !*ties) best_lo = NULL; /* LO_IF_TIED: an event holding both its disks' first keys is theirs */
     int64_t len = list_len(count, cap);
     ILP_TURN(i, len) pass_accept<CHOOSE_ILP>(ev, i, stride, len, best_hi, best_lo, partner);
 }

@@ -203,7 +203,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
      * slice (detect_box), and its records leave k unwritten (LEAN_PROBES) */
     if (MID && gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
-    e.hi = time_key(t) | 1;
+    e.hi = time_key(t) | 1; /* at time 0, 1: below every wall key but time 0's, as its own key (zero_pair_key) */
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
     if (!(e.hi < wall1 && e.hi < (mine ? mine->wall : slot_wall<PERIODIC, GATED>(en, d))))
         return; /* a wall's first */
@@ -214,6 +214,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     e.a = first ? s : s2;
     e.b = first ? s2 : s;
     e.lo = first ? ((uint64_t)id1 << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id1);
+    if (e.hi == 1) e.hi = zero_pair_key(e.lo);
     unsigned long long at = atomicAdd(&be->n, 1ull);
     if (at < BLOCK_EVENTS) {
         be->e[at] = e;
@@ -221,8 +222,16 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
         unsigned long long g = list_append(found);
         if ((int64_t)g < cap) ev[g] = e;
     }
-    atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
-    atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+    if (en.ties) {
+        /* the event that finds its own key at a disk is the later of two tied events (the key only falls):
+         * each tie at a disk's smallest key raises the flag, as may a tie that a smaller key then undercuts */
+        unsigned long long ha = atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
+        unsigned long long hb = atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+        if (ha == e.hi || hb == e.hi) *en.ties = 1;
+    } else {
+        atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
+        atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
+    }
     if (en.tally) { /* reductions, their values unused: settle_kernel reads the tallies */
         atomicSub(&en.tally[e.a], PARTNER_TALLY);
         atomicSub(&en.tally[e.b], PARTNER_TALLY);

@@ -23,7 +23,8 @@ static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void 
 
 /* The choice among window w's pair events (wall: the wall events as it sees them); a plan that settles
  * (steps of one slice alone) settles them first. */
-static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring)
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring,
+                          const unsigned int *ties = NULL)
 {
     phase_mark(c, ring, w, 4);
     int64_t blocks = pl->choose_blocks[w];
@@ -37,18 +38,19 @@ static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, 
         list = 1;
         len = &counts[0];
     }
-    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo, ties);
     step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
-                c->partner);
+                c->partner, ties);
     for (int r = 1; r < pl->rounds[w]; r++) {
         step_kernel(c, blocks, THREADS, 0, compact_kernel, c->ev[list], len, c->ev_cap, c->ev[1 - list],
                     &counts[r], c->partner, wall, c->best_hi, c->best_lo);
         list = 1 - list;
         len = &counts[r];
         step_kernel(c, blocks, THREADS, 0, min_hi_kernel, c->ev[list], len, c->ev_cap, c->best_hi);
-        step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo);
+        step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
+                    (const unsigned int *)NULL);
         step_kernel(c, blocks, THREADS, 0, accept_kernel, c->ev[list], len, c->ev_cap, c->best_hi, c->best_lo,
-                    c->partner);
+                    c->partner, (const unsigned int *)NULL);
     }
     phase_mark(c, ring, w, 5);
     step_kernel(c, 1, 1024, 0, finish_kernel, c->ev[list], c->ev[1 - list], len, c->ev_cap, c->partner, wall,
@@ -300,9 +302,10 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
         en.placed = NULL;
         en.best_lo = LO_AT_EVENT ? c->best_lo : NULL;
         en.tally = pl->settle ? c->partner : NULL;
+        en.ties = LO_IF_TIED ? &c->info->ties : NULL;
         phase_mark(c, ring, 0, 3);
         detect_launch(c, pl, 0, en);
-        choose_launch(c, pl, 0, en.wall_gate ? NULL : c->wall_hi, ring);
+        choose_launch(c, pl, 0, en.wall_gate ? NULL : c->wall_hi, ring, en.ties);
     } else {
         for (int w = 0; w < pl->W; w++) {
             phase_mark(c, ring, w, 0);
@@ -325,8 +328,9 @@ static void step_launch(Cuda *c, const Plan *pl, int ring, bool first, bool last
             phase_mark(c, ring, w, 3);
             Entries en = c->en; /* the entries' slots and mids, and the disks in their slots */
             en.disk = c->st[in].d, en.id = c->st[in].id, en.wall = c->wall_hi;
+            en.ties = LO_IF_TIED > 1 ? &c->info->ties : NULL; /* a tie in one window: the later ones' too */
             detect_launch(c, pl, w, en);
-            choose_launch(c, pl, w, c->wall_win, ring);
+            choose_launch(c, pl, w, c->wall_win, ring, en.ties);
         }
     }
     RankMove none = {};

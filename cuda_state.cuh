@@ -31,10 +31,10 @@ typedef struct {
     int32_t *id;
 } DevState;
 
-/* A pair event: hi = (t bits << 1) | 1 (kind 1), lo = (i << 31) | j with i < j original indices;
- * a is i's slot, b is j's. Wall events are kept per disk, hi = t bits << 1 (kind 0). Event times are
- * never negative nor -0 (wall_time, pair_time), and the bits of non-negative IEEE numbers, double or
- * float, order like their values: comparing (hi, lo) as integers is event_before. */
+/* A pair event: hi = time_key(t) | 1 (kind 1; at time 0, zero_pair_key), lo = (i << 31) | j with i < j
+ * original indices; a is i's slot, b is j's. Wall events are kept per disk, hi = time_key(t) (kind 0).
+ * Event times are never negative nor -0 (wall_time, pair_time), and the bits of non-negative IEEE numbers,
+ * double or float, order like their values: comparing (hi, lo) as integers is event_before. */
 typedef struct {
     uint64_t hi, lo;
     int32_t a, b;
@@ -56,6 +56,8 @@ typedef struct {
                                    and the run counts in 32 bits, or cell by cell, from then on */
     unsigned long long ahead[2]; /* 1 in [0]: the step takes the keys the move before it gave; in [1]: it
                                     bins anew, their cells being too fine for its speed */
+    unsigned int ties; /* LO_IF_TIED: 1, the search met a disk's smallest first key twice (StepInfo is cleared by
+                          the gate, so a window's tie holds for the step's later windows too) */
 } StepInfo;
 #define CROWDED_CELL 1
 #define CROWDED_BUCKET 2
@@ -377,27 +379,48 @@ static __device__ __forceinline__ bool refused(const Control *ctl)
     return *(const volatile unsigned long long *)&ctl->refused != 0;
 }
 
+/* An event's first key (PairEvent.hi) after time 0: the time's bits, which order like its values, above bit 0 (the
+ * kind), with bit 63 set (a time in [0, 1] leaves it clear). At time 0, a wall event's key is 0 and a pair
+ * event's its second key's bits above the kind (zero_pair_key), so that the first keys alone order the events
+ * of time 0 too. Those are common: a disk that collided flies on through others for the rest of its step, and
+ * starts the next one overlapping them, where pair_time finds their events at time 0; with one first key for
+ * them all, some disk of a gas held two events of its smallest key in nearly every step, and the choice's
+ * first round had to compare second keys (LO_IF_TIED; bench/gpu_h100_variants.log 52b, 54). ZERO_KEYS 0: a
+ * pair event's first key at time 0 is 1, whatever its disks. */
+#define KEY_LATER (1ull << 63)
+#ifndef ZERO_KEYS
+#define ZERO_KEYS 1
+#endif
 #ifdef SIM_FLOAT
 static __device__ __forceinline__ uint64_t time_key(real t)
 {
-    return (uint64_t)__float_as_uint(t) << 1;
+    return ZERO_KEYS ? (t > 0 ? (uint64_t)__float_as_uint(t) << 1 | KEY_LATER : 0) : (uint64_t)__float_as_uint(t) << 1;
 }
 
 static __device__ __forceinline__ real key_time(uint64_t hi)
 {
-    return __uint_as_float((unsigned)(hi >> 1));
+    return ZERO_KEYS ? (hi & KEY_LATER ? __uint_as_float((unsigned)((hi & ~KEY_LATER) >> 1)) : 0)
+                     : __uint_as_float((unsigned)(hi >> 1));
 }
 #else
 static __device__ __forceinline__ uint64_t time_key(real t)
 {
-    return (uint64_t)__double_as_longlong(t) << 1;
+    return ZERO_KEYS ? (t > 0 ? (uint64_t)__double_as_longlong(t) << 1 | KEY_LATER : 0)
+                     : (uint64_t)__double_as_longlong(t) << 1;
 }
 
 static __device__ __forceinline__ real key_time(uint64_t hi)
 {
-    return __longlong_as_double((long long)(hi >> 1));
+    return ZERO_KEYS ? (hi & KEY_LATER ? __longlong_as_double((long long)((hi & ~KEY_LATER) >> 1)) : 0)
+                     : __longlong_as_double((long long)(hi >> 1));
 }
 #endif
+
+/* A pair event's first key at time 0 (time_key), from its second (lo < 2^62: two 31-bit indices). */
+static __device__ __forceinline__ uint64_t zero_pair_key(uint64_t lo)
+{
+    return ZERO_KEYS ? lo << 1 | 1 : 1;
+}
 
 /* The slice of an event time t (0 <= t <= 1), K slices. bin_kernel and detect_kernel both use this
  * rounding of t K, which is monotone in t: an event before a disk's wall event is never in a later

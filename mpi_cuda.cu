@@ -24,6 +24,9 @@
  * rank for all N disks (8 bytes a disk a GPU), and travel in the records of disks that change ranks.
  */
 #define CUDA_LIBRARY
+/* a GPU rank's rounds always compare second keys (LO_IF_TIED is cuda's step loop's), so its events of time 0
+ * keep one first key (ZERO_KEYS would buy it nothing) */
+#define ZERO_KEYS 0
 #include "cuda.cu"
 #include "mpi_cuda.h"
 
@@ -631,7 +634,8 @@ static void round_launch(GpuRank *g, int first)
      * after the reduction that follows gpu_rank_round on every rank, and before its next one, while this
      * rank writes the other half */
     GpuKey *keys = g->peer ? region_keys(g->xreg, g->xcap, g->round & 1) : g->keys;
-    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo);
+    step_kernel(c, blocks, THREADS, 0, min_lo_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi, c->best_lo,
+                (const unsigned int *)NULL);
     if (g->nsend > 0) {
         step_kernel(c, blocks_for(g->nsend), THREADS, 0, rank_keys_out_kernel, g->send, g->nsend, slot_where(g),
                     c->best_hi, c->best_lo, c->partner, keys);
@@ -698,6 +702,7 @@ void gpu_rank_detect(GpuRank *g, double vmax)
             en.patches = NULL;
             en.best_lo = LO_AT_EVENT ? c->best_lo : NULL; /* the search starts its events' second keys */
             en.tally = g->settle ? c->partner : NULL; /* the first round settles (round_launch) */
+            en.ties = NULL;
             detect_launch(c, pl, 0, en);
         }
         g->started = false; /* the first round's passes below change them */
@@ -774,7 +779,7 @@ void gpu_rank_accept(GpuRank *g)
                     c->best_hi, c->best_lo, c->partner);
     }
     step_kernel(c, g->pl.choose_blocks[0], THREADS, 0, accept_kernel, c->ev[g->list], g->len, c->ev_cap, c->best_hi,
-                c->best_lo, c->partner);
+                c->best_lo, c->partner, (const unsigned int *)NULL);
     /* no wait: the next round, which always follows, waits for this one's work before the keys' buffer
      * is received into again */
 }
