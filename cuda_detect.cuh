@@ -203,7 +203,8 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
      * slice (detect_box), and its records leave k unwritten (LEAN_PROBES) */
     if (MID && gr.K > 1 && (slice_of(t, gr.K) >> PROBE_LEVEL(pr.k)) != (int64_t)PROBE_SLICE(pr.k)) return;
     PairEvent e;
-    e.hi = time_key(t) | 1; /* at time 0, 1: below every wall key but time 0's, as its own key (zero_pair_key) */
+    e.hi = time_key(t) | 1; /* at time 0, 1: below every wall key but time 0's, as its own key (zero_pair_key) will
+                               be; that one waits on the indices, which only an event past this test loads */
     uint64_t wall1 = lazy ? slot_wall<PERIODIC>(en, ps) : pr.wall;
     if (!(e.hi < wall1 && e.hi < (mine ? mine->wall : slot_wall<PERIODIC, GATED>(en, d))))
         return; /* a wall's first */
@@ -214,7 +215,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
     e.a = first ? s : s2;
     e.b = first ? s2 : s;
     e.lo = first ? ((uint64_t)id1 << 31 | (uint64_t)id2) : ((uint64_t)id2 << 31 | (uint64_t)id1);
-    if (e.hi == 1) e.hi = zero_pair_key(e.lo);
+    if (e.hi == 1) e.hi = zero_pair_key(e.lo); /* time 0: time_key(0) | 1 */
     unsigned long long at = atomicAdd(&be->n, 1ull);
     if (at < BLOCK_EVENTS) {
         be->e[at] = e;
@@ -228,7 +229,7 @@ static __device__ __forceinline__ void test_pair(const Entries &en, const Grid &
         unsigned long long ha = atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
         unsigned long long hb = atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
         if (ha == e.hi || hb == e.hi) *en.ties = 1;
-    } else {
+    } else { /* reductions, which nothing waits on */
         atomicMin((unsigned long long *)&best_hi[e.a], (unsigned long long)e.hi);
         atomicMin((unsigned long long *)&best_hi[e.b], (unsigned long long)e.hi);
     }

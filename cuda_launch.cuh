@@ -22,9 +22,9 @@ static void step_kernel(Cuda *c, int64_t blocks, int threads, size_t smem, void 
 }
 
 /* The choice among window w's pair events (wall: the wall events as it sees them); a plan that settles
- * (steps of one slice alone) settles them first. */
-static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring,
-                          const unsigned int *ties = NULL)
+ * (steps of one slice alone) settles them first. ties: the search's tie flag (LO_IF_TIED), which lets the first
+ * round skip the second keys, or NULL. */
+static void choose_launch(Cuda *c, const Plan *pl, int w, const uint64_t *wall, int ring, const unsigned int *ties)
 {
     phase_mark(c, ring, w, 4);
     int64_t blocks = pl->choose_blocks[w];

@@ -391,30 +391,38 @@ static __device__ __forceinline__ bool refused(const Control *ctl)
 #ifndef ZERO_KEYS
 #define ZERO_KEYS 1
 #endif
+/* A time's bits, and back (real: float or double) */
 #ifdef SIM_FLOAT
-static __device__ __forceinline__ uint64_t time_key(real t)
+static __device__ __forceinline__ uint64_t time_bits(real t)
 {
-    return ZERO_KEYS ? (t > 0 ? (uint64_t)__float_as_uint(t) << 1 | KEY_LATER : 0) : (uint64_t)__float_as_uint(t) << 1;
+    return (uint64_t)__float_as_uint(t);
 }
 
-static __device__ __forceinline__ real key_time(uint64_t hi)
+static __device__ __forceinline__ real bits_time(uint64_t b)
 {
-    return ZERO_KEYS ? (hi & KEY_LATER ? __uint_as_float((unsigned)((hi & ~KEY_LATER) >> 1)) : 0)
-                     : __uint_as_float((unsigned)(hi >> 1));
+    return __uint_as_float((unsigned)b);
 }
 #else
+static __device__ __forceinline__ uint64_t time_bits(real t)
+{
+    return (uint64_t)__double_as_longlong(t);
+}
+
+static __device__ __forceinline__ real bits_time(uint64_t b)
+{
+    return __longlong_as_double((long long)b);
+}
+#endif
+
 static __device__ __forceinline__ uint64_t time_key(real t)
 {
-    return ZERO_KEYS ? (t > 0 ? (uint64_t)__double_as_longlong(t) << 1 | KEY_LATER : 0)
-                     : (uint64_t)__double_as_longlong(t) << 1;
+    return ZERO_KEYS ? (t > 0 ? time_bits(t) << 1 | KEY_LATER : 0) : time_bits(t) << 1;
 }
 
 static __device__ __forceinline__ real key_time(uint64_t hi)
 {
-    return ZERO_KEYS ? (hi & KEY_LATER ? __longlong_as_double((long long)((hi & ~KEY_LATER) >> 1)) : 0)
-                     : __longlong_as_double((long long)(hi >> 1));
+    return ZERO_KEYS ? (hi & KEY_LATER ? bits_time((hi & ~KEY_LATER) >> 1) : 0) : bits_time(hi >> 1);
 }
-#endif
 
 /* A pair event's first key at time 0 (time_key), from its second (lo < 2^62: two 31-bit indices). */
 static __device__ __forceinline__ uint64_t zero_pair_key(uint64_t lo)
