@@ -241,6 +241,31 @@ static double buffer_bytes(const Cuda *c)
     return b + (double)c->scan_tmp_bytes + SCAN_TILES * 4;
 }
 
+/* Frees what buffers_grow (cuda_plan.cuh) allocates. cuda_close and a GPU rank's close (mpi_cuda.cu) both
+ * call it, so that a buffer added there is freed by both programs. */
+static void grown_free(Cuda *c)
+{
+    cudaFree(c->keys);
+    cudaFree(c->rank);
+    cudaFree(c->en.placed);
+    cudaFree(c->en.mid);
+    cudaFree(c->slot_of);
+    cudaFree(c->order);
+    cudaFree(c->count);
+    cudaFree(c->start);
+    cudaFree(c->scan_tmp);
+    cudaFree(c->pieces);
+    cudaFree(c->patch_at);
+    cudaFree(c->bcount);
+    cudaFree(c->bstart);
+    cudaFree(c->bucket);
+    cudaFree(c->wall_win);
+    cudaFree(c->act[0]);
+    cudaFree(c->act[1]);
+    cudaFree(c->lev);
+    cudaFree(c->level_of);
+}
+
 static void cuda_close(Cuda *c)
 {
     for (int b = 0; b < 2; b++)
@@ -249,30 +274,12 @@ static void cuda_close(Cuda *c)
     state_free(&c->st[1]);
     cudaFree(c->pc);
     cudaFree(c->wc);
-    cudaFree(c->keys);
-    cudaFree(c->rank);
-    cudaFree(c->slot_of);
-    cudaFree(c->order);
-    cudaFree(c->count);
-    cudaFree(c->start);
-    cudaFree(c->scan_tmp);
+    grown_free(c);
     cudaFree(c->tile_sums);
-    cudaFree(c->pieces);
-    cudaFree(c->patch_at);
-    cudaFree(c->bcount);
-    cudaFree(c->bstart);
-    cudaFree(c->bucket);
-    cudaFree(c->en.placed);
-    cudaFree(c->en.mid);
     cudaFree(c->wall_hi);
     cudaFree(c->best_hi);
     cudaFree(c->best_lo);
     cudaFree(c->partner);
-    cudaFree(c->wall_win);
-    cudaFree(c->act[0]);
-    cudaFree(c->act[1]);
-    cudaFree(c->lev);
-    cudaFree(c->level_of);
     cudaFree(c->ev[0]);
     cudaFree(c->ev[1]);
     cudaFree(c->counts);

@@ -238,9 +238,8 @@ void gpu_rank_close(GpuRank *g)
     cudaFree(g->pc), cudaFree(g->wc), cudaFree(g->hcand);
     cudaFree(c->wall_hi), cudaFree(c->best_hi), cudaFree(c->best_lo), cudaFree(c->partner);
     cudaFree(g->holes), cudaFree(g->fill_to), cudaFree(g->fill_from);
-    cudaFree(c->keys), cudaFree(c->rank), cudaFree(c->slot_of), cudaFree(c->order);
-    cudaFree(c->count), cudaFree(c->start), cudaFree(c->scan_tmp), cudaFree(c->tile_sums);
-    cudaFree(c->pieces), cudaFree(c->patch_at);
+    grown_free(c);
+    cudaFree(c->tile_sums);
     cudaFree(c->counts), cudaFree(c->info), cudaFree(c->ctl), cudaFree(c->grid), cudaFree(c->ahead);
     cudaFree(g->where), cudaFree(g->cand), cudaFree(g->send);
     cudaFree(g->view_cut), cudaFree(g->view_flags), cudaFree(g->halo_count);
