@@ -2,7 +2,8 @@
 # ./bench.sh gpu-*: on a machine with an NVIDIA GPU, builds everything, checks cuda against seq and
 # times cuda against omp on the same inputs. Logs and a CSV go to $OUT (default bench/tmp).
 #   ./bench.sh gpu-check   build, make test, compute-sanitizer memcheck on small scenes
-#   ./bench.sh gpu-memcheck  only the memcheck part
+#   ./bench.sh gpu-memcheck  only the memcheck part; exit status 1 where a run had errors or leaks or
+#                            printed other bytes than seq
 #   ./bench.sh gpu-perf    timings: fixed-density gas (N = 1e6, 1e7) and the assignment's random scene;
 #                            BASE=DIR also times DIR/cuda (an earlier build) on the same inputs, and
 #                            BASE_REV=REV builds revision REV's cuda beside this tree as that BASE
@@ -83,9 +84,9 @@ do_check() {
 }
 
 # compute-sanitizer memcheck of cuda and cuda_f32 (and mpi_cuda, where built) on small scenes, outputs
-# compared with seq.
+# compared with seq. Fails (exit 1) where a run had errors or leaks or printed other bytes than seq.
 do_memcheck() {
-    local san
+    local san failed=0
     san=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
     if [ ! -x "$san" ]; then
         echo "compute-sanitizer not found"
@@ -97,9 +98,10 @@ do_memcheck() {
         local label=$1 log=$2 expected=$3
         shift 3
         "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log" "$@" > "$DATA/checked.out" \
-            && echo "memcheck $label: clean" || { echo "memcheck $label: ERRORS"; tail -20 "$log"; }
+            && echo "memcheck $label: clean" \
+            || { echo "memcheck $label: ERRORS"; tail -20 "$log"; failed=$((failed + 1)); }
         cmp -s "$expected" "$DATA/checked.out" && echo "memcheck $label: output == seq" \
-            || echo "memcheck $label: output DIFFERS"
+            || { echo "memcheck $label: output DIFFERS"; failed=$((failed + 1)); }
     }
     tools/gen 3000 --fraction 0.3 --speed 2 --steps 5 --seed 11 > "$DATA/san.in"
     printf '2000\n20000\n1\n4\nprint\n' > "$DATA/san_random.in"
@@ -145,14 +147,23 @@ do_memcheck() {
                 "$san" --tool memcheck --leak-check full --error-exitcode 9 --log-file "$log.%p.log" \
                 ./mpi_cuda "$DATA/san_gas.in" --quiet > "$DATA/mpi_gas.out" \
                 && echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: clean" \
-                || { echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: ERRORS"; tail -n 20 "$log".*.log; }
+                || {
+                    echo "memcheck san_gas, mpi_cuda at 3 ranks, $e: ERRORS"
+                    tail -n 20 "$log".*.log
+                    failed=$((failed + 1))
+                }
             cmp -s "$DATA/gas.seq" "$DATA/mpi_gas.out" && echo "memcheck san_gas, mpi_cuda, $e: output == seq" \
-                || echo "memcheck san_gas, mpi_cuda, $e: output DIFFERS"
+                || { echo "memcheck san_gas, mpi_cuda, $e: output DIFFERS"; failed=$((failed + 1)); }
         done
     fi
     # the time windows, forced from one slice (a scene this small gets one window otherwise)
     SIM_CUDA_WINDOW=1 checked "san_random, windows" "$OUT/memcheck_windows.log" "$DATA/san_random.seq" ./cuda \
         "$DATA/san_random.in" --quiet
+    if [ "$failed" -gt 0 ]; then
+        echo "memcheck: $failed checks FAILED"
+        return 1
+    fi
+    echo "memcheck: every run clean, every output == seq"
 }
 
 # cuda, and BASE/cuda where given, on one input; BASE's output must be the same bytes.
